@@ -1,0 +1,189 @@
+"""Shared transformer building blocks (plain ``nn.Module`` s, ONNX-friendly: explicit matmuls, no fused kernels).
+
+Reused by every attention model of the zoo (graph transformer, frame transformer, spatio-temporal transformer...).
+"""
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import Tensor, nn
+
+__all__ = [
+    "ACTIVATIONS",
+    "NORMS",
+    "AddNorm",
+    "FeedForward",
+    "MultiHeadAttention",
+    "Norm",
+    "PositionEmbedding",
+    "SinusoidalPositionalEncoding",
+    "check_length",
+    "make_activation",
+]
+
+NORMS = ("layer", "batch")
+ACTIVATIONS = {"gelu": nn.GELU, "relu": nn.ReLU, "silu": nn.SiLU, "tanh": nn.Tanh}
+
+
+def make_activation(name: str) -> nn.Module:
+    """``"gelu" | "relu" | "silu" | "tanh"`` -> module; ValueError otherwise."""
+    if name not in ACTIVATIONS:
+        raise ValueError(f"activation must be one of {sorted(ACTIVATIONS)}, got {name!r}")
+    return ACTIVATIONS[name]()
+
+
+def check_length(length: int, max_len: int, what: str = "sequence length") -> None:
+    """Raise ValueError if ``length > max_len`` (skipped while tracing, where ``length`` is symbolic)."""
+    if torch.jit.is_tracing() or torch.compiler.is_compiling():
+        return
+    if int(length) > max_len:
+        raise ValueError(f"{what} {int(length)} exceeds max_frames={max_len}; raise max_frames in the model config")
+
+
+class MultiHeadAttention(nn.Module):
+    """Multi-head self-attention with an optional multiplicative mask on the attention *probabilities*.
+
+    Per head: ``Z = (prob_mask ⊙ softmax(Q Kᵀ / √d_head + attn_mask)) V`` — no renormalisation after the
+    multiplication (that is the graph-attention of the method).  Heads are concatenated and projected (W_O).
+    With both masks ``None`` this is standard scaled dot-product attention.
+
+    Mask conventions (same as :class:`torch.nn.MultiheadAttention`):
+
+    * ``attn_mask``: bool ``True`` = position NOT allowed, or float added to the scores; shape ``(L, L)`` or
+      broadcastable to ``(N, heads, L, L)``.
+    * ``key_padding_mask``: bool ``(N, L)``, ``True`` = padded key (ignored).
+    * ``prob_mask``: float ``(L, L)`` (or broadcastable to ``(N, heads, L, L)``) multiplied into the probabilities.
+
+    Fully masked rows get a uniform (not NaN) distribution, since masked scores use the dtype's finite minimum.
+    """
+
+    def __init__(self, d_model: int, heads: int, dropout: float = 0.0, bias: bool = True):
+        super().__init__()
+        if heads < 1 or d_model % heads != 0:
+            raise ValueError(f"heads must divide d_model (d_model={d_model}, heads={heads})")
+        self.d_model, self.heads, self.head_dim = d_model, heads, d_model // heads
+        self.scale = 1.0 / math.sqrt(self.head_dim)
+        self.q_proj = nn.Linear(d_model, d_model, bias=bias)
+        self.k_proj = nn.Linear(d_model, d_model, bias=bias)
+        self.v_proj = nn.Linear(d_model, d_model, bias=bias)
+        self.out_proj = nn.Linear(d_model, d_model, bias=bias)
+        self.dropout = nn.Dropout(dropout)
+
+    def _split(self, t: Tensor) -> Tensor:
+        """``(N, L, D) -> (N, heads, L, head_dim)``."""
+        return t.reshape(t.shape[0], -1, self.heads, self.head_dim).transpose(1, 2)
+
+    def attention_probs(
+        self,
+        x: Tensor,
+        prob_mask: Tensor | None = None,
+        attn_mask: Tensor | None = None,
+        key_padding_mask: Tensor | None = None,
+    ) -> Tensor:
+        """Effective attention weights ``(N, heads, L, L)`` = ``prob_mask ⊙ softmax(...)`` (before dropout)."""
+        q, k = self._split(self.q_proj(x)), self._split(self.k_proj(x))
+        scores = torch.matmul(q, k.transpose(-2, -1)) * self.scale
+        neg = torch.finfo(scores.dtype).min
+        if attn_mask is not None:
+            if attn_mask.dtype == torch.bool:
+                scores = scores.masked_fill(attn_mask, neg)
+            else:
+                scores = scores + attn_mask.to(scores.dtype)
+        if key_padding_mask is not None:
+            scores = scores.masked_fill(key_padding_mask[:, None, None, :].to(torch.bool), neg)
+        probs = torch.softmax(scores, dim=-1)
+        if prob_mask is not None:
+            probs = probs * prob_mask.to(probs.dtype)
+        return probs
+
+    def forward(
+        self,
+        x: Tensor,
+        prob_mask: Tensor | None = None,
+        attn_mask: Tensor | None = None,
+        key_padding_mask: Tensor | None = None,
+    ) -> Tensor:
+        """``x (N, L, D) -> (N, L, D)``; masks as described in the class docstring."""
+        probs = self.dropout(self.attention_probs(x, prob_mask, attn_mask, key_padding_mask))
+        out = torch.matmul(probs, self._split(self.v_proj(x)))  # (N, H, L, head_dim)
+        out = out.transpose(1, 2).reshape(x.shape[0], -1, self.d_model)
+        return self.out_proj(out)
+
+
+class Norm(nn.Module):
+    """Normalise the last dim of ``(..., D)``: ``"layer"`` (LayerNorm) or ``"batch"`` (BatchNorm1d over all
+    leading dims flattened, i.e. statistics over every token of the batch)."""
+
+    def __init__(self, kind: str, d_model: int):
+        super().__init__()
+        if kind not in NORMS:
+            raise ValueError(f"norm must be one of {list(NORMS)}, got {kind!r}")
+        self.kind = kind
+        self.norm = nn.LayerNorm(d_model) if kind == "layer" else nn.BatchNorm1d(d_model)
+
+    def forward(self, x: Tensor) -> Tensor:
+        """``(..., D) -> (..., D)``."""
+        if self.kind == "layer":
+            return self.norm(x)
+        return self.norm(x.reshape(-1, x.shape[-1])).reshape(x.shape)
+
+
+class AddNorm(nn.Module):
+    """Post-norm residual: ``norm(x + dropout(y))``."""
+
+    def __init__(self, d_model: int, norm: str = "layer", dropout: float = 0.0):
+        super().__init__()
+        self.norm = Norm(norm, d_model)
+        self.dropout = nn.Dropout(dropout)
+
+    def forward(self, x: Tensor, y: Tensor) -> Tensor:
+        """``x, y (..., D) -> (..., D)``."""
+        return self.norm(x + self.dropout(y))
+
+
+class FeedForward(nn.Module):
+    """Position-wise MLP ``D -> ffn_dim -> D`` with activation and dropout on the hidden layer."""
+
+    def __init__(self, d_model: int, ffn_dim: int, dropout: float = 0.0, activation: str = "gelu"):
+        super().__init__()
+        self.net = nn.Sequential(
+            nn.Linear(d_model, ffn_dim), make_activation(activation), nn.Dropout(dropout), nn.Linear(ffn_dim, d_model)
+        )
+
+    def forward(self, x: Tensor) -> Tensor:
+        """``(..., D) -> (..., D)``."""
+        return self.net(x)
+
+
+class SinusoidalPositionalEncoding(nn.Module):
+    """Fixed sine/cosine table; ``forward(length) -> (length, D)`` (``length <= max_len``)."""
+
+    def __init__(self, d_model: int, max_len: int):
+        super().__init__()
+        self.max_len = max_len
+        pos = torch.arange(max_len, dtype=torch.float32)[:, None]
+        freq = torch.exp(torch.arange(0, d_model, 2, dtype=torch.float32) * (-math.log(10000.0) / d_model))
+        pe = torch.zeros(max_len, d_model)
+        pe[:, 0::2] = torch.sin(pos * freq)
+        pe[:, 1::2] = torch.cos(pos * freq)[:, : d_model // 2]
+        self.register_buffer("pe", pe, persistent=False)
+
+    def forward(self, length: int) -> Tensor:
+        """``length -> (length, D)``; ValueError if ``length > max_len``."""
+        check_length(length, self.max_len)
+        return self.pe[:length]
+
+
+class PositionEmbedding(nn.Module):
+    """Learned position table ``(max_len, D)``; ``forward(length) -> (length, D)``."""
+
+    def __init__(self, max_len: int, d_model: int):
+        super().__init__()
+        self.max_len = max_len
+        self.weight = nn.Parameter(torch.randn(max_len, d_model) * 0.02)
+
+    def forward(self, length: int) -> Tensor:
+        """``length -> (length, D)``; ValueError if ``length > max_len``."""
+        check_length(length, self.max_len)
+        return self.weight[:length]

@@ -1,0 +1,174 @@
+"""Graph-attention in-betweening transformer (patent CN113112577A).
+
+Tokens are the joints of every frame.  Each layer: (a) spatial self-attention across the ``J`` joints of a frame
+whose attention probabilities are multiplied by the joint relation matrix ``M`` (``Z = (M ⊙ softmax(QKᵀ/√d)) V``
+per head, no renormalisation); residual + norm; (b) temporal self-attention across the ``T`` frames of each joint;
+residual + norm; (c) feed-forward; residual + norm (post-norm throughout).
+"""
+from __future__ import annotations
+
+import torch
+from torch import Tensor, nn
+
+from .base import FEATURE_DIM, InbetweenModel
+from .blocks import NORMS, AddNorm, FeedForward, MultiHeadAttention, PositionEmbedding, SinusoidalPositionalEncoding
+
+# multiply      : Z = (M ⊙ softmax_M(QKᵀ/√d)) V, the softmax taken over the M-neighbourhood, so a joint's output
+#                 depends only on its neighbours (exact locality; for binary M the product keeps the support).
+# multiply_full : the formula read literally, softmax over ALL joints then ⊙ M, no renormalisation; non-neighbours
+#                 still leak in through the softmax normaliser (kept as an ablation).
+# none          : plain attention over all joints (what M buys).
+GRAPH_MODES = ("multiply", "multiply_full", "none")
+POS_ENCODINGS = ("sinusoidal", "learned")
+
+
+class GraphTransformerLayer(nn.Module):
+    """One spatial (graph) + temporal + feed-forward layer on ``(B, T, J, D)``."""
+
+    def __init__(self, d_model: int, heads: int, ffn_dim: int, dropout: float, norm: str, activation: str = "gelu"):
+        super().__init__()
+        self.spatial = MultiHeadAttention(d_model, heads, dropout)
+        self.spatial_norm = AddNorm(d_model, norm, dropout)
+        self.temporal = MultiHeadAttention(d_model, heads, dropout)
+        self.temporal_norm = AddNorm(d_model, norm, dropout)
+        self.ffn = FeedForward(d_model, ffn_dim, dropout, activation)
+        self.ffn_norm = AddNorm(d_model, norm, dropout)
+
+    def forward(self, h: Tensor, prob_mask: Tensor | None = None, attn_mask: Tensor | None = None) -> Tensor:
+        """``h (B, T, J, D), prob_mask / attn_mask (J, J) | None -> (B, T, J, D)``."""
+        j, d = h.shape[-2], h.shape[-1]
+        t = h.shape[1]
+        s = h.reshape(-1, j, d)  # (B*T, J, D)
+        s = self.spatial_norm(s, self.spatial(s, prob_mask=prob_mask, attn_mask=attn_mask))
+        tm = s.reshape(-1, t, j, d).transpose(1, 2).reshape(-1, t, d)  # (B*J, T, D)
+        tm = self.temporal_norm(tm, self.temporal(tm))
+        h = tm.reshape(-1, j, t, d).transpose(1, 2)  # (B, T, J, D)
+        return self.ffn_norm(h, self.ffn(h))
+
+
+class GraphTransformer(InbetweenModel):
+    """Graph-attention in-betweening transformer.
+
+    Args (plain values only, so it can be built from a Hydra config):
+        num_joints: ``J``.
+        adjacency: ``J x J`` nested list, the joint relation matrix ``M`` (1 for parent/child and the diagonal; it
+            may already encode k-hop neighbourhoods, see ``hops``).
+        feature_dim: features per joint ``F`` (>= 7: pos xyz + quaternion wxyz).
+        d_model, depth, heads: transformer width, number of layers, attention heads (``d_model % heads == 0``).
+        ffn_dim: feed-forward hidden width (default ``2 * d_model``).
+        dropout: dropout of attention probabilities, residual branches and the feed-forward hidden layer.
+        norm: ``"layer"`` or ``"batch"``.
+        graph: ``"multiply"`` (the method: M ⊙ softmax over the M-neighbourhood), ``"multiply_full"`` (softmax over
+            all joints then ⊙ M, the formula read literally) or ``"none"`` (plain attention); see ``GRAPH_MODES``.
+        residual_to_interpolation: predict ``interp + head(h)`` when ``interp`` is given (head initialised to 0).
+        max_frames: longest supported window ``T``.
+        hops: documentation only (the adjacency passed in already encodes it).
+        pos_encoding: temporal position encoding, ``"sinusoidal"`` or ``"learned"``.
+        activation: feed-forward activation (``gelu``, ``relu``, ``silu``, ``tanh``).
+    """
+
+    def __init__(
+        self,
+        num_joints: int,
+        adjacency: list[list[float]],
+        feature_dim: int = FEATURE_DIM,
+        d_model: int = 64,
+        depth: int = 6,
+        heads: int = 4,
+        ffn_dim: int | None = None,
+        dropout: float = 0.1,
+        norm: str = "layer",
+        graph: str = "multiply",
+        residual_to_interpolation: bool = False,
+        max_frames: int = 128,
+        hops: int = 1,
+        pos_encoding: str = "sinusoidal",
+        activation: str = "gelu",
+    ):
+        super().__init__()
+        ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
+        adj = self._validate(num_joints, adjacency, feature_dim, d_model, depth, heads, ffn_dim, dropout, norm,
+                             graph, max_frames, pos_encoding)
+        self.num_joints, self.feature_dim, self.d_model = num_joints, feature_dim, d_model
+        self.graph, self.hops, self.max_frames = graph, hops, max_frames
+        self.residual_to_interpolation = bool(residual_to_interpolation)
+        self.register_buffer("adjacency", adj)
+        if graph == "multiply":  # softmax restricted to the neighbourhood: -inf (finite min) outside it
+            self.register_buffer("graph_attn_mask", adj <= 0, persistent=False)
+
+        # per-joint input projection (J separate Linear layers as one batched einsum)
+        self.in_weight = nn.Parameter(torch.empty(num_joints, feature_dim, d_model))
+        self.in_bias = nn.Parameter(torch.zeros(num_joints, d_model))
+        self.joint_embed = nn.Parameter(torch.randn(num_joints, d_model) * 0.02)
+        self.flag_embed = nn.Embedding(2, d_model)
+        nn.init.normal_(self.flag_embed.weight, std=0.02)
+        if pos_encoding == "learned":
+            self.time_embed: nn.Module = PositionEmbedding(max_frames, d_model)
+        else:
+            self.time_embed = SinusoidalPositionalEncoding(d_model, max_frames)
+        self.layers = nn.ModuleList(
+            GraphTransformerLayer(d_model, heads, ffn_dim, dropout, norm, activation) for _ in range(depth)
+        )
+        # per-joint output head
+        self.out_weight = nn.Parameter(torch.empty(num_joints, d_model, feature_dim))
+        self.out_bias = nn.Parameter(torch.zeros(num_joints, feature_dim))
+        self._reset_projections()
+
+    @staticmethod
+    def _validate(num_joints, adjacency, feature_dim, d_model, depth, heads, ffn_dim, dropout, norm, graph,
+                  max_frames, pos_encoding) -> Tensor:
+        def need(cond: bool, msg: str) -> None:
+            if not cond:
+                raise ValueError(f"GraphTransformer: {msg}")
+
+        need(num_joints >= 1, f"num_joints must be >= 1, got {num_joints}")
+        need(feature_dim >= FEATURE_DIM, f"feature_dim must be >= {FEATURE_DIM} (pos + quaternion), got {feature_dim}")
+        need(depth >= 1, f"depth must be >= 1, got {depth}")
+        need(d_model >= 1 and heads >= 1, f"d_model and heads must be >= 1, got d_model={d_model}, heads={heads}")
+        need(d_model % heads == 0, f"d_model ({d_model}) must be divisible by heads ({heads})")
+        need(ffn_dim >= 1, f"ffn_dim must be >= 1, got {ffn_dim}")
+        need(0.0 <= dropout < 1.0, f"dropout must be in [0, 1), got {dropout}")
+        need(norm in NORMS, f"norm must be one of {list(NORMS)}, got {norm!r}")
+        need(graph in GRAPH_MODES, f"graph must be one of {list(GRAPH_MODES)}, got {graph!r}")
+        need(max_frames >= 1, f"max_frames must be >= 1, got {max_frames}")
+        need(pos_encoding in POS_ENCODINGS, f"pos_encoding must be one of {list(POS_ENCODINGS)}, got {pos_encoding!r}")
+        try:
+            adj = torch.as_tensor(adjacency, dtype=torch.float32)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"GraphTransformer: adjacency must be a J x J nested list of numbers ({e})") from e
+        need(tuple(adj.shape) == (num_joints, num_joints),
+             f"adjacency must have shape ({num_joints}, {num_joints}), got {tuple(adj.shape)}")
+        need(bool(torch.isfinite(adj).all()), "adjacency must be finite")
+        return adj
+
+    def _reset_projections(self) -> None:
+        # same scale as nn.Linear's default init (uniform ±1/sqrt(fan_in)), per joint
+        with torch.no_grad():
+            self.in_weight.uniform_(-self.feature_dim**-0.5, self.feature_dim**-0.5)
+            if self.residual_to_interpolation:  # start from the interpolation
+                self.out_weight.zero_()
+            else:
+                self.out_weight.uniform_(-self.d_model**-0.5, self.d_model**-0.5)
+
+    def _graph_masks(self) -> tuple[Tensor | None, Tensor | None]:
+        if self.graph == "multiply":
+            return self.adjacency, self.graph_attn_mask
+        if self.graph == "multiply_full":
+            return self.adjacency, None
+        return None, None
+
+    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
+        """``x (B, T, J, F), known (B, T, J) bool, interp (B, T, J, F) | None -> (B, T, J, F)``."""
+        if x.dim() != 4 or x.shape[-2] != self.num_joints or x.shape[-1] != self.feature_dim:
+            raise ValueError(f"GraphTransformer: x must be (B, T, {self.num_joints}, {self.feature_dim}), "
+                             f"got {tuple(x.shape)}")
+        h = torch.einsum("btjf,jfd->btjd", x, self.in_weight) + self.in_bias
+        h = h + self.joint_embed + self.flag_embed(known.long())
+        h = h + self.time_embed(x.shape[1])[:, None, :]
+        prob_mask, attn_mask = self._graph_masks()
+        for layer in self.layers:
+            h = layer(h, prob_mask=prob_mask, attn_mask=attn_mask)
+        raw = torch.einsum("btjd,jdf->btjf", h, self.out_weight) + self.out_bias
+        if self.residual_to_interpolation and interp is not None:
+            raw = interp + raw
+        return self.finalize(raw, x, known)

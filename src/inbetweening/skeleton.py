@@ -1,0 +1,131 @@
+"""Skeleton description and forward / inverse kinematics (numpy and torch).
+
+A skeleton is a tree of ``J`` joints listed so that every parent comes before its children
+(``parents[0] == -1`` is the root).  Local data per frame: rotations ``(..., J, 4)`` wxyz and
+positions ``(..., J, 3)`` (the root's is its global position; the others are normally the bone
+offsets).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from .quaternion import Array, qinv, qmul, qrot
+
+
+def _cat_joints(parts: list) -> Array:
+    if isinstance(parts[0], torch.Tensor):
+        return torch.cat(parts, dim=-2)
+    return np.concatenate(parts, axis=-2)
+
+
+def fk(local_q: Array, local_p: Array, parents) -> tuple[Array, Array]:
+    """Forward kinematics.  ``(..., J, 4), (..., J, 3) -> global (..., J, 4), (..., J, 3)``.
+
+    Works for numpy arrays and torch tensors alike (autograd flows through the torch path).
+    """
+    gq, gp = [local_q[..., :1, :]], [local_p[..., :1, :]]
+    for j in range(1, len(parents)):
+        p = parents[j]
+        gp.append(qrot(gq[p], local_p[..., j : j + 1, :]) + gp[p])
+        gq.append(qmul(gq[p], local_q[..., j : j + 1, :]))
+    return _cat_joints(gq), _cat_joints(gp)
+
+
+def ik(global_q: Array, global_p: Array, parents) -> tuple[Array, Array]:
+    """Inverse of :func:`fk`.  ``(..., J, 4), (..., J, 3) -> local (..., J, 4), (..., J, 3)``."""
+    par = list(parents[1:])
+    inv_parent = qinv(global_q[..., par, :])
+    local_q = _cat_joints([global_q[..., :1, :], qmul(inv_parent, global_q[..., 1:, :])])
+    local_p = _cat_joints([global_p[..., :1, :], qrot(inv_parent, global_p[..., 1:, :] - global_p[..., par, :])])
+    return local_q, local_p
+
+
+@dataclass(frozen=True)
+class Skeleton:
+    """Joint names, parent indices (root = -1, parents before children) and bone offsets ``(J, 3)``."""
+
+    names: tuple[str, ...]
+    parents: tuple[int, ...]
+    offsets: np.ndarray = field(repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "names", tuple(self.names))
+        object.__setattr__(self, "parents", tuple(int(p) for p in self.parents))
+        object.__setattr__(self, "offsets", np.asarray(self.offsets, dtype=np.float64).reshape(-1, 3))
+        n = len(self.names)
+        if len(self.parents) != n or self.offsets.shape[0] != n:
+            raise ValueError(f"Skeleton: {n} names, {len(self.parents)} parents, {self.offsets.shape[0]} offsets")
+        if n == 0 or self.parents[0] != -1:
+            raise ValueError("Skeleton: joint 0 must be the root (parent -1)")
+        for j, p in enumerate(self.parents[1:], start=1):
+            if not 0 <= p < j:
+                raise ValueError(f"Skeleton: joint {self.names[j]!r} has parent {p}; parents must come first")
+
+    @property
+    def num_joints(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        return self.names.index(name)
+
+    def children(self, j: int) -> list[int]:
+        return [c for c, p in enumerate(self.parents) if p == j]
+
+    def adjacency(self, hops: int = 1, self_loops: bool = True) -> np.ndarray:
+        """Joint relation matrix ``(J, J)``: 1 where joints are within ``hops`` bones of each other.
+
+        With ``hops=1`` this is the parent/child relation matrix M of the method (plus the
+        diagonal when ``self_loops``).
+        """
+        n = self.num_joints
+        a = np.eye(n, dtype=np.float32)
+        for j, p in enumerate(self.parents):
+            if p >= 0:
+                a[j, p] = a[p, j] = 1.0
+        reach = np.eye(n, dtype=np.float32)
+        for _ in range(max(int(hops), 0)):
+            reach = np.minimum(reach @ a, 1.0)
+        if not self_loops:
+            np.fill_diagonal(reach, 0.0)
+        return reach
+
+    def bone_pairs(self) -> np.ndarray:
+        """``(J-1, 2)`` (child, parent) index pairs."""
+        return np.array([(j, p) for j, p in enumerate(self.parents) if p >= 0], dtype=np.int64).reshape(-1, 2)
+
+    def local_positions(self, root_pos: Array) -> Array:
+        """Root positions ``(..., 3)`` -> local positions ``(..., J, 3)`` with the offsets for non-root joints."""
+        if isinstance(root_pos, torch.Tensor):
+            off = torch.as_tensor(self.offsets, dtype=root_pos.dtype, device=root_pos.device)
+            off = off.expand(root_pos.shape[:-1] + off.shape).clone()
+            off[..., 0, :] = root_pos
+            return off
+        off = np.broadcast_to(self.offsets, root_pos.shape[:-1] + self.offsets.shape).copy()
+        off[..., 0, :] = root_pos
+        return off
+
+    def fk(self, local_q: Array, local_p: Array) -> tuple[Array, Array]:
+        return fk(local_q, local_p, self.parents)
+
+    def ik(self, global_q: Array, global_p: Array) -> tuple[Array, Array]:
+        return ik(global_q, global_p, self.parents)
+
+    def to_dict(self) -> dict:
+        """Plain-value form (lists of str/int/float) for checkpoints and JSON."""
+        return {"names": list(self.names), "parents": list(self.parents), "offsets": self.offsets.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Skeleton":
+        return cls(tuple(d["names"]), tuple(d["parents"]), np.asarray(d["offsets"], dtype=np.float64))
+
+    def same_topology(self, other: "Skeleton") -> bool:
+        return self.names == other.names and self.parents == other.parents
+
+    def __eq__(self, other) -> bool:  # offsets are an array: compare explicitly
+        return isinstance(other, Skeleton) and self.same_topology(other) and np.allclose(self.offsets, other.offsets)
+
+    def __hash__(self) -> int:
+        return hash((self.names, self.parents))
