@@ -98,7 +98,14 @@ def test_slerp_endpoints_midpoint_and_torch_agree():
     np.testing.assert_allclose(Q.qangle(q0, mid) * 2, Q.qangle(q0, q1), atol=1e-7)
     t = rng.uniform(size=20)
     ours = Q.slerp_torch(torch.from_numpy(q0), torch.from_numpy(q1), torch.from_numpy(t)).numpy()
-    np.testing.assert_allclose(np.abs(np.sum(ours * Q.slerp_np(q0, q1, t), -1)), 1, atol=1e-5)
+    np.testing.assert_allclose(ours, Q.slerp_np(q0, q1, t), atol=1e-7)
+    # against roma's independent implementation (away from the linear-fallback zone)
+    steps = torch.linspace(0, 1, 5, dtype=torch.float64)
+    far = np.abs(np.sum(q0 * q1, -1)) < 0.95
+    ref = Q.slerp_roma(torch.from_numpy(q0[far]), torch.from_numpy(q1[far]), steps).numpy()
+    for i, s in enumerate(steps.numpy()):
+        mine = Q.slerp_np(q0[far], q1[far], s)
+        np.testing.assert_allclose(np.abs(np.sum(mine * ref[i], -1)), 1, atol=1e-9)
 
 
 def test_slerp_linear_fallback_for_close_quaternions():

@@ -253,16 +253,27 @@ def score_transition(
     bench: BenchmarkSet, pred_root: np.ndarray, pred_q: np.ndarray, n: int, n_past: int = N_PAST
 ) -> dict[str, float]:
     """L2Q, L2P and NPSS of predicted transition frames ``(B, n, 3), (B, n, J, 4)`` against the windows."""
-    skel = bench.skeleton
     sl = slice(n_past, n_past + n)
-    gt_q = bench.Q[:, sl]
-    gt_x = skel.local_positions(bench.X[:, sl, 0])
-    gt_gq, gt_gp = fk(gt_q, gt_x, skel.parents)
-    pr_gq, pr_gp = fk(pred_q, skel.local_positions(pred_root), skel.parents)
+    return score(bench.X[:, sl, 0], bench.Q[:, sl], pred_root, pred_q, bench.skeleton, bench.mean, bench.std, n)
+
+
+def score(
+    gt_root: np.ndarray, gt_q: np.ndarray, pred_root: np.ndarray, pred_q: np.ndarray, skeleton: Skeleton,
+    mean: np.ndarray, std: np.ndarray, n: int,
+) -> dict[str, float]:
+    """The three benchmark metrics for ``n`` transition frames.
+
+    ``gt_root, pred_root (B, n, 3)``, ``gt_q, pred_q (B, n, J, 4)`` local; non-root joints use the
+    skeleton offsets; returns ``{"l2q@n", "l2p@n", "npss@n"}``.
+    """
+    gt_gq, gt_gp = fk(np.asarray(gt_q, np.float64), skeleton.local_positions(np.asarray(gt_root, np.float64)),
+                      skeleton.parents)
+    pr_gq, pr_gp = fk(np.asarray(pred_q, np.float64), skeleton.local_positions(np.asarray(pred_root, np.float64)),
+                      skeleton.parents)
     b = gt_gq.shape[0]
     return {
         f"l2q@{n}": l2q(pr_gq, gt_gq),
-        f"l2p@{n}": l2p(pr_gp, gt_gp, bench.mean, bench.std),
+        f"l2p@{n}": l2p(pr_gp, gt_gp, mean, std),
         f"npss@{n}": npss(gt_gq.reshape(b, n, -1), pr_gq.reshape(b, n, -1)),
     }
 

@@ -212,32 +212,31 @@ def slerp_np(q0: np.ndarray, q1: np.ndarray, t: np.ndarray | float, linear_eps: 
     return qnormalize(w0[..., None] * q0 + w1[..., None] * q1)
 
 
-def slerp_torch(q0: torch.Tensor, q1: torch.Tensor, t: torch.Tensor | float) -> torch.Tensor:
-    """Torch twin of :func:`slerp_np` through ``roma.unitquat_slerp`` (shortest arc).
+def slerp_torch(q0: torch.Tensor, q1: torch.Tensor, t: torch.Tensor | float, linear_eps: float = 0.01) -> torch.Tensor:
+    """Torch twin of :func:`slerp_np` (same shortest-arc rule and linear fallback), differentiable.
 
     ``(..., 4), (..., 4), (...) -> (..., 4)``; ``t`` broadcasts against the batch shape.
     """
-    q0 = qnormalize(q0)
-    q1 = qnormalize(q1)
+    q0, q1 = qnormalize(q0), qnormalize(q1)
+    dot = (q0 * q1).sum(-1)
+    q1 = torch.where((dot < 0)[..., None], -q1, q1)
+    dot = dot.abs()
     t = torch.as_tensor(t, dtype=q0.dtype, device=q0.device)
-    t = t.expand(torch.broadcast_shapes(t.shape, q0.shape[:-1]))
-    q0, q1 = torch.broadcast_tensors(q0, q1)
-    q0, q1 = q0.expand(t.shape + (4,)), q1.expand(t.shape + (4,))
-    flat0, flat1 = wxyz_to_xyzw(q0).reshape(-1, 4), wxyz_to_xyzw(q1).reshape(-1, 4)
-    tt = t.reshape(-1)
-    # roma.unitquat_slerp interpolates each pair at each step; we need pairwise steps
-    out = _roma_pairwise_slerp(flat0, flat1, tt)
-    return qnormalize(xyzw_to_wxyz(out).reshape(t.shape + (4,)))
+    linear = (1.0 - dot) < linear_eps
+    omega = torch.acos(dot.clamp(max=1.0 - 1e-7))
+    sin_omega = torch.where(linear, torch.ones_like(omega), torch.sin(omega))
+    w0 = torch.where(linear, 1.0 - t, torch.sin((1.0 - t) * omega) / sin_omega)
+    w1 = torch.where(linear, t + 0 * omega, torch.sin(t * omega) / sin_omega)
+    return qnormalize(w0[..., None] * q0 + w1[..., None] * q1)
 
 
-def _roma_pairwise_slerp(q0: torch.Tensor, q1: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-    """Slerp of N pairs at N individual steps, (N,4),(N,4),(N,) xyzw -> (N,4) xyzw, shortest arc."""
-    dot = (q0 * q1).sum(-1, keepdim=True)
-    q1 = torch.where(dot < 0, -q1, q1)
-    # relative rotation q0^-1 q1 as a rotation vector, scaled by t, composed back onto q0
-    rel = roma.quat_product(roma.quat_conjugation(q0), q1)
-    rotvec = roma.unitquat_to_rotvec(rel, shortest_arc=True)
-    return roma.quat_product(q0, roma.rotvec_to_unitquat(rotvec * t[:, None]))
+def slerp_roma(q0: torch.Tensor, q1: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
+    """Slerp through ``roma.unitquat_slerp`` (wxyz in and out): ``(N, 4), (N, 4), (S,) -> (S, N, 4)``.
+
+    Used by the tests as an independent implementation to check :func:`slerp_torch` against.
+    """
+    out = roma.unitquat_slerp(wxyz_to_xyzw(qnormalize(q0)), wxyz_to_xyzw(qnormalize(q1)), steps, shortest_arc=True)
+    return xyzw_to_wxyz(out)
 
 
 def wxyz_to_xyzw(q: Array) -> Array:

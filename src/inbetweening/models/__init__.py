@@ -2,9 +2,22 @@
 from __future__ import annotations
 
 from .base import InbetweenModel
+from .baselines import Interpolation, ZeroVelocity
+from .frame_transformer import FrameTransformer
 from .graph_transformer import GraphTransformer
+from .resnet_lstm import ResNetLSTM
+from .st_transformer import STTransformer
+from .unet1d import UNet1D
 
-MODELS: dict[str, type[InbetweenModel]] = {"graph_transformer": GraphTransformer}
+MODELS: dict[str, type[InbetweenModel]] = {
+    "graph_transformer": GraphTransformer,
+    "frame_transformer": FrameTransformer,
+    "st_transformer": STTransformer,
+    "resnet_lstm": ResNetLSTM,
+    "unet1d": UNet1D,
+    "zero_velocity": ZeroVelocity,
+    "interpolation": Interpolation,
+}
 
 
 def build_model(name: str, **kwargs) -> InbetweenModel:
@@ -14,4 +27,15 @@ def build_model(name: str, **kwargs) -> InbetweenModel:
     return MODELS[name](**kwargs)
 
 
-__all__ = ["MODELS", "GraphTransformer", "InbetweenModel", "build_model"]
+__all__ = [
+    "MODELS",
+    "FrameTransformer",
+    "GraphTransformer",
+    "InbetweenModel",
+    "Interpolation",
+    "ResNetLSTM",
+    "STTransformer",
+    "UNet1D",
+    "ZeroVelocity",
+    "build_model",
+]

@@ -1,6 +1,8 @@
 """Shared transformer building blocks (plain ``nn.Module`` s, ONNX-friendly: explicit matmuls, no fused kernels).
 
-Reused by every attention model of the zoo (graph transformer, frame transformer, spatio-temporal transformer...).
+Reused by every model of the zoo (graph transformer, frame transformer, spatio-temporal transformer, ResNet-LSTM,
+1D U-Net...): attention, norms, generic pre-/post-norm transformer encoder, residual MLP, and the small helpers
+every model needs (argument validation, input checks, per-frame feature flattening with the per-joint known flags).
 """
 from __future__ import annotations
 
@@ -17,9 +19,16 @@ __all__ = [
     "MultiHeadAttention",
     "Norm",
     "PositionEmbedding",
+    "ResidualMLPBlock",
     "SinusoidalPositionalEncoding",
+    "TransformerBlock",
+    "TransformerEncoder",
+    "check_input",
     "check_length",
+    "frame_features",
     "make_activation",
+    "require",
+    "validate_common",
 ]
 
 NORMS = ("layer", "batch")
@@ -187,3 +196,142 @@ class PositionEmbedding(nn.Module):
         """``length -> (length, D)``; ValueError if ``length > max_len``."""
         check_length(length, self.max_len)
         return self.weight[:length]
+
+
+class TransformerBlock(nn.Module):
+    """Standard transformer encoder layer on ``(N, L, D)``: self-attention then feed-forward, each with a residual.
+
+    * ``norm_first=False`` (post-norm, Vaswani et al.): ``z = norm(z + MSA(z))``, ``z = norm(z + MLP(z))``.
+    * ``norm_first=True`` (pre-norm, ViT / PoseFormer): ``z' = MSA(norm(z)) + z``, ``z = MLP(norm(z')) + z'``.
+
+    Explicit ops only (no fused ``nn.TransformerEncoderLayer`` fast path), so it exports to ONNX.
+    """
+
+    def __init__(
+        self,
+        d_model: int,
+        heads: int,
+        ffn_dim: int,
+        dropout: float = 0.0,
+        norm: str = "layer",
+        activation: str = "gelu",
+        norm_first: bool = False,
+    ):
+        super().__init__()
+        self.norm_first = bool(norm_first)
+        self.attn = MultiHeadAttention(d_model, heads, dropout)
+        self.ffn = FeedForward(d_model, ffn_dim, dropout, activation)
+        self.norm1 = Norm(norm, d_model)
+        self.norm2 = Norm(norm, d_model)
+        self.dropout1 = nn.Dropout(dropout)
+        self.dropout2 = nn.Dropout(dropout)
+
+    def forward(self, x: Tensor, attn_mask: Tensor | None = None, key_padding_mask: Tensor | None = None) -> Tensor:
+        """``x (N, L, D) -> (N, L, D)``; masks as in :class:`MultiHeadAttention`."""
+        if self.norm_first:
+            x = x + self.dropout1(self.attn(self.norm1(x), attn_mask=attn_mask, key_padding_mask=key_padding_mask))
+            return x + self.dropout2(self.ffn(self.norm2(x)))
+        x = self.norm1(x + self.dropout1(self.attn(x, attn_mask=attn_mask, key_padding_mask=key_padding_mask)))
+        return self.norm2(x + self.dropout2(self.ffn(x)))
+
+
+class TransformerEncoder(nn.Module):
+    """Stack of ``depth`` :class:`TransformerBlock` s on ``(N, L, D)``, optionally followed by a final norm
+    (``final_norm=None``: on for pre-norm stacks, whose residual stream is otherwise unnormalised, off for post-norm)."""
+
+    def __init__(
+        self,
+        d_model: int,
+        depth: int,
+        heads: int,
+        ffn_dim: int,
+        dropout: float = 0.0,
+        norm: str = "layer",
+        activation: str = "gelu",
+        norm_first: bool = False,
+        final_norm: bool | None = None,
+    ):
+        super().__init__()
+        self.layers = nn.ModuleList(
+            TransformerBlock(d_model, heads, ffn_dim, dropout, norm, activation, norm_first) for _ in range(depth)
+        )
+        final_norm = norm_first if final_norm is None else final_norm
+        self.norm: nn.Module = Norm(norm, d_model) if final_norm else nn.Identity()
+
+    def forward(self, x: Tensor, attn_mask: Tensor | None = None, key_padding_mask: Tensor | None = None) -> Tensor:
+        """``x (N, L, D) -> (N, L, D)``."""
+        for layer in self.layers:
+            x = layer(x, attn_mask=attn_mask, key_padding_mask=key_padding_mask)
+        return self.norm(x)
+
+
+class ResidualMLPBlock(nn.Module):
+    """Residual fully connected block on ``(..., D)``: ``act(x + Linear(drop(act(Linear(x)))))`` (ResNet basic block
+    with linear layers)."""
+
+    def __init__(self, dim: int, hidden_dim: int | None = None, dropout: float = 0.0, activation: str = "relu"):
+        super().__init__()
+        hidden_dim = dim if hidden_dim is None else hidden_dim
+        self.fc1 = nn.Linear(dim, hidden_dim)
+        self.fc2 = nn.Linear(hidden_dim, dim)
+        self.act1 = make_activation(activation)
+        self.act2 = make_activation(activation)
+        self.dropout = nn.Dropout(dropout)
+
+    def forward(self, x: Tensor) -> Tensor:
+        """``(..., D) -> (..., D)``."""
+        return self.act2(x + self.fc2(self.dropout(self.act1(self.fc1(x)))))
+
+
+# ---------------------------------------------------------------------------------------------------- helpers
+def require(cond: bool, owner: str, msg: str) -> None:
+    """Raise ``ValueError(f"{owner}: {msg}")`` unless ``cond``."""
+    if not cond:
+        raise ValueError(f"{owner}: {msg}")
+
+
+def validate_common(
+    owner: str,
+    num_joints: int,
+    adjacency: list[list[float]] | None,
+    feature_dim: int,
+    max_frames: int,
+    dropout: float = 0.0,
+    min_feature_dim: int = 7,
+) -> None:
+    """Checks shared by every model constructor (ValueError naming the offending argument).
+
+    ``adjacency`` may be ``None``; otherwise it must be a finite ``num_joints x num_joints`` nested list (models that
+    do not use it still check it, to catch a skeleton / ``num_joints`` mismatch in the config).
+    """
+    require(num_joints >= 1, owner, f"num_joints must be >= 1, got {num_joints}")
+    require(feature_dim >= min_feature_dim, owner,
+            f"feature_dim must be >= {min_feature_dim} (pos + quaternion), got {feature_dim}")
+    require(max_frames >= 1, owner, f"max_frames must be >= 1, got {max_frames}")
+    require(0.0 <= dropout < 1.0, owner, f"dropout must be in [0, 1), got {dropout}")
+    if adjacency is None:
+        return
+    try:
+        adj = torch.as_tensor(adjacency, dtype=torch.float32)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{owner}: adjacency must be a J x J nested list of numbers ({e})") from e
+    require(tuple(adj.shape) == (num_joints, num_joints), owner,
+            f"adjacency must have shape ({num_joints}, {num_joints}), got {tuple(adj.shape)}")
+    require(bool(torch.isfinite(adj).all()), owner, "adjacency must be finite")
+
+
+def check_input(owner: str, x: Tensor, known: Tensor, num_joints: int, feature_dim: int) -> None:
+    """ValueError unless ``x`` is ``(B, T, num_joints, feature_dim)`` and ``known`` is ``(B, T, num_joints)``
+    (skipped while tracing / compiling, where shapes are symbolic)."""
+    if torch.jit.is_tracing() or torch.compiler.is_compiling():
+        return
+    if x.dim() != 4 or x.shape[-2] != num_joints or x.shape[-1] != feature_dim:
+        raise ValueError(f"{owner}: x must be (B, T, {num_joints}, {feature_dim}), got {tuple(x.shape)}")
+    if tuple(known.shape) != tuple(x.shape[:3]):
+        raise ValueError(f"{owner}: known must be (B, T, J) = {tuple(x.shape[:3])}, got {tuple(known.shape)}")
+
+
+def frame_features(x: Tensor, known: Tensor) -> Tensor:
+    """One vector per frame: ``x (B, T, J, F), known (B, T, J) -> (B, T, J*F + J)`` = all joints' features followed
+    by the per-joint known flags (1.0 known, 0.0 missing), so per-joint masks reach frame-level models."""
+    return torch.cat([x.flatten(2), known.to(x.dtype)], dim=-1)

@@ -1,0 +1,17 @@
+"""Benchmark a checkpoint or a baseline:
+    python eval.py data=<lafan1|bandai_namco|synthetic> data.path=<zip|folder> model=<zero_velocity|interpolation>
+    python eval.py ckpt_path=<run>/checkpoints/last.ckpt data=...
+Writes benchmark.json into the run directory (hydra.run.dir=... to choose it)."""
+import hydra
+from omegaconf import DictConfig
+
+from inbetweening.train import evaluate, run_cli
+
+
+@hydra.main(version_base="1.3", config_path="conf", config_name="eval")
+def main(cfg: DictConfig) -> None:
+    run_cli(evaluate, cfg)
+
+
+if __name__ == "__main__":
+    main()

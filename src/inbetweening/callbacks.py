@@ -1,0 +1,56 @@
+"""Lightning callbacks of the project: a TensorBoard figure of a fixed validation window."""
+from __future__ import annotations
+
+import lightning as L
+import torch
+
+from . import features as F
+from .masks import apply_mask, transition_known
+from .render import draw_sequences
+from .skeleton import fk
+
+
+class SkeletonFigure(L.Callback):
+    """Every ``every_n_epochs`` epochs, draw ground truth vs prediction vs interpolation for one fixed
+    validation window (transition length ``n``) and log it to TensorBoard as ``val/skeleton``."""
+
+    def __init__(self, every_n_epochs: int = 5, window: int = 0, n: int = 30, frames: int = 6):
+        self.every = max(1, int(every_n_epochs))
+        self.window, self.n, self.frames = int(window), int(n), int(frames)
+
+    def sequences(self, pl_module, root: torch.Tensor, q: torch.Tensor) -> dict:
+        """Global positions ``(T, J, 3)`` of ground truth, prediction and interpolation for one window."""
+        sk, n, p = pl_module.skeleton, self.n, pl_module.n_past
+        t = p + n + 1
+        feats = F.encode(root[None, :t].double(), q[None, :t].double(), sk, pl_module.mean, pl_module.std).float()
+        feats = feats.to(pl_module.device)
+        known = transition_known(1, t, sk.num_joints, p, n, device=feats.device)
+        x, interp = apply_mask(pl_module.mask_name, feats, known)
+        with torch.no_grad():
+            pred = pl_module.net(x, known, interp)
+        out = {}
+        for label, f in (("ground truth", feats), ("prediction", pred), ("interpolation", interp)):
+            r, lq = F.decode(f.double().cpu(), pl_module.mean, pl_module.std)
+            out[label] = fk(lq, sk.local_positions(r), sk.parents)[1][0].numpy()
+        return out
+
+    def on_validation_epoch_end(self, trainer: L.Trainer, pl_module) -> None:
+        if trainer.sanity_checking or trainer.current_epoch % self.every or not trainer.loggers:
+            return
+        ds = trainer.datamodule.val_set if trainer.datamodule is not None else None
+        if ds is None or len(ds) == 0:
+            return
+        item = ds[min(self.window, len(ds) - 1)]
+        was_training = pl_module.training
+        pl_module.eval()
+        seqs = self.sequences(pl_module, item["root"], item["q"])
+        pl_module.train(was_training)
+        t = next(iter(seqs.values())).shape[0]
+        frames = sorted({round(i * (t - 1) / max(self.frames - 1, 1)) for i in range(self.frames)})
+        highlight = transition_known(1, t, 1, pl_module.n_past, self.n)[0, :, 0].numpy()
+        fig = draw_sequences(seqs, pl_module.skeleton.parents, frames=frames, highlight=highlight,
+                             title=f"epoch {trainer.current_epoch}: transition of {self.n} frames")
+        for logger in trainer.loggers:
+            exp = getattr(logger, "experiment", None)
+            if hasattr(exp, "add_figure"):
+                exp.add_figure("val/skeleton", fig, global_step=trainer.global_step)

@@ -1,0 +1,164 @@
+"""LightningDataModule: masked in-betweening windows from any dataset of :mod:`inbetweening.datasets`.
+
+Training windows (50 frames every 20, normalised as in the benchmark) are encoded once into one
+in-memory ``(N, W, J, 7)`` tensor; a batch is a gather from it, so there is no per-item file I/O.
+Each training batch gets 10 context frames, a transition of random length (``transition_min`` ..
+``transition_max``, drawn per batch or per sample) and the target keyframe; frames after the
+target are not part of the task.  Validation and test batches are the benchmark's 65-frame windows
+(validation: a held-out part of the training clips; test: the dataset's test split).
+
+Batch keys (train): ``gt (B, T, J, 7)``, ``known (B, T, J)`` bool, ``loss_mask (B, T, J)`` bool,
+``n_trans (B,)``.  Batch keys (val/test): ``root (B, 65, 3)``, ``q (B, 65, J, 4)`` float64.
+"""
+from __future__ import annotations
+
+import lightning as L
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, Dataset
+
+from . import benchmark as B
+from .datasets import MotionData, load_dataset
+from .inference import window_features
+from .masks import joints_known, transition_known
+
+
+class _Index(Dataset):
+    def __init__(self, n: int):
+        self.n = n
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, i: int) -> int:
+        return i
+
+
+class _Windows(Dataset):
+    def __init__(self, X: np.ndarray, Q: np.ndarray):
+        self.root = torch.from_numpy(np.ascontiguousarray(X[:, :, 0]))
+        self.q = torch.from_numpy(np.ascontiguousarray(Q))
+
+    def __len__(self) -> int:
+        return len(self.root)
+
+    def __getitem__(self, i: int) -> dict:
+        return {"root": self.root[i], "q": self.q[i]}
+
+
+def split_train_val(clips: list, val_fraction: float) -> tuple[list, list]:
+    """Deterministic hold-out: every k-th clip (sorted by name) goes to validation."""
+    if val_fraction <= 0:
+        return clips, []
+    order = sorted(range(len(clips)), key=lambda i: clips[i].name)
+    k = max(2, round(1 / val_fraction))
+    val_idx = set(order[k - 1 :: k])
+    return [c for i, c in enumerate(clips) if i not in val_idx], [c for i, c in enumerate(clips) if i in val_idx]
+
+
+class InbetweenDataModule(L.LightningDataModule):
+    def __init__(
+        self,
+        name: str = "synthetic",
+        path: str | None = None,
+        cache_dir: str | None = None,
+        forward_axis: list[float] | None = None,
+        synthetic: dict | None = None,
+        download: bool = False,
+        batch_size: int = 32,
+        eval_batch_size: int = 128,
+        num_workers: int = 0,
+        val_fraction: float = 0.1,
+        transition_min: int = 5,
+        transition_max: int = 30,
+        transition_per: str = "batch",
+        train_window: int = B.TRAIN_WINDOW,
+        train_offset: int = B.TRAIN_OFFSET,
+        n_past: int = B.N_PAST,
+        mask: str = "lerp",
+        joint_mask: dict | None = None,
+        max_train_windows: int | None = None,
+        max_eval_windows: int | None = None,
+    ):
+        super().__init__()
+        self.save_hyperparameters()
+        self.data: MotionData | None = None
+        self.train_feats: torch.Tensor | None = None
+
+    # ------------------------------------------------------------------ setup
+    def _load(self) -> MotionData:
+        h = self.hparams
+        return load_dataset(h.name, path=h.path, cache_dir=h.cache_dir, forward_axis=h.forward_axis,
+                            download=h.download, synthetic=dict(h.synthetic) if h.synthetic else None)
+
+    def prepare_data(self) -> None:
+        self._load()  # builds the cache (and downloads LAFAN1 if allowed) once, on one process
+
+    def setup(self, stage: str | None = None) -> None:
+        if self.data is not None:
+            return
+        h = self.hparams
+        self.data = data = self._load()
+        sk, axis = data.skeleton, data.forward_axis
+        train_clips, val_clips = split_train_val(data.train, h.val_fraction)
+        X, Q = B.prepare_windows(train_clips, sk, h.train_window, h.train_offset, axis)
+        if h.max_train_windows:
+            X, Q = X[: h.max_train_windows], Q[: h.max_train_windows]
+        if len(X) == 0:
+            raise ValueError(f"data: no training window of {h.train_window} frames in dataset {h.name!r}")
+        self.train_feats = window_features(X[:, :, 0], Q, sk, data.pos_mean, data.pos_std)
+        vX, vQ = B.prepare_windows(val_clips or train_clips[:1], sk, B.TEST_WINDOW, B.TEST_OFFSET, axis)
+        lim = h.max_eval_windows
+        self.val_set = _Windows(vX[:lim], vQ[:lim])
+        self.test_set = _Windows(data.test_X[:lim], data.test_Q[:lim])
+
+    @property
+    def skeleton(self):
+        return self.data.skeleton
+
+    def model_kwargs(self) -> dict:
+        """Plain values the LightningModule needs from the data (skeleton, statistics, name)."""
+        d = self.data
+        return {"skeleton": d.skeleton.to_dict(), "pos_mean": d.pos_mean.tolist(), "pos_std": d.pos_std.tolist(),
+                "dataset": d.name}
+
+    # ------------------------------------------------------------------ batches
+    def collate_train(self, idx: list[int]) -> dict:
+        h = self.hparams
+        gt = self.train_feats[torch.as_tensor(idx)]
+        b, w, j, _ = gt.shape
+        if h.mask == "joints":
+            jm = dict(h.joint_mask or {})
+            known = joints_known(b, w, j, int(jm.get("gap_min", 10)), int(jm.get("gap_max", 200)),
+                                 float(jm.get("frac_min", 0.1)), float(jm.get("frac_max", 0.3)))
+            return {"gt": gt, "known": known, "loss_mask": ~known}
+        lo, hi = int(h.transition_min), int(h.transition_max)
+        if h.transition_per == "sample":
+            n = torch.randint(lo, hi + 1, (b,))
+        else:
+            n = torch.randint(lo, hi + 1, (1,)).expand(b)
+        t = h.n_past + int(n.max()) + 1
+        gt = gt[:, :t].clone()
+        target = h.n_past + n
+        if h.transition_per == "sample":  # frames after each target repeat the target (known, not scored)
+            tt = torch.arange(t)[None, :]
+            src = torch.minimum(tt, target[:, None])
+            gt = torch.gather(gt, 1, src[:, :, None, None].expand_as(gt))
+        known = transition_known(b, t, j, h.n_past, n)
+        return {"gt": gt, "known": known, "loss_mask": ~known, "n_trans": n}
+
+    def train_dataloader(self) -> DataLoader:
+        h = self.hparams
+        return DataLoader(_Index(len(self.train_feats)), batch_size=h.batch_size, shuffle=True, drop_last=False,
+                          collate_fn=self.collate_train, num_workers=h.num_workers,
+                          persistent_workers=h.num_workers > 0)
+
+    def _eval_loader(self, ds: Dataset) -> DataLoader:
+        return DataLoader(ds, batch_size=self.hparams.eval_batch_size, shuffle=False,
+                          num_workers=self.hparams.num_workers)
+
+    def val_dataloader(self) -> DataLoader:
+        return self._eval_loader(self.val_set)
+
+    def test_dataloader(self) -> DataLoader:
+        return self._eval_loader(self.test_set)

@@ -1,0 +1,108 @@
+"""Training losses on ``(B, T, J, 7)`` features; every term is averaged over the ``mask`` entries.
+
+``mask`` is ``(B, T, J)`` bool: the values the model had to predict (unknown and inside the window).
+Weights come from the ``loss`` config; only ``l1`` (the method's loss) is on by default.
+"""
+from __future__ import annotations
+
+import torch
+
+from . import features as F
+from .skeleton import Skeleton, fk
+
+LOSS_TERMS = ("l1", "fk_pos", "quat", "bone", "smooth", "foot")
+
+
+def _masked_mean(err: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Mean of ``err (B, T, J[, ...])`` over ``mask (B, T, J)``; 0 when the mask is empty."""
+    m = mask.to(err.dtype)
+    while m.dim() < err.dim():
+        m = m[..., None]
+    m = m.expand_as(err)
+    return (err * m).sum() / m.sum().clamp(min=1.0)
+
+
+def l1(pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """L1 on the normalised features (the method's loss)."""
+    return _masked_mean((pred - gt).abs(), mask)
+
+
+def fk_positions(pred: torch.Tensor, skeleton: Skeleton, mean, std) -> torch.Tensor:
+    """Z-scored global positions from FK of the predicted root + local quaternions.  ``(B,T,J,7) -> (B,T,J,3)``."""
+    root, q = F.decode(pred, mean, std)
+    _, gp = fk(q, skeleton.local_positions(root), skeleton.parents)
+    m, s = F._stats(mean, std, gp, skeleton.num_joints)
+    return (gp - m) / s
+
+
+def fk_pos(pred, gt, mask, skeleton, mean, std) -> torch.Tensor:
+    """L1 between FK global positions of the prediction and the true global positions (z-scored)."""
+    return _masked_mean((fk_positions(pred, skeleton, mean, std) - gt[..., F.POS]).abs(), mask)
+
+
+def quat(pred, gt, mask) -> torch.Tensor:
+    """Sign-invariant rotation distance ``1 - |<q_pred, q_gt>|``."""
+    d = (F.qnormalize(pred[..., F.QUAT]) * gt[..., F.QUAT]).sum(-1).abs()
+    return _masked_mean(1.0 - d, mask)
+
+
+def bone(pred, gt, mask, skeleton, mean, std) -> torch.Tensor:
+    """Rigidity: difference of parent/child distances of predicted vs true global positions."""
+    pairs = torch.as_tensor(skeleton.bone_pairs(), device=pred.device)
+    pp, gp = F.global_positions(pred, mean, std), F.global_positions(gt, mean, std)
+    c, p = pairs[:, 0], pairs[:, 1]
+    err = ((pp[..., c, :] - pp[..., p, :]).norm(dim=-1) - (gp[..., c, :] - gp[..., p, :]).norm(dim=-1)).abs()
+    return _masked_mean(err / std_scale(std), mask[..., c] | mask[..., p])
+
+
+def std_scale(std) -> float:
+    """One length scale for the data (mean position std), to keep cm-valued losses O(1)."""
+    return float(torch.as_tensor(std).float().mean())
+
+
+def smooth(pred, mask, mean, std) -> torch.Tensor:
+    """Distance of each predicted frame's positions to the mean of its two neighbours (z-scored)."""
+    p = pred[..., F.POS]
+    mid = 0.5 * (p[:, :-2] + p[:, 2:])
+    return _masked_mean((p[:, 1:-1] - mid).norm(dim=-1), mask[:, 1:-1])
+
+
+def foot(pred, gt, mask, foot_joints: list[int], mean, std, threshold: float = 0.5) -> torch.Tensor:
+    """Foot sliding: predicted foot velocity where the true foot is in contact (true speed < threshold cm/frame)."""
+    if not foot_joints:
+        return pred.new_zeros(())
+    idx = torch.as_tensor(foot_joints, device=pred.device)
+    pp, gp = F.global_positions(pred, mean, std)[..., idx, :], F.global_positions(gt, mean, std)[..., idx, :]
+    pv = (pp[:, 1:] - pp[:, :-1]).norm(dim=-1)
+    contact = (gp[:, 1:] - gp[:, :-1]).norm(dim=-1) < threshold
+    return _masked_mean(pv / std_scale(std), mask[:, 1:][..., idx] & contact)
+
+
+def foot_joint_indices(skeleton: Skeleton) -> list[int]:
+    """Joints whose name contains Foot/Toe (LAFAN1, Bandai-Namco and synthetic naming)."""
+    return [i for i, n in enumerate(skeleton.names) if "foot" in n.lower() or "toe" in n.lower()]
+
+
+def total_loss(pred, gt, mask, weights: dict, skeleton: Skeleton, mean, std) -> tuple[torch.Tensor, dict]:
+    """Weighted sum of the enabled terms and a dict of every computed term (for logging)."""
+    unknown = [k for k in weights if k not in LOSS_TERMS]
+    if unknown:
+        raise ValueError(f"loss: unknown term(s) {unknown}; known: {list(LOSS_TERMS)}")
+    terms: dict[str, torch.Tensor] = {}
+    for name, w in weights.items():
+        if not w and name != "l1":
+            continue
+        if name == "l1":
+            terms[name] = l1(pred, gt, mask)
+        elif name == "fk_pos":
+            terms[name] = fk_pos(pred, gt, mask, skeleton, mean, std)
+        elif name == "quat":
+            terms[name] = quat(pred, gt, mask)
+        elif name == "bone":
+            terms[name] = bone(pred, gt, mask, skeleton, mean, std)
+        elif name == "smooth":
+            terms[name] = smooth(pred, mask, mean, std)
+        elif name == "foot":
+            terms[name] = foot(pred, gt, mask, foot_joint_indices(skeleton), mean, std)
+    total = sum(float(weights[k]) * v for k, v in terms.items())
+    return total, terms

@@ -1,0 +1,111 @@
+"""Masks: which values are known, and what the model sees in place of the unknown ones.
+
+Small pure functions on torch tensors.  ``known`` is ``(B, T, J)`` bool (True = given);
+features are ``(B, T, J, 7)`` ``[pos xyz, quat wxyz]``.
+
+* :func:`transition_known` - the in-betweening mask: context frames, then a gap, then a target keyframe.
+* :func:`joints_known`     - the mocap-recovery mask: random joints missing over random gaps.
+* ``MASKS[name](x, known)`` - fill the unknown values: ``zero`` (zeros) or ``lerp`` (positions
+  linear, quaternions slerp between the nearest known frames of the same joint).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import torch
+
+from .quaternion import slerp_torch
+
+MASK_NAMES = ("zero", "lerp", "joints")
+
+
+def transition_known(batch: int, frames: int, joints: int, n_past: int, n_trans, device=None) -> torch.Tensor:
+    """Whole-frame mask ``(B, T, J)``: frames ``< n_past`` and frame ``n_past + n_trans`` are known.
+
+    ``n_trans`` is an int or a ``(B,)`` tensor (per-sample lengths); frames after the target are marked
+    known too (callers fill them with copies of the target and leave them out of the loss).
+    """
+    t = torch.arange(frames, device=device)[None, :]
+    n = torch.as_tensor(n_trans, device=device).reshape(-1, 1).expand(batch, 1)
+    known = (t < n_past) | (t >= n_past + n)
+    return known[:, :, None].expand(batch, frames, joints).clone()
+
+
+def joints_known(
+    batch: int, frames: int, joints: int, gap_min: int, gap_max: int, frac_min: float, frac_max: float,
+    generator: torch.Generator | None = None, device=None,
+) -> torch.Tensor:
+    """Mocap-recovery mask ``(B, T, J)``: per sample, a random ``frac`` of the joints is missing over one
+    random gap of ``gap_min..gap_max`` frames (clipped to the window, first and last frame kept known)."""
+    known = torch.ones(batch, frames, joints, dtype=torch.bool, device=device)
+    gmax = min(gap_max, frames - 2)
+    gmin = min(gap_min, gmax)
+    for b in range(batch):
+        g = int(torch.randint(gmin, gmax + 1, (1,), generator=generator))
+        s = int(torch.randint(1, frames - g, (1,), generator=generator))
+        frac = frac_min + (frac_max - frac_min) * float(torch.rand(1, generator=generator))
+        k = max(1, round(frac * joints))
+        sel = torch.randperm(joints, generator=generator)[:k]
+        known[b, s : s + g, sel.to(known.device)] = False
+    return known
+
+
+def zero_fill(x: torch.Tensor, known: torch.Tensor) -> torch.Tensor:
+    """Unknown values set to 0.  ``(B, T, J, F), (B, T, J) -> (B, T, J, F)``."""
+    return torch.where(known[..., None], x, torch.zeros_like(x))
+
+
+def _neighbour_known(known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Index of the previous and next known frame of each joint (or -1 / T when none).  ``(B, T, J)`` each."""
+    b, t, j = known.shape
+    idx = torch.arange(t, device=known.device)[None, :, None].expand(b, t, j)
+    prev = torch.where(known, idx, torch.full_like(idx, -1)).cummax(dim=1).values
+    rev = torch.where(known, t - 1 - idx, torch.full_like(idx, -1)).flip(1).cummax(dim=1).values.flip(1)
+    nxt = torch.where(rev >= 0, t - 1 - rev, torch.full_like(rev, t))
+    return prev, nxt
+
+
+def lerp_fill(x: torch.Tensor, known: torch.Tensor) -> torch.Tensor:
+    """Unknown values interpolated from the nearest known frames of the same joint.
+
+    Positions linearly, quaternions by slerp (shortest arc, linear fallback when nearly equal);
+    before the first / after the last known frame the nearest known value is held.
+    ``(B, T, J, F), (B, T, J) -> (B, T, J, F)``.
+    """
+    prev, nxt = _neighbour_known(known)
+    t = x.shape[1]
+    p = prev.clamp(min=0)
+    n = nxt.clamp(max=t - 1)
+    p = torch.where(prev < 0, n, p)
+    n = torch.where(nxt >= t, p, n)
+    idx = torch.arange(t, device=x.device)[None, :, None]
+    span = (n - p).clamp(min=1).to(x.dtype)
+    w = ((idx - p).to(x.dtype) / span).clamp(0, 1)
+    safe = torch.where(known[..., None], x, torch.zeros_like(x))  # never read unknown values, even NaN ones
+    xp = torch.gather(safe, 1, p[..., None].expand_as(x))
+    xn = torch.gather(safe, 1, n[..., None].expand_as(x))
+    pos = xp[..., :3] + w[..., None] * (xn[..., :3] - xp[..., :3])
+    quat = slerp_torch(xp[..., 3:7], xn[..., 3:7], w)
+    filled = torch.cat([pos, quat, xp[..., 7:]], dim=-1)
+    return torch.where(known[..., None], x, filled)
+
+
+# name -> fill function; "joints" is the mocap-recovery task, which fills its gaps by interpolation
+MASKS: dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {
+    "zero": zero_fill,
+    "lerp": lerp_fill,
+    "joints": lerp_fill,
+}
+
+
+def apply_mask(name: str, x: torch.Tensor, known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Model input and interpolation for a mask: ``(masked x, lerp interpolation)``, both ``(B, T, J, F)``.
+
+    The interpolation is always returned (models with ``residual_to_interpolation`` and the
+    interpolation baseline use it), whatever the mask shows the model.
+    """
+    if name not in MASKS:
+        raise ValueError(f"unknown mask {name!r}; choose one of {sorted(MASKS)}")
+    interp = lerp_fill(x, known)
+    shown = interp if MASKS[name] is lerp_fill else MASKS[name](x, known)
+    return shown, interp

@@ -1,0 +1,76 @@
+"""torchmetrics wrappers: the benchmark (L2Q/L2P/NPSS, scored by :func:`inbetweening.benchmark.score`,
+the same function ``eval.py`` uses) and per-joint position / rotation errors."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+from torchmetrics import Metric
+from torchmetrics.utilities import dim_zero_cat
+
+from .benchmark import score
+from .quaternion import qangle
+from .skeleton import Skeleton
+
+
+class BenchmarkMetric(Metric):
+    """Accumulates predicted and true transitions per length; ``compute()`` returns ``{"l2q@n": ...}``."""
+
+    full_state_update = False
+    higher_is_better = False
+
+    def __init__(self, skeleton: Skeleton, mean, std, lengths: Sequence[int], **kwargs):
+        super().__init__(**kwargs)
+        self.skeleton = skeleton
+        self.mean, self.std = np.asarray(mean, np.float64), np.asarray(std, np.float64)
+        self.lengths = tuple(int(n) for n in lengths)
+        for n in self.lengths:
+            for k in ("pred_root", "pred_q", "gt_root", "gt_q"):
+                self.add_state(f"{k}_{n}", default=[], dist_reduce_fx="cat")
+
+    def update(self, n: int, pred_root, pred_q, gt_root, gt_q) -> None:  # (B, n, 3), (B, n, J, 4) each
+        for k, v in (("pred_root", pred_root), ("pred_q", pred_q), ("gt_root", gt_root), ("gt_q", gt_q)):
+            getattr(self, f"{k}_{n}").append(torch.as_tensor(v, dtype=torch.float64, device=self.device))
+
+    def compute(self) -> dict[str, float]:
+        out: dict[str, float] = {}
+        for n in self.lengths:
+            if not getattr(self, f"gt_root_{n}"):
+                continue
+            arrays = [dim_zero_cat(getattr(self, f"{k}_{n}")).cpu().numpy() for k in ("gt_root", "gt_q", "pred_root", "pred_q")]
+            out.update(score(*arrays, self.skeleton, self.mean, self.std, n))
+        return out
+
+
+class PerJointError(Metric):
+    """Mean global position error (data units, e.g. cm) and rotation error (degrees) per joint, plus the
+    overall position RMSE, over the predicted (masked) entries."""
+
+    full_state_update = False
+    higher_is_better = False
+
+    def __init__(self, num_joints: int, **kwargs):
+        super().__init__(**kwargs)
+        z = torch.zeros(num_joints, dtype=torch.float64)
+        self.add_state("pos_sum", default=z.clone(), dist_reduce_fx="sum")
+        self.add_state("sq_sum", default=z.clone(), dist_reduce_fx="sum")
+        self.add_state("rot_sum", default=z.clone(), dist_reduce_fx="sum")
+        self.add_state("count", default=z.clone(), dist_reduce_fx="sum")
+
+    def update(self, pred_gp, gt_gp, pred_gq, gt_gq, mask) -> None:
+        """``(B, T, J, 3) x2, (B, T, J, 4) x2, mask (B, T, J) bool``."""
+        m = mask.to(torch.float64)
+        d = (pred_gp - gt_gp).double().norm(dim=-1)
+        self.pos_sum += (d * m).sum(dim=(0, 1))
+        self.sq_sum += (d * d * m).sum(dim=(0, 1))
+        self.rot_sum += (torch.rad2deg(qangle(pred_gq.double(), gt_gq.double())) * m).sum(dim=(0, 1))
+        self.count += m.sum(dim=(0, 1))
+
+    def compute(self) -> dict[str, torch.Tensor]:
+        c = self.count.clamp(min=1)
+        return {
+            "pos": self.pos_sum / c,
+            "rot": self.rot_sum / c,
+            "rmse": (self.sq_sum.sum() / self.count.sum().clamp(min=1)).sqrt(),
+        }

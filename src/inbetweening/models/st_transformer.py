@@ -1,0 +1,105 @@
+"""Spatio-temporal transformer (PoseFormer-style, Zheng et al. 2021) for in-betweening.
+
+Each joint of each frame is projected to ``spatial_dim`` channels (plus a learned joint embedding and a known-flag
+embedding, so per-joint masks are seen) and a spatial pre-norm transformer mixes the ``J`` joints of every frame.
+The ``J * spatial_dim`` features of a frame are then projected to ``d_model``, a learned temporal embedding is
+added and a temporal pre-norm transformer mixes the frames; a regression head (LayerNorm + Linear) maps back to
+``J * F``.  Pre-norm blocks: ``z' = MSA(LN(z)) + z``, ``z = MLP(LN(z')) + z'``.
+"""
+from __future__ import annotations
+
+import torch
+from torch import Tensor, nn
+
+from .base import FEATURE_DIM, InbetweenModel
+from .blocks import (
+    PositionEmbedding,
+    TransformerEncoder,
+    check_input,
+    check_length,
+    make_activation,
+    require,
+    validate_common,
+)
+
+
+class STTransformer(InbetweenModel):
+    """Spatial (joints) then temporal (frames) pre-norm transformer.
+
+    Args (plain values only):
+        num_joints: ``J``.  adjacency: ``J x J`` joint relation matrix (checked, otherwise unused).
+        feature_dim: features per joint ``F`` (>= 7).
+        spatial_dim, spatial_depth, spatial_heads: per-joint width ``C``, spatial layers, spatial heads (divide ``C``).
+        spatial_ffn_dim: spatial MLP width (default ``2 * spatial_dim``).
+        d_model, temporal_depth, heads: temporal width, layers and heads (``d_model % heads == 0``).
+        ffn_dim: temporal MLP width (default ``2 * d_model``).
+        dropout: attention / residual / MLP dropout.  activation: MLP activation.
+        max_frames: longest window ``T``.
+        residual_to_interpolation: predict ``interp + head(h)`` when ``interp`` is given (head initialised to 0).
+    """
+
+    def __init__(
+        self,
+        num_joints: int,
+        adjacency: list[list[float]],
+        feature_dim: int = FEATURE_DIM,
+        spatial_dim: int = 32,
+        spatial_depth: int = 4,
+        spatial_heads: int = 4,
+        spatial_ffn_dim: int | None = None,
+        d_model: int = 256,
+        temporal_depth: int = 4,
+        heads: int = 8,
+        ffn_dim: int | None = None,
+        dropout: float = 0.1,
+        activation: str = "gelu",
+        max_frames: int = 128,
+        residual_to_interpolation: bool = False,
+    ):
+        super().__init__()
+        name = type(self).__name__
+        spatial_ffn_dim = 2 * spatial_dim if spatial_ffn_dim is None else spatial_ffn_dim
+        ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
+        validate_common(name, num_joints, adjacency, feature_dim, max_frames, dropout)
+        require(spatial_depth >= 1, name, f"spatial_depth must be >= 1, got {spatial_depth}")
+        require(temporal_depth >= 1, name, f"temporal_depth must be >= 1, got {temporal_depth}")
+        require(spatial_dim >= 1 and spatial_heads >= 1 and spatial_dim % spatial_heads == 0, name,
+                f"spatial_heads must divide spatial_dim (spatial_dim={spatial_dim}, spatial_heads={spatial_heads})")
+        require(d_model >= 1 and heads >= 1 and d_model % heads == 0, name,
+                f"heads must divide d_model (d_model={d_model}, heads={heads})")
+        require(spatial_ffn_dim >= 1 and ffn_dim >= 1, name,
+                f"spatial_ffn_dim and ffn_dim must be >= 1, got {spatial_ffn_dim}, {ffn_dim}")
+        make_activation(activation)
+        self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
+        self.spatial_dim, self.d_model = spatial_dim, d_model
+        self.residual_to_interpolation = bool(residual_to_interpolation)
+
+        self.joint_proj = nn.Linear(feature_dim, spatial_dim)
+        self.joint_embed = nn.Parameter(torch.randn(num_joints, spatial_dim) * 0.02)
+        self.flag_embed = nn.Embedding(2, spatial_dim)
+        nn.init.normal_(self.flag_embed.weight, std=0.02)
+        self.spatial = TransformerEncoder(spatial_dim, spatial_depth, spatial_heads, spatial_ffn_dim, dropout,
+                                          activation=activation, norm_first=True, final_norm=True)
+        self.frame_proj = nn.Linear(num_joints * spatial_dim, d_model)
+        self.time_embed = PositionEmbedding(max_frames, d_model)
+        self.temporal = TransformerEncoder(d_model, temporal_depth, heads, ffn_dim, dropout,
+                                           activation=activation, norm_first=True, final_norm=False)
+        self.head_norm = nn.LayerNorm(d_model)
+        self.head = nn.Linear(d_model, num_joints * feature_dim)
+        if self.residual_to_interpolation:
+            nn.init.zeros_(self.head.weight)
+            nn.init.zeros_(self.head.bias)
+
+    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
+        """``x (B, T, J, F), known (B, T, J) bool, interp (B, T, J, F) | None -> (B, T, J, F)``."""
+        check_input(type(self).__name__, x, known, self.num_joints, self.feature_dim)
+        check_length(x.shape[1], self.max_frames)
+        b, t = x.shape[0], x.shape[1]
+        s = self.joint_proj(x) + self.joint_embed + self.flag_embed(known.long())  # (B, T, J, C)
+        s = self.spatial(s.reshape(-1, self.num_joints, self.spatial_dim))  # (B*T, J, C)
+        h = self.frame_proj(s.reshape(b, t, self.num_joints * self.spatial_dim)) + self.time_embed(t)
+        h = self.temporal(h)  # (B, T, D)
+        raw = self.head(self.head_norm(h)).reshape(x.shape)
+        if self.residual_to_interpolation and interp is not None:
+            raw = interp + raw
+        return self.finalize(raw, x, known)

@@ -1,0 +1,191 @@
+"""The LightningModule: builds any model of the zoo from plain config values, trains it with the
+method's L1 loss (plus optional terms), validates/tests with the benchmark metrics.
+
+Everything in ``hparams`` is a plain value (dicts, lists, numbers, strings), so
+``InbetweenModule.load_from_checkpoint(path)`` rebuilds the network without Hydra.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import lightning as L
+import numpy as np
+import torch
+
+from . import features as F
+from .benchmark import N_PAST
+from .inference import predict_features
+from .losses import total_loss
+from .masks import MASK_NAMES, apply_mask, transition_known
+from .metrics import BenchmarkMetric, PerJointError
+from .models import MODELS, build_model
+from .skeleton import Skeleton, fk
+
+
+class InbetweenModule(L.LightningModule):
+    """In-betweening training/evaluation around a network from :mod:`inbetweening.models`.
+
+    Args:
+        model: model config (``name`` + constructor kwargs; ``hops`` builds a k-hop relation matrix).
+        skeleton: ``Skeleton.to_dict()`` of the training data.
+        pos_mean, pos_std: training statistics of global positions, ``J*3`` floats each.
+        mask: ``zero`` | ``lerp`` | ``joints`` (what the network sees in place of unknown values).
+        loss: weights of the loss terms (see :mod:`inbetweening.losses`).
+        optim: optimiser config (``name`` adam|adamw|sgd, ``lr``, ``weight_decay``, ``warmup_steps``, ...).
+        val_lengths, test_lengths: transition lengths scored by the benchmark metrics.
+        dataset: name of the training dataset (recorded in ``benchmark.json``).
+    """
+
+    def __init__(
+        self,
+        model: dict,
+        skeleton: dict,
+        pos_mean: Sequence[float],
+        pos_std: Sequence[float],
+        mask: str = "lerp",
+        loss: dict | None = None,
+        optim: dict | None = None,
+        val_lengths: Sequence[int] = (5, 15, 30),
+        test_lengths: Sequence[int] = (5, 15, 30, 45),
+        dataset: str = "",
+        n_past: int = N_PAST,
+    ):
+        super().__init__()
+        self.save_hyperparameters()
+        if mask not in MASK_NAMES:
+            raise ValueError(f"mask must be one of {list(MASK_NAMES)}, got {mask!r}")
+        self.skeleton = Skeleton.from_dict(skeleton)
+        self.mean = np.asarray(pos_mean, dtype=np.float64)
+        self.std = np.asarray(pos_std, dtype=np.float64)
+        self.mask_name = mask
+        self.loss_weights = dict(loss or {"l1": 1.0})
+        self.optim_cfg = dict(optim or {"name": "adamw", "lr": 1e-3})
+        self.n_past = n_past
+        self.net = self.build_network(model, self.skeleton)
+        j = self.skeleton.num_joints
+        self.val_bench = BenchmarkMetric(self.skeleton, self.mean, self.std, val_lengths)
+        self.test_bench = BenchmarkMetric(self.skeleton, self.mean, self.std, test_lengths)
+        self.val_joint = PerJointError(j)
+        self.test_joint = PerJointError(j)
+        self.test_results: dict[str, float] = {}
+
+    @staticmethod
+    def build_network(model_cfg: dict, skeleton: Skeleton) -> torch.nn.Module:
+        cfg = dict(model_cfg)
+        name = cfg.pop("name")
+        if name not in MODELS:
+            raise ValueError(f"model.name: unknown model {name!r}; choose one of {sorted(MODELS)}")
+        hops = int(cfg.get("hops", 1))
+        return build_model(name, num_joints=skeleton.num_joints, adjacency=skeleton.adjacency(hops).tolist(), **cfg)
+
+    @property
+    def trainable(self) -> bool:
+        return bool(getattr(self.net, "trainable", True)) and any(p.requires_grad for p in self.net.parameters())
+
+    # ------------------------------------------------------------------ forward
+    def forward(self, x: torch.Tensor, known: torch.Tensor, interp: torch.Tensor | None = None) -> torch.Tensor:
+        """``(B, T, J, 7) masked features, (B, T, J) bool, interp -> (B, T, J, 7)``."""
+        return self.net(x, known, interp)
+
+    def _step_loss(self, batch: dict, stage: str) -> torch.Tensor:
+        gt, known, loss_mask = batch["gt"], batch["known"], batch["loss_mask"]
+        x, interp = apply_mask(self.mask_name, gt, known)
+        pred = self.net(x, known, interp)
+        loss, terms = total_loss(pred, gt, loss_mask, self.loss_weights, self.skeleton, self.mean, self.std)
+        bs = gt.shape[0]
+        self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=bs)
+        for k, v in terms.items():
+            self.log(f"{stage}/loss_{k}", v, batch_size=bs)
+        return loss
+
+    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
+        loss = self._step_loss(batch, "train")
+        if "n_trans" in batch:
+            self.log("train/n_trans", batch["n_trans"].float().mean(), batch_size=batch["gt"].shape[0])
+        return loss
+
+    # ------------------------------------------------------------------ benchmark windows
+    def _bench_step(self, batch: dict, bench: BenchmarkMetric, joint: PerJointError, stage: str) -> None:
+        """Score the benchmark windows of a batch at each transition length (same path as eval.py)."""
+        root, q = batch["root"], batch["q"]  # (B, W, 3), (B, W, J, 4) float64, normalised windows
+        losses = []
+        for n in bench.lengths:
+            t = self.n_past + n + 1
+            feats = F.encode(root[:, :t], q[:, :t], self.skeleton, self.mean, self.std).float()
+            b, _, j, _ = feats.shape
+            known = transition_known(b, t, j, self.n_past, n, device=feats.device)
+            pred, _ = predict_features(self.net, self.mask_name, feats, known)
+            unknown = ~known
+            losses.append(total_loss(pred, feats, unknown, {"l1": 1.0}, self.skeleton, self.mean, self.std)[0])
+            pr_root, pr_q = F.decode(pred.double(), self.mean, self.std)
+            sl = slice(self.n_past, self.n_past + n)
+            bench.update(n, pr_root[:, sl], pr_q[:, sl], root[:, sl], q[:, sl])
+            pr_gq, pr_gp = fk(pr_q, self.skeleton.local_positions(pr_root), self.skeleton.parents)
+            gt_gq, gt_gp = fk(q[:, :t], self.skeleton.local_positions(root[:, :t]), self.skeleton.parents)
+            joint.update(pr_gp, gt_gp, pr_gq, gt_gq, unknown)
+        self.log(f"{stage}/loss", torch.stack(losses).mean(), prog_bar=True, batch_size=root.shape[0])
+
+    def validation_step(self, batch: dict, batch_idx: int) -> None:
+        self._bench_step(batch, self.val_bench, self.val_joint, "val")
+
+    def test_step(self, batch: dict, batch_idx: int) -> None:
+        self._bench_step(batch, self.test_bench, self.test_joint, "test")
+
+    def _log_epoch(self, bench: BenchmarkMetric, joint: PerJointError, stage: str) -> dict[str, float]:
+        res = bench.compute()
+        bench.reset()
+        per_joint = joint.compute()
+        joint.reset()
+        logs = {f"{stage}/{k}": float(v) for k, v in res.items()}
+        l2p = [v for k, v in res.items() if k.startswith("l2p@")]
+        if l2p:
+            logs[f"{stage}/l2p_mean"] = float(np.mean(l2p))
+        logs[f"{stage}/pos_rmse"] = float(per_joint["rmse"])
+        for i, name in enumerate(self.skeleton.names):
+            logs[f"{stage}_joint_pos/{name}"] = float(per_joint["pos"][i])
+            logs[f"{stage}_joint_rot/{name}"] = float(per_joint["rot"][i])
+        self.log_dict(logs, sync_dist=False)
+        return {k: v for k, v in res.items()}
+
+    def on_validation_epoch_end(self) -> None:
+        self._log_epoch(self.val_bench, self.val_joint, "val")
+
+    def on_test_epoch_end(self) -> None:
+        self.test_results = self._log_epoch(self.test_bench, self.test_joint, "test")
+
+    # ------------------------------------------------------------------ optimisation
+    def configure_optimizers(self):
+        cfg = self.optim_cfg
+        params = [p for p in self.parameters() if p.requires_grad]
+        if not params:  # non-trainable baselines: a dummy optimiser keeps Lightning happy
+            params = [torch.nn.Parameter(torch.zeros(1))]
+        name, lr, wd = cfg.get("name", "adamw"), float(cfg.get("lr", 1e-3)), float(cfg.get("weight_decay", 0.0))
+        if name == "adamw":
+            opt = torch.optim.AdamW(params, lr=lr, weight_decay=wd, betas=tuple(cfg.get("betas", (0.9, 0.999))))
+        elif name == "adam":
+            opt = torch.optim.Adam(params, lr=lr, weight_decay=wd, betas=tuple(cfg.get("betas", (0.9, 0.999))))
+        elif name == "sgd":
+            opt = torch.optim.SGD(params, lr=lr, weight_decay=wd, momentum=float(cfg.get("momentum", 0.9)),
+                                  nesterov=bool(cfg.get("nesterov", False)))
+        else:
+            raise ValueError(f"optim.name: unknown optimiser {name!r}; choose adam, adamw or sgd")
+        sched = cfg.get("scheduler", "cosine")
+        if sched in (None, "none", "constant") and not cfg.get("warmup_steps"):
+            return opt
+        total = max(int(self.trainer.estimated_stepping_batches), 1) if self._trainer is not None else 1
+        warmup = int(cfg.get("warmup_steps", 0))
+        floor = float(cfg.get("min_lr_ratio", 0.0))
+
+        def factor(step: int) -> float:
+            if warmup and step < warmup:
+                return (step + 1) / warmup
+            if sched in (None, "none", "constant"):
+                return 1.0
+            progress = min(1.0, (step - warmup) / max(total - warmup, 1))
+            if sched == "linear":
+                return floor + (1 - floor) * (1 - progress)
+            return floor + (1 - floor) * 0.5 * (1 + math.cos(math.pi * progress))
+
+        scheduler = torch.optim.lr_scheduler.LambdaLR(opt, factor)
+        return {"optimizer": opt, "lr_scheduler": {"scheduler": scheduler, "interval": "step", "name": "lr"}}

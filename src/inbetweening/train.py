@@ -1,0 +1,203 @@
+"""``train(cfg)`` and ``evaluate(cfg)``: the Hydra-configured jobs behind ``train.py`` and ``eval.py``.
+
+Both return a metrics dict and write ``benchmark.json`` (``{"dataset", "model", "n_windows",
+"metrics": {"l2q@5": ...}}``) into the run's output directory.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import lightning as L
+import torch
+from hydra.utils import instantiate
+from omegaconf import DictConfig, OmegaConf
+
+from . import benchmark as B
+from .bvh import BVHError
+from .config import ConfigError, validate
+from .datamodule import InbetweenDataModule
+from .datasets import DatasetError
+from .module import InbetweenModule
+
+log = logging.getLogger("inbetweening")
+
+
+class CheckpointError(ValueError):
+    """A checkpoint is missing, unreadable or not an inbetweening checkpoint."""
+
+
+# ------------------------------------------------------------------------------------------
+def output_dir(cfg: DictConfig) -> Path:
+    out = Path(cfg.paths.output_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def make_datamodule(cfg: DictConfig) -> InbetweenDataModule:
+    d = OmegaConf.to_container(cfg.data, resolve=True)
+    return InbetweenDataModule(
+        name=d["name"], path=d.get("path"), cache_dir=d.get("cache_dir"), forward_axis=d.get("forward_axis"),
+        synthetic=d.get("synthetic"), download=bool(d.get("download", False)), batch_size=d["batch_size"],
+        eval_batch_size=d.get("eval_batch_size", 128), num_workers=d.get("num_workers", 0),
+        val_fraction=d.get("val_fraction", 0.1), transition_min=d["transition_min"],
+        transition_max=d["transition_max"], transition_per=d.get("transition_per", "batch"),
+        train_window=d.get("train_window", B.TRAIN_WINDOW), train_offset=d.get("train_offset", B.TRAIN_OFFSET),
+        mask=cfg.mask.name, joint_mask=OmegaConf.to_container(cfg.mask, resolve=True),
+        max_train_windows=d.get("max_train_windows"), max_eval_windows=d.get("max_eval_windows"),
+    )
+
+
+def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
+    return InbetweenModule(
+        model=OmegaConf.to_container(cfg.model, resolve=True),
+        mask=cfg.mask.name,
+        loss=OmegaConf.to_container(cfg.loss, resolve=True),
+        optim=OmegaConf.to_container(cfg.optim, resolve=True),
+        val_lengths=list(cfg.data.val_lengths),
+        test_lengths=list(cfg.data.test_lengths),
+        **dm.model_kwargs(),
+    )
+
+
+def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
+    cbs = [instantiate(c) for c in (cfg.get("callbacks") or {}).values() if c is not None] if callbacks else []
+    lgs = [instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else False
+    return instantiate(cfg.trainer, callbacks=cbs, logger=lgs)
+
+
+def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metrics: dict) -> dict:
+    res = {"dataset": dataset, "model": model, "n_windows": int(n_windows),
+           "metrics": {k: float(v) for k, v in metrics.items()}}
+    path.write_text(json.dumps(res, indent=2))
+    return res
+
+
+def _flat_hparams(cfg: DictConfig) -> dict:
+    keep = {"model": cfg.model, "mask": cfg.mask, "optim": cfg.optim, "loss": cfg.loss,
+            "data": {k: cfg.data.get(k) for k in ("name", "batch_size", "transition_min", "transition_max")},
+            "seed": cfg.seed}
+    flat: dict = {}
+
+    def walk(prefix: str, node) -> None:
+        if isinstance(node, dict):
+            for k, v in node.items():
+                walk(f"{prefix}/{k}" if prefix else str(k), v)
+        else:
+            flat[prefix] = node if isinstance(node, (int, float, str, bool)) else str(node)
+
+    walk("", OmegaConf.to_container(OmegaConf.create(keep), resolve=True))
+    return flat
+
+
+# ------------------------------------------------------------------------------------------
+def train(cfg: DictConfig) -> dict[str, float]:
+    """Fit (unless the model is a non-trainable baseline), then run the test benchmark with the best
+    checkpoint and write ``benchmark.json``.  Returns the test metrics."""
+    validate(cfg)
+    L.seed_everything(cfg.seed, workers=True)
+    out = output_dir(cfg)
+    dm = make_datamodule(cfg)
+    dm.prepare_data()
+    dm.setup("fit")
+    module = make_module(cfg, dm)
+    trainer = make_trainer(cfg)
+    ckpt_path = cfg.get("ckpt_path")
+    if ckpt_path:
+        check_checkpoint(ckpt_path)
+    best = None
+    if module.trainable and cfg.trainer.get("max_steps", -1) != 0:
+        trainer.fit(module, datamodule=dm, ckpt_path=ckpt_path)
+        best = getattr(trainer.checkpoint_callback, "best_model_path", None) or None
+        if trainer.interrupted:
+            log.warning("training interrupted; resume with ckpt_path=%s", out / "checkpoints" / "last.ckpt")
+    metrics: dict[str, float] = {}
+    if cfg.get("run_test", True):
+        test_trainer = make_trainer(cfg, callbacks=False, loggers=False)
+        if best and Path(best).exists():
+            module = InbetweenModule.load_from_checkpoint(best, map_location="cpu")
+        test_trainer.test(module, datamodule=dm, verbose=False)
+        metrics = dict(module.test_results)
+        name = cfg.model.name
+        write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics)
+        print(f"\nTest benchmark ({dm.data.name}, {len(dm.test_set)} windows, checkpoint: {best or 'final weights'})")
+        print(B.format_table({name: metrics}, cfg.data.test_lengths))
+        for lg in trainer.loggers:
+            if hasattr(lg, "log_hyperparams"):
+                lg.log_hyperparams(_flat_hparams(cfg), metrics={f"hp/{k}": v for k, v in metrics.items()})
+                lg.finalize("success")
+    return metrics
+
+
+def check_checkpoint(path: str) -> dict:
+    """Load a checkpoint's dict, or raise :class:`CheckpointError` saying what is wrong with it."""
+    p = Path(path)
+    if not p.is_file():
+        raise CheckpointError(f"ckpt_path: {p} does not exist")
+    try:
+        ckpt = torch.load(p, map_location="cpu", weights_only=False)
+    except Exception as e:  # noqa: BLE001 - any unpickling failure means "not a checkpoint"
+        raise CheckpointError(f"ckpt_path: {p} is not a readable PyTorch checkpoint ({type(e).__name__}: {e})") from None
+    hp = ckpt.get("hyper_parameters") if isinstance(ckpt, dict) else None
+    if not hp or "model" not in hp or "skeleton" not in hp or "state_dict" not in ckpt:
+        raise CheckpointError(f"ckpt_path: {p} is not an inbetweening checkpoint (no model/skeleton hyper-parameters)")
+    return ckpt
+
+
+def load_module(path: str) -> InbetweenModule:
+    """``InbetweenModule.load_from_checkpoint`` with a clear error for wrong files."""
+    check_checkpoint(path)
+    try:
+        return InbetweenModule.load_from_checkpoint(path, map_location="cpu")
+    except (RuntimeError, KeyError, TypeError, ValueError) as e:
+        raise CheckpointError(f"ckpt_path: {path} does not match this version's models ({e})") from None
+
+
+def evaluate(cfg: DictConfig) -> dict[str, float]:
+    """Benchmark a checkpoint (``ckpt_path``) or a baseline (``model=zero_velocity|interpolation``)."""
+    out = output_dir(cfg)
+    ckpt_path = cfg.get("ckpt_path")
+    if not ckpt_path:
+        name = cfg.model.name
+        if name not in B.BASELINES:
+            raise ConfigError(f"ckpt_path: required for model {name!r} (or use model=zero_velocity|interpolation)")
+        dm = make_datamodule(cfg)
+        data = dm._load()
+        bench = data.benchmark_set()
+        metrics = B.evaluate_transitions(bench, B.BASELINES[name], tuple(cfg.data.test_lengths))
+        dataset, n = data.name, bench.n_windows
+    else:
+        module = load_module(ckpt_path)
+        dm = make_datamodule(cfg)
+        dm.prepare_data()
+        dm.setup("test")
+        if not module.skeleton.same_topology(dm.skeleton):
+            raise CheckpointError(
+                f"ckpt_path: {ckpt_path} was trained on a {module.skeleton.num_joints}-joint skeleton "
+                f"({module.hparams.dataset}), data {dm.data.name!r} has {dm.skeleton.num_joints} joints"
+            )
+        # scored with the dataset's own training statistics (the benchmark protocol)
+        module.test_bench = type(module.test_bench)(module.skeleton, dm.data.pos_mean, dm.data.pos_std,
+                                                    cfg.data.test_lengths)
+        trainer = make_trainer(cfg, callbacks=False, loggers=False)
+        trainer.test(module, datamodule=dm, verbose=False)
+        metrics, dataset, n = dict(module.test_results), dm.data.name, len(dm.test_set)
+        name = module.hparams.model["name"]
+    write_benchmark(out / "benchmark.json", dataset, name, n, metrics)
+    print(f"\nBenchmark: {dataset}, {n} test windows -> {out / 'benchmark.json'}")
+    print(B.format_table({name: metrics}, cfg.data.test_lengths))
+    return metrics
+
+
+def run_cli(job: Callable[[DictConfig], dict], cfg: DictConfig) -> float | None:
+    """Run a job; known user errors become one clear line on stderr and exit status 2."""
+    try:
+        metrics = job(cfg)
+    except (ConfigError, DatasetError, BVHError, CheckpointError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        sys.exit(2)
+    key = cfg.get("optimized_metric")
+    return metrics.get(key) if key and metrics else None

@@ -1,0 +1,14 @@
+"""Train an in-betweening model:  python train.py [overrides]   (see conf/train.yaml and README.md)."""
+import hydra
+from omegaconf import DictConfig
+
+from inbetweening.train import run_cli, train
+
+
+@hydra.main(version_base="1.3", config_path="conf", config_name="train")
+def main(cfg: DictConfig) -> float | None:
+    return run_cli(train, cfg)
+
+
+if __name__ == "__main__":
+    main()
