@@ -288,6 +288,8 @@ def _parse_hierarchy(text: str, source: str, end_line: int) -> dict:
             continue
         if state == "hierarchy" and key != "ROOT":
             raise BVHError(f"expected ROOT, got {' '.join(tokens)!r}", source, line)
+        if state == "done" and all(t == "}" for t in tokens):
+            raise BVHError("unbalanced braces: '}' without a matching '{'", source, line)
         if state == "done":
             raise BVHError(f"unexpected {' '.join(tokens)!r} after the hierarchy (missing MOTION?)", source, line)
         if pending is not None and key != "{":
@@ -450,11 +452,13 @@ def _eight_digits(chunk: np.ndarray, keep: np.ndarray | np.uint64) -> np.ndarray
     return (lo * _U64(0x000F424000000064) + hi * _U64(0x0000271000000001)) >> _U64(32)
 
 
-def _fast_decimals(buf: bytes, a: np.ndarray, ts: np.ndarray, te: np.ndarray) -> np.ndarray | None:
+def _fast_decimals(
+    buf: bytes, a: np.ndarray, ts: np.ndarray, te: np.ndarray, nsigns: int, ndots: int
+) -> np.ndarray | None:
     """Convert plain decimal tokens ``[+-]digits[.digits]`` exactly, vectorised.
 
     ``buf``/``a``: the padded block (bytes / uint8 view) holding only digits, ``+-.`` and whitespace;
-    ``ts``/``te``: ``(M,)`` token start/end offsets.  Returns ``(M,)`` float64 equal to ``float(token)``,
+    ``ts``/``te``: ``(M,)`` token start/end offsets; ``nsigns``/``ndots``: counts of ``+-`` and ``.`` in ``a``.  Returns ``(M,)`` float64 equal to ``float(token)``,
     or ``None`` when a token is not of that form or has more than 15 significant digits (or 8 before
     the point): the caller then uses the general path.
     """
@@ -464,9 +468,8 @@ def _fast_decimals(buf: bytes, a: np.ndarray, ts: np.ndarray, te: np.ndarray) ->
     first = a[ts]
     negative = first == 45
     signed = negative | (first == 43)
-    if np.count_nonzero(signed) != np.count_nonzero(a == 45) + np.count_nonzero(a == 43):
+    if np.count_nonzero(signed) != nsigns:
         return None  # a sign inside a token
-    ndots = np.count_nonzero(a == 46)
     pivot, nfrac = None, None
     tok0 = buf[ts[0] : te[0]]
     if ndots == m and b"." in tok0:  # common case: every token has the same number of decimals
@@ -496,23 +499,27 @@ def _fast_decimals(buf: bytes, a: np.ndarray, ts: np.ndarray, te: np.ndarray) ->
             lo = np.maximum(nfrac - 8, 0)
             frac = frac * _POW10[lo] + _eight_digits(u[pivot + 9], _KEEP_LOW[lo]).astype(np.float64) / _POW10[8 - lo]
         scale = _POW10[nfrac]
-        value = (value * scale + frac) / scale  # exact integer mantissa / exact power of ten: correctly rounded
-    np.negative(value, out=value, where=negative)
-    return value
+        # exact integer mantissa / exact (signed) power of ten: one correctly rounded division
+        return (value * scale + frac) / np.where(negative, -scale, scale)
+    return np.where(negative, -value, value)
 
 
-def _char_class(a: np.ndarray) -> str:
-    """``"decimal"`` (only digits, ``+-.`` and whitespace), ``"float"`` (also ``eE``) or ``"bad"``."""
+def _char_class(a: np.ndarray) -> tuple[str, int, int]:
+    """Classify the bytes of a motion block (uint8 ``(N,)``): ``(kind, number of +/- signs, number of points)``.
+
+    ``kind`` is ``"decimal"`` (only digits, ``+-.`` and whitespace), ``"float"`` (also ``eE``) or ``"bad"``.
+    """
     nws = np.count_nonzero(a <= 32)
-    if nws != sum(np.count_nonzero(a == c) for c in (32, 10, 9, 13)) + np.count_nonzero((a == 11) | (a == 12)):
-        return "bad"  # control characters
-    npunct = np.count_nonzero(a == 43) + np.count_nonzero(a == 45) + np.count_nonzero(a == 46)
-    if np.count_nonzero(a < 48) != nws + npunct:
-        return "bad"
+    if np.count_nonzero(a < 9) or np.count_nonzero((a > 13) & (a < 32)):
+        return "bad", 0, 0  # control characters
+    nsigns = np.count_nonzero(a == 43) + np.count_nonzero(a == 45)
+    ndots = np.count_nonzero(a == 46)
+    if np.count_nonzero(a < 48) != nws + nsigns + ndots:
+        return "bad", 0, 0
     nhigh = np.count_nonzero(a > 57)
     if nhigh == 0:
-        return "decimal"
-    return "float" if nhigh == np.count_nonzero(a == 101) + np.count_nonzero(a == 69) else "bad"
+        return "decimal", nsigns, ndots
+    return ("float" if nhigh == np.count_nonzero(a == 101) + np.count_nonzero(a == 69) else "bad"), nsigns, ndots
 
 
 def _motion_values(block: bytes, frames: int, width: int) -> np.ndarray | None:
@@ -523,7 +530,7 @@ def _motion_values(block: bytes, frames: int, width: int) -> np.ndarray | None:
     """
     buf = b" " * _PAD + block + b" " * _PAD
     a = np.frombuffer(buf, dtype=np.uint8)
-    kind = _char_class(a)
+    kind, nsigns, ndots = _char_class(a)
     if kind == "bad":
         return None
     ws = a <= 32
@@ -537,7 +544,7 @@ def _motion_values(block: bytes, frames: int, width: int) -> np.ndarray | None:
     nonblank = per_line[per_line != 0]
     if len(nonblank) != frames or (nonblank != width).any():
         return None
-    values = _fast_decimals(buf, a, ts, te) if kind == "decimal" else None
+    values = _fast_decimals(buf, a, ts, te, nsigns, ndots) if kind == "decimal" else None
     if values is None:
         try:
             values = np.array(block.split(), dtype=np.float64)

@@ -120,7 +120,8 @@ class InbetweenDataModule(L.LightningDataModule):
         """Plain values the LightningModule needs from the data (skeleton, statistics, name)."""
         d = self.data
         return {"skeleton": d.skeleton.to_dict(), "pos_mean": d.pos_mean.tolist(), "pos_std": d.pos_std.tolist(),
-                "dataset": d.name}
+                "dataset": d.name, "forward_axis": list(d.forward_axis), "fps": float(d.fps),
+                "train_window": int(self.hparams.train_window)}
 
     # ------------------------------------------------------------------ batches
     def collate_train(self, idx: list[int]) -> dict:

@@ -35,6 +35,7 @@ class InbetweenModule(L.LightningModule):
         optim: optimiser config (``name`` adam|adamw|sgd, ``lr``, ``weight_decay``, ``warmup_steps``, ...).
         val_lengths, test_lengths: transition lengths scored by the benchmark metrics.
         dataset: name of the training dataset (recorded in ``benchmark.json``).
+        forward_axis, fps, train_window: data conventions, kept so tools can prepare new windows alike.
     """
 
     def __init__(
@@ -50,6 +51,9 @@ class InbetweenModule(L.LightningModule):
         test_lengths: Sequence[int] = (5, 15, 30, 45),
         dataset: str = "",
         n_past: int = N_PAST,
+        forward_axis: Sequence[float] = (0.0, 1.0, 0.0),
+        fps: float = 30.0,
+        train_window: int = 50,
     ):
         super().__init__()
         self.save_hyperparameters()
@@ -62,6 +66,7 @@ class InbetweenModule(L.LightningModule):
         self.loss_weights = dict(loss or {"l1": 1.0})
         self.optim_cfg = dict(optim or {"name": "adamw", "lr": 1e-3})
         self.n_past = n_past
+        self.forward_axis = tuple(float(a) for a in forward_axis)
         self.net = self.build_network(model, self.skeleton)
         j = self.skeleton.num_joints
         self.val_bench = BenchmarkMetric(self.skeleton, self.mean, self.std, val_lengths)
