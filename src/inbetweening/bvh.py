@@ -56,7 +56,10 @@ _AXIS_NAMES = "xyz"
 
 
 class BVHError(ValueError):
-    """A malformed BVH file.  ``str(err)`` is ``"<source>:<line>: <reason>"`` (``"<source>: <reason>"`` without a line)."""
+    """A malformed BVH file.
+
+    ``str(err)`` is ``"<source>:<line>: <reason>"`` (``"<source>: <reason>"`` when no line applies).
+    """
 
     def __init__(self, reason: str, source: str = "<memory>", line: int | None = None):
         self.reason, self.source, self.line = reason, source, line
@@ -84,7 +87,7 @@ class BVH:
         self.names = [str(n) for n in self.names]
         self.parents = np.asarray(self.parents, dtype=np.int64).reshape(-1)
         self.offsets = np.asarray(self.offsets, dtype=np.float64).reshape(-1, 3)
-        self.channels = [tuple(str(c) for c in ch) for ch in self.channels]
+        self.channels = [tuple(map(str, ch)) for ch in self.channels]
         self.end_sites = {int(j): np.asarray(o, dtype=np.float64).reshape(3) for j, o in self.end_sites.items()}
         self.frame_time = float(self.frame_time)
         self.motion = np.asarray(self.motion, dtype=np.float64)
@@ -143,7 +146,11 @@ class BVH:
 
     def local_positions(self) -> np.ndarray:
         """``(F, J, 3)`` LAFAN1 convention: the root from its position channels (offset where it has none),
-        every other joint its OFFSET."""
+        every other joint its OFFSET.
+
+        Bandai-Namco files have a static ``joint_Root`` above ``Hips`` and carry the body translation in the
+        ``Hips`` position channels: use :meth:`channel_positions` (or drop ``joint_Root``) there.
+        """
         out = np.repeat(self.offsets[None], self.num_frames, axis=0)
         joints, axes, cols = _position_index(self._layout[:1])
         out[:, joints, axes] = self.motion[:, cols]
@@ -153,7 +160,7 @@ class BVH:
         return Skeleton(tuple(self.names), tuple(self.parents.tolist()), self.offsets.copy())
 
     def with_motion(self, local_q: np.ndarray, positions: np.ndarray, frame_time: float | None = None) -> BVH:
-        """A new BVH with this hierarchy/channels and motion from ``local_q (F, J, 4)`` wxyz and ``positions (F, J, 3)``.
+        """A new BVH with this hierarchy/channels: motion from ``local_q (F, J, 4)`` wxyz and ``positions (F, J, 3)``.
 
         Rotations become Euler angles (degrees) in each joint's own channel order; positions go into the
         joints' position channels (components without a channel are dropped).  A joint with fewer than
@@ -165,8 +172,8 @@ class BVH:
         j = self.num_joints
         if local_q.ndim != 3 or local_q.shape[1:] != (j, 4):
             raise ValueError(f"with_motion: local_q must be (F, {j}, 4), got {local_q.shape}")
-        if positions.shape != local_q.shape[:2] + (3,):
-            raise ValueError(f"with_motion: positions must be {local_q.shape[:2] + (3,)}, got {positions.shape}")
+        if positions.shape != (*local_q.shape[:2], 3):
+            raise ValueError(f"with_motion: positions must be {(*local_q.shape[:2], 3)}, got {positions.shape}")
         motion = np.zeros((local_q.shape[0], self.motion.shape[1]))
         for order, joints, cols in _rotation_groups(self._layout):
             full = order + "".join(a for a in _AXIS_NAMES if a not in order)
@@ -216,9 +223,8 @@ def _rotation_groups(layout: tuple) -> list[tuple[str, np.ndarray, np.ndarray]]:
 def _position_index(layout: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(joints, axes, columns)`` of every position channel, each ``(P,)`` int64."""
     rows = [(j, a, c) for j, (pos, _) in enumerate(layout) for c, a in pos]
-    return (
-        tuple(np.array(x, dtype=np.int64) for x in zip(*rows)) if rows else tuple(np.zeros(0, np.int64) for _ in "jac")
-    )
+    table = np.array(rows, dtype=np.int64).reshape(-1, 3)
+    return table[:, 0], table[:, 1], table[:, 2]
 
 
 # --------------------------------------------------------------------------------------------
@@ -367,7 +373,7 @@ def _parse_hierarchy(text: str, source: str, end_line: int) -> dict:
     if opened:
         node, opened_at = opened[-1]
         label = "End Site" if node == _END_SITE else repr(names[node])
-        raise BVHError(f"unbalanced braces: {label} (opened at line {opened_at}) is never closed", source, end_line)
+        raise BVHError(f"unbalanced braces: {label} (declared at line {opened_at}) is never closed", source, end_line)
     return {"names": names, "parents": parents, "offsets": offsets, "channels": channels, "end_sites": end_sites}
 
 
@@ -435,19 +441,20 @@ def _parse_motion_header(data: bytes, start: int, line: int, source: str) -> tup
 # --------------------------------------------------------------------------------------------
 _PAD = 24  # whitespace around the block so 8-byte loads never leave the buffer
 _U64 = np.uint64
-_KEEP_LOW = np.array([(1 << (8 * k)) - 1 for k in range(9)], dtype=_U64)  # keep the k lowest bytes
-_KEEP_HIGH = np.array([(2**64 - 1) ^ ((1 << (8 * (8 - k))) - 1) for k in range(9)], dtype=_U64)  # k highest
-_ASCII_ZEROS = _U64(0x3030303030303030)
-_POW10 = 10.0 ** np.arange(23)
+_POW10 = 10.0 ** np.arange(16)
+# digit nibbles of the k highest bytes of a little-endian uint64 (the last k characters of an 8-byte load)
+_DIGITS_HIGH = np.array([0x0F0F0F0F0F0F0F0F & ~((1 << (8 * (8 - k))) - 1) for k in range(9)], dtype=_U64)
+_POW10_U64 = np.array([10**k for k in range(16)], dtype=_U64)
 
 
 def _eight_digits(chunk: np.ndarray, keep: np.ndarray | np.uint64) -> np.ndarray:
-    """SWAR: 8 ASCII bytes per uint64 (little-endian, first byte most significant) -> their decimal value.
+    """SWAR: 8 ASCII digits per uint64 (little-endian load, first byte most significant) -> their value.
 
-    Bytes outside ``keep`` count as ``0`` digits.  ``(N,) uint64 -> (N,) uint64``, all values < 1e8.
+    ``keep`` selects the digit nibbles to use (from ``_DIGITS_HIGH``); other bytes count as ``0``.
+    ``(N,) uint64 -> (N,) uint64``, values < 1e8.
     """
-    x = (chunk & keep) - (_ASCII_ZEROS & keep)
-    x = x * _U64(10) + (x >> _U64(8))
+    x = chunk & keep
+    x = (x * _U64(2561)) >> _U64(8)  # pairs of digits: 10 * d0 + d1 in every other byte
     lo, hi = x & _U64(0x000000FF000000FF), (x >> _U64(16)) & _U64(0x000000FF000000FF)
     return (lo * _U64(0x000F424000000064) + hi * _U64(0x0000271000000001)) >> _U64(32)
 
@@ -458,9 +465,12 @@ def _fast_decimals(
     """Convert plain decimal tokens ``[+-]digits[.digits]`` exactly, vectorised.
 
     ``buf``/``a``: the padded block (bytes / uint8 view) holding only digits, ``+-.`` and whitespace;
-    ``ts``/``te``: ``(M,)`` token start/end offsets; ``nsigns``/``ndots``: counts of ``+-`` and ``.`` in ``a``.  Returns ``(M,)`` float64 equal to ``float(token)``,
-    or ``None`` when a token is not of that form or has more than 15 significant digits (or 8 before
-    the point): the caller then uses the general path.
+    ``ts``/``te``: ``(M,)`` token start/end offsets; ``nsigns``/``ndots``: counts of ``+-`` and ``.`` in ``a``.
+    Returns ``(M,)`` float64 equal to ``float(token)``, or ``None`` when a token is not of that form or has
+    more than 15 significant digits (or 8 before the point): the caller then uses the general path.
+
+    Each token's digits before and after the point are read as integers with SWAR arithmetic on 8-byte
+    loads; the mantissa (< 1e15, exact in float64) divided by the exact power of ten is correctly rounded.
     """
     m = len(ts)
     if m == 0:
@@ -470,13 +480,15 @@ def _fast_decimals(
     signed = negative | (first == 43)
     if np.count_nonzero(signed) != nsigns:
         return None  # a sign inside a token
-    pivot, nfrac = None, None
+    pivot = None  # position of each token's point (its end if it has none)
     tok0 = buf[ts[0] : te[0]]
     if ndots == m and b"." in tok0:  # common case: every token has the same number of decimals
-        r0 = len(tok0) - tok0.index(b".") - 1
-        guess = te - (r0 + 1)
-        if (guess >= ts).all() and (a[guess] == 46).all():
-            pivot, nfrac = guess, r0
+        nfrac = len(tok0) - tok0.index(b".") - 1
+        guess = te - (nfrac + 1)
+        if (a[guess] == 46).all():
+            nint = guess - ts - signed
+            if nint.min() >= 0:  # each guessed point lies inside its own token
+                pivot, ndig = guess, nint + nfrac
     if pivot is None:
         dots = np.flatnonzero(a == 46)
         owner = np.searchsorted(te, dots, side="right")
@@ -486,22 +498,26 @@ def _fast_decimals(
         pivot[owner] = dots
         nfrac = np.zeros(m, dtype=np.int64)
         nfrac[owner] = te[owner] - dots - 1
-    nint = pivot - (ts + signed)
-    ndig = nint + nfrac
+        nint = pivot - ts - signed
+        ndig = nint + nfrac
     if nint.max() > 8 or ndig.max() > 15 or ndig.min() < 1:
         return None
-    u = np.ndarray(shape=(len(buf) - 7,), dtype="<u8", buffer=buf, strides=(1,))
-    value = _eight_digits(u[pivot - 8], _KEEP_HIGH[nint]).astype(np.float64)
-    if np.max(nfrac) > 0:
-        hi = np.minimum(nfrac, 8)
-        frac = _eight_digits(u[pivot + 1], _KEEP_LOW[hi]).astype(np.float64) / _POW10[8 - hi]
-        if np.max(nfrac) > 8:
-            lo = np.maximum(nfrac - 8, 0)
-            frac = frac * _POW10[lo] + _eight_digits(u[pivot + 9], _KEEP_LOW[lo]).astype(np.float64) / _POW10[8 - lo]
-        scale = _POW10[nfrac]
-        # exact integer mantissa / exact (signed) power of ten: one correctly rounded division
-        return (value * scale + frac) / np.where(negative, -scale, scale)
-    return np.where(negative, -value, value)
+    max_frac = int(np.max(nfrac))
+    if max_frac <= 7:  # one 16-byte load per token: 8 bytes before the point, the point and 7 after it
+        v16 = np.ndarray(shape=(len(buf) - 15,), dtype="V16", buffer=buf, strides=(1,))
+        words = v16[pivot - 8].view("<u8").reshape(m, 2)
+        mantissa = _eight_digits(words[:, 0], _DIGITS_HIGH[nint])
+        if max_frac:  # shift the decimals to the top bytes, dropping the point and what follows them
+            frac = _eight_digits(words[:, 1] << (_U64(8) * _U64(7 - nfrac)), _DIGITS_HIGH[nfrac])
+            mantissa = mantissa * _POW10_U64[nfrac] + frac
+    else:  # up to 15 decimals: the first nfrac - 8 and the last 8 from two more 8-byte loads
+        u = np.ndarray(shape=(len(buf) - 7,), dtype="<u8", buffer=buf, strides=(1,))
+        lo, hi = np.maximum(nfrac - 8, 0), np.minimum(nfrac, 8)
+        mantissa = _eight_digits(u[pivot - 8], _DIGITS_HIGH[nint])
+        mantissa = mantissa * _POW10_U64[lo] + _eight_digits(u[te - 16], _DIGITS_HIGH[lo])
+        mantissa = mantissa * _POW10_U64[hi] + _eight_digits(u[te - 8], _DIGITS_HIGH[hi])
+    scale = _POW10[nfrac]
+    return mantissa.astype(np.float64) / np.where(negative, -scale, scale)  # one correctly rounded division
 
 
 def _char_class(a: np.ndarray) -> tuple[str, int, int]:
@@ -540,7 +556,7 @@ def _motion_values(block: bytes, frames: int, width: int) -> np.ndarray | None:
         return np.zeros((frames, 0)) if len(ts) == 0 else None
     # values per line, vectorised: tokens before each newline
     before = np.searchsorted(ts, np.flatnonzero(a == 10))
-    per_line = np.diff(before, prepend=0, append=len(ts))
+    per_line = np.diff(np.concatenate(([0], before, [len(ts)])))
     nonblank = per_line[per_line != 0]
     if len(nonblank) != frames or (nonblank != width).any():
         return None
@@ -561,7 +577,7 @@ _NUMBER_RE = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 def _raise_motion_error(block: bytes, frames: int, width: int, first_line: int, source: str) -> None:
     """Error path only: walk the MOTION data line by line and raise a BVHError for the first problem."""
     found = 0
-    last = first_line
+    last = first_line - 1  # last non-blank line
     for i, line in enumerate(block.split(b"\n"), first_line):
         tokens = line.split()
         if not tokens:
@@ -595,7 +611,7 @@ def parse_bvh(data: bytes | str, source: str = "<memory>") -> BVH:
     data = bytes(data)
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
-    if not data.strip():
+    if not data or data.isspace():
         raise BVHError("empty file", source, 1)
     if b"\n" not in data and b"\r" in data:  # old Mac line endings
         data = data.replace(b"\r", b"\n")
@@ -694,6 +710,8 @@ def format_bvh(bvh: BVH, precision: int = 6) -> str:
     by at most ``0.5 * 10**-precision``.  Joints are written depth-first; if ``bvh`` lists them in another
     order the motion columns are permuted to match.
     """
+    if precision < 0:
+        raise ValueError(f"format_bvh: precision must be >= 0, got {precision}")
     if not np.isfinite(bvh.motion).all():
         raise BVHError("cannot write non-finite motion values", bvh.source)
     children: dict[int, list[int]] = {}
@@ -712,8 +730,7 @@ def format_bvh(bvh: BVH, precision: int = 6) -> str:
         out.append(tab + "{")
         out.append(offset_line(bvh.offsets[j], depth + 1))
         ch = bvh.channels[j]
-        if ch:
-            out.append(f"{tab}\tCHANNELS {len(ch)} {' '.join(ch)}")
+        out.append(f"{tab}\tCHANNELS {len(ch)} {' '.join(ch)}".rstrip())
         for c in children.get(j, []):
             write_joint(c, depth + 1)
         if j in bvh.end_sites:

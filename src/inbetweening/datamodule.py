@@ -81,7 +81,7 @@ class InbetweenDataModule(L.LightningDataModule):
         max_eval_windows: int | None = None,
     ):
         super().__init__()
-        self.save_hyperparameters()
+        self.save_hyperparameters(logger=False)  # the module logs the resolved data conventions
         self.data: MotionData | None = None
         self.train_feats: torch.Tensor | None = None
 

@@ -65,8 +65,10 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
 
 def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
     cbs = [instantiate(c) for c in (cfg.get("callbacks") or {}).values() if c is not None] if callbacks else []
-    lgs = [instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else False
-    return instantiate(cfg.trainer, callbacks=cbs, logger=lgs)
+    lgs = [instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else []
+    if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
+        cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
+    return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False)
 
 
 def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metrics: dict) -> dict:

@@ -1,0 +1,390 @@
+"""Animator-facing in-betweening: fill the frames between keyframes of a BVH clip with a trained model.
+
+    from inbetweening import Inbetweener
+
+    ib = Inbetweener.from_checkpoint("run/checkpoints/best.ckpt")
+    out = ib.fill("clip.bvh", keyframes=[0, 30, 75])    # keep frames 0, 30, 75; generate the rest
+    out = ib.fill("keys.bvh", gap=30)                  # every input frame is a key; 30 new frames between each pair
+    write_bvh(out, "filled.bvh")
+
+How a transition is generated (the same conditions the model was trained under):
+
+* Gaps are filled left to right.  For keyframes ``a < b`` the model sees a window of ``n_past`` (10) known
+  context frames ending at ``a`` (taken from the already completed output: earlier keyframes and frames
+  generated before; when fewer than ``n_past`` frames exist the first frame is repeated), the ``b - a - 1``
+  unknown frames, and the known target ``b``.
+* The window is normalised like the training windows: XZ centred on the mean root XZ of the known frames and
+  rotated about Y so that the root's forward axis at frame ``a`` points to +X; the predicted root positions and
+  root rotations are taken back to the clip's frame afterwards (a root yaw leaves the other joints' local
+  rotations unchanged).
+* Long gaps: the model only saw transitions of up to ``trained_gap`` frames (the data module's
+  ``transition_max`` recorded in the checkpoint, else ``train_window - n_past - 1``).  A longer gap is split
+  into ``m = ceil((b - a) / (max_gap + 1))`` equal segments; the poses at the ``m - 1`` split points are
+  *pseudo-keyframes* interpolated between ``a`` and ``b`` (root position linearly, every joint rotation by
+  slerp), then each segment is generated left to right as above, its context being the end of the previous
+  segment.  The true keyframes are never modified.  With ``segment=False`` a gap longer than ``max_gap``
+  raises :class:`InbetweenError` instead.
+
+The model's skeleton must match the file's: same joint names in the same order, or the file has one extra
+motionless top joint above the model's root (Bandai-Namco's ``joint_Root`` above ``Hips``), which is folded
+into the root for the model and unfolded again when writing (its channels are copied from the nearest
+keyframe).
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from . import features as F
+from .bvh import BVH, BVHError, read_bvh
+from .datasets import DatasetError, fold_static_root
+from .inference import predict_features, window_features
+from .masks import transition_known
+from .quaternion import qinv, qmul, qnormalize, qrot, remove_discontinuities, slerp_np
+from .skeleton import Skeleton, fk
+
+__all__ = ["FillResult", "InbetweenError", "Inbetweener"]
+
+
+class InbetweenError(ValueError):
+    """Bad keyframes, gap or skeleton for in-betweening; the message says what and where."""
+
+
+@dataclass
+class FillResult:
+    """What :meth:`Inbetweener.fill_detailed` produced.
+
+    ``root``/``local_q`` are in the model's skeleton (a folded ``joint_Root`` is not part of it);
+    ``known_frames`` are the output frames that are keyframes; ``pseudo_keyframes`` the split points of
+    gaps longer than ``max_gap`` (interpolated, see the module docstring).
+    """
+
+    bvh: BVH
+    root: np.ndarray  # (F, 3)
+    local_q: np.ndarray  # (F, J, 4)
+    known_frames: list[int]
+    skeleton: Skeleton
+    pseudo_keyframes: list[int] = field(default_factory=list)
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.root.shape[0])
+
+    def global_positions(self) -> np.ndarray:
+        """``(F, J, 3)`` global joint positions of the result (model skeleton, its bone offsets)."""
+        return _global_positions(self.root, self.local_q, self.skeleton)
+
+    def interpolation(self) -> tuple[np.ndarray, np.ndarray]:
+        """The same keyframes filled by linear root / slerp rotation interpolation: ``(F, 3), (F, J, 4)``."""
+        return interpolate_arrays(self.root, self.local_q, self.known_frames)
+
+
+def _global_positions(root: np.ndarray, local_q: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    _, gp = fk(np.asarray(local_q, np.float64), skeleton.local_positions(np.asarray(root, np.float64)),
+               skeleton.parents)
+    return gp
+
+
+def interpolate_arrays(root, local_q, known_frames) -> tuple[np.ndarray, np.ndarray]:
+    """Fill the frames between consecutive known frames by root lerp and per-joint slerp (the baseline).
+
+    ``root (F, 3), local_q (F, J, 4), known_frames`` (sorted, first 0, last F-1) -> new arrays; known frames
+    are copied unchanged and unknown frames are never read.
+    """
+    root = np.array(root, dtype=np.float64)
+    q = np.array(local_q, dtype=np.float64)
+    for a, b in zip(known_frames[:-1], known_frames[1:]):
+        if b - a < 2:
+            continue
+        w = (np.arange(a + 1, b) - a) / (b - a)
+        root[a + 1 : b] = root[a] + w[:, None] * (root[b] - root[a])
+        q[a + 1 : b] = slerp_np(q[a][None], q[b][None], w[:, None])
+    return root, q
+
+
+def _yaw_quat(angle: float) -> np.ndarray:
+    """Rotation about +Y by ``angle`` radians, wxyz."""
+    return np.array([math.cos(angle / 2), 0.0, math.sin(angle / 2), 0.0])
+
+
+def _check_frames(frames, length: int, what: str) -> list[int]:
+    """Validate a list of frame indices: ints, at least 2, strictly increasing, inside ``[0, length)``."""
+    if frames is None or isinstance(frames, (str, bytes)):
+        raise InbetweenError(f"{what} must be a list of frame indices, got {frames!r}")
+    out = []
+    for k in list(frames):
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
+            raise InbetweenError(f"{what}: {k!r} is not an integer frame index")
+        out.append(int(k))
+    if len(out) < 2:
+        raise InbetweenError(f"{what}: need at least 2 keyframes, got {len(out)} ({out})")
+    for k in out:
+        if not 0 <= k < length:
+            raise InbetweenError(f"{what}: frame {k} is out of range for a clip of {length} frames (valid: 0..{length - 1})")
+    for i in range(1, len(out)):
+        if out[i] == out[i - 1]:
+            raise InbetweenError(f"{what}: frame {out[i]} is listed twice")
+        if out[i] < out[i - 1]:
+            raise InbetweenError(f"{what}: must be sorted in increasing order ({out[i - 1]} comes before {out[i]})")
+    return out
+
+
+class Inbetweener:
+    """A trained in-betweening model wrapped for keyframe filling (see the module docstring).
+
+    Args:
+        module: a trained :class:`~inbetweening.module.InbetweenModule` (moved to ``eval`` mode).
+        max_gap: longest transition generated in one window; default ``trained_gap``.  May be raised up to
+            ``max_frames - n_past - 1`` of the network (beyond what it was trained on: quality not guaranteed).
+        segment: split longer gaps (``True``, default) or raise :class:`InbetweenError`.
+        trained_gap: the longest transition the model saw in training; default
+            ``hparams.train_window - n_past - 1``.
+    """
+
+    def __init__(self, module, max_gap: int | None = None, segment: bool = True, trained_gap: int | None = None):
+        self.module = module.eval()
+        self.net = module.net
+        self.skeleton: Skeleton = module.skeleton
+        self.n_past = int(module.n_past)
+        self.mean, self.std = module.mean, module.std
+        self.mask_name = module.mask_name
+        self.forward_axis = np.asarray(module.forward_axis, dtype=np.float64)
+        hp = module.hparams
+        self.fps = float(hp.get("fps", 30.0))
+        window = int(hp.get("train_window", 50))
+        max_frames = getattr(self.net, "max_frames", None)
+        self.hard_max_gap = (int(max_frames) if max_frames else 10**9) - self.n_past - 1
+        default = window - self.n_past - 1
+        self.trained_gap = min(int(trained_gap) if trained_gap else default, default, self.hard_max_gap)
+        if self.trained_gap < 1:
+            raise InbetweenError(f"the model's window ({window} frames, n_past={self.n_past}) leaves no room for a gap")
+        self.max_gap = self._check_max_gap(max_gap)
+        self.segment = bool(segment)
+
+    @classmethod
+    def from_checkpoint(cls, path: str | Path, device: str | torch.device = "cpu", **kw) -> Inbetweener:
+        """Load a training checkpoint (``CheckpointError`` for missing or wrong files).
+
+        ``kw`` go to the constructor (``max_gap``, ``segment``); ``trained_gap`` defaults to the data module's
+        ``transition_max`` recorded in the checkpoint.
+        """
+        from .train import check_checkpoint, load_module
+
+        ckpt = check_checkpoint(str(path))
+        dm = ckpt.get("datamodule_hyper_parameters") or {}
+        if "trained_gap" not in kw and dm.get("mask", "lerp") != "joints" and dm.get("transition_max"):
+            kw["trained_gap"] = int(dm["transition_max"])
+        del ckpt
+        module = load_module(str(path)).to(device)
+        return cls(module, **kw)
+
+    @property
+    def device(self) -> torch.device:
+        return next((p.device for p in self.net.parameters()), torch.device("cpu"))
+
+    def _check_max_gap(self, max_gap: int | None) -> int:
+        if max_gap is None:
+            return self.trained_gap
+        if isinstance(max_gap, bool) or not isinstance(max_gap, (int, np.integer)) or max_gap < 1:
+            raise InbetweenError(f"max_gap must be a positive integer, got {max_gap!r}")
+        if max_gap > self.hard_max_gap:
+            raise InbetweenError(f"max_gap={max_gap} exceeds what the network supports "
+                                 f"({self.hard_max_gap} = max_frames - {self.n_past} context - 1 target)")
+        return int(max_gap)
+
+    # ------------------------------------------------------------------ array level
+    def fill_arrays(self, root, local_q, known_frames, *, max_gap: int | None = None, segment: bool | None = None,
+                    _pseudo: list[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Generate every frame not in ``known_frames``.
+
+        Args:
+            root: ``(F, 3)`` root positions; local_q: ``(F, J, 4)`` local rotations wxyz, in the model's skeleton.
+                Values of unknown frames are never read (they may be NaN).
+            known_frames: sorted frame indices, at least 2, the first 0 and the last ``F - 1``.
+            max_gap, segment: override the instance's settings (see the class docstring).
+        Returns:
+            ``root (F, 3), local_q (F, J, 4)`` float64; known frames equal the input exactly.
+        """
+        root = np.array(root, dtype=np.float64)
+        q = np.array(local_q, dtype=np.float64)
+        j = self.skeleton.num_joints
+        if root.ndim != 2 or root.shape[1] != 3 or q.shape != (root.shape[0], j, 4):
+            raise InbetweenError(f"fill_arrays: expected root (F, 3) and local_q (F, {j}, 4), "
+                                 f"got {root.shape} and {q.shape}")
+        n = root.shape[0]
+        known = _check_frames(known_frames, n, "known_frames")
+        if known[0] != 0 or known[-1] != n - 1:
+            raise InbetweenError(f"known_frames must start at frame 0 and end at frame {n - 1} (the whole array "
+                                 f"is filled), got {known[0]}..{known[-1]}")
+        if not (np.isfinite(root[known]).all() and np.isfinite(q[known]).all()):
+            raise InbetweenError("fill_arrays: known frames contain NaN or infinite values")
+        limit = self._check_max_gap(max_gap) if max_gap is not None else self.max_gap
+        seg = self.segment if segment is None else bool(segment)
+        q[known] = qnormalize(q[known])
+        exact_r, exact_q = root[known].copy(), np.array(local_q, dtype=np.float64)[known]
+        for a, b in zip(known[:-1], known[1:]):
+            gap = b - a - 1
+            if gap == 0:
+                continue
+            if gap > limit and not seg:
+                raise InbetweenError(
+                    f"the gap between keyframes {a} and {b} is {gap} frames, longer than max_gap={limit} "
+                    f"(the model was trained on gaps up to {self.trained_gap}); enable segmentation or add keyframes")
+            m = math.ceil((b - a) / (limit + 1))
+            points = [a + round(i * (b - a) / m) for i in range(m + 1)]
+            if m > 1:
+                w = (np.array(points[1:-1]) - a) / (b - a)
+                root[points[1:-1]] = root[a] + w[:, None] * (root[b] - root[a])
+                q[points[1:-1]] = slerp_np(q[a][None], q[b][None], w[:, None])
+                if _pseudo is not None:
+                    _pseudo.extend(points[1:-1])
+            for s, e in zip(points[:-1], points[1:]):
+                if e - s > 1:
+                    self._generate(root, q, s, e)
+        root[known], q[known] = exact_r, exact_q
+        return root, q
+
+    def _generate(self, root: np.ndarray, q: np.ndarray, a: int, b: int) -> None:
+        """Fill frames ``a+1 .. b-1`` of ``root``/``q`` in place from context ending at ``a`` and target ``b``."""
+        n, p = b - a - 1, self.n_past
+        ctx = np.clip(np.arange(a - p + 1, a + 1), 0, None)
+        idx = np.concatenate([ctx, np.full(n, a), [b]])  # unknown frames hold frame a (never read by the model)
+        wr, wq = root[idx].copy(), q[idx].copy()
+        wq = _continuous(wq)
+        known_t = np.zeros(len(idx), dtype=bool)
+        known_t[:p] = True
+        known_t[-1] = True
+        # normalise as in training: XZ centred on the known frames, root forward at frame a -> +X
+        centre = np.zeros(3)
+        centre[[0, 2]] = wr[known_t][:, [0, 2]].mean(axis=0)
+        fwd = qrot(wq[p - 1, 0], self.forward_axis)
+        yaw = math.atan2(-fwd[2], fwd[0]) if math.hypot(fwd[0], fwd[2]) > 1e-9 else 0.0
+        inv = qinv(_yaw_quat(yaw))
+        wr = qrot(inv[None], wr - centre)
+        wq[:, 0] = qmul(inv[None], wq[:, 0])
+        dev = self.device
+        feats = window_features(wr[None], wq[None], self.skeleton, self.mean, self.std, device=dev)
+        known = transition_known(1, len(idx), self.skeleton.num_joints, p, n, device=dev)
+        pred, _ = predict_features(self.net, self.mask_name, feats, known)
+        pr, pq = F.decode(pred.double(), self.mean, self.std)
+        pr = pr[0, p : p + n].cpu().numpy()
+        pq = pq[0, p : p + n].cpu().numpy()
+        pq /= np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit (decode's normalisation has an epsilon)
+        yq = _yaw_quat(yaw)[None]
+        pr = qrot(yq, pr) + centre
+        pq[:, 0] = qmul(yq, pq[:, 0])
+        # sign-continuous with frame a (cosmetic: every frame is written as Euler angles anyway)
+        pq = _continuous(np.concatenate([q[a : a + 1], pq]))[1:]
+        root[a + 1 : b], q[a + 1 : b] = pr, pq
+
+    # ------------------------------------------------------------------ BVH level
+    def fill(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
+             max_gap: int | None = None, segment: bool | None = None) -> BVH:
+        """In-between a BVH clip; returns a new :class:`~inbetweening.bvh.BVH` (write it with ``write_bvh``).
+
+        Give exactly one of:
+
+        * ``keyframes`` (form A): frame indices of ``bvh`` to keep (>= 2, increasing, any spacing).  Every other
+          frame between the first and the last keyframe is generated; frames before the first and after the
+          last keyframe are dropped, so the output has ``last - first + 1`` frames and input frame ``k`` is
+          output frame ``k - first``.
+        * ``gap`` (form B): every frame of ``bvh`` is a keyframe; ``gap`` frames are generated between each
+          consecutive pair, so ``K`` input frames give ``K + (K - 1) * gap`` output frames.
+
+        The output has the input's hierarchy, channel order and frame time; keyframe rows of ``motion`` are the
+        input's rows, bit for bit; generated frames take non-root position channels (and a folded
+        ``joint_Root``'s channels) from the nearest keyframe.  Gaps longer than ``max_gap`` are split with
+        interpolated pseudo-keyframes unless ``segment=False`` (then :class:`InbetweenError`); see the module
+        docstring.  Errors: :class:`InbetweenError` (keyframes, gap, skeleton), ``BVHError`` (unreadable file).
+        """
+        return self.fill_detailed(bvh, keyframes, gap, max_gap=max_gap, segment=segment).bvh
+
+    def fill_detailed(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
+                      max_gap: int | None = None, segment: bool | None = None) -> FillResult:
+        """:meth:`fill` plus the arrays behind it (for rendering and inspection): a :class:`FillResult`."""
+        if not isinstance(bvh, BVH):
+            bvh = read_bvh(bvh)
+        if (keyframes is None) == (gap is None):
+            raise InbetweenError("give exactly one of keyframes (frames of the clip to keep) or gap "
+                                 "(frames to generate between consecutive input frames)")
+        n_in = bvh.num_frames
+        if keyframes is not None:
+            src = _check_frames(keyframes, n_in, "keyframes")
+            out_pos = [k - src[0] for k in src]
+        else:
+            if isinstance(gap, bool) or not isinstance(gap, (int, np.integer)) or gap < 1:
+                raise InbetweenError(f"gap must be an integer >= 1, got {gap!r}")
+            if n_in < 2:
+                raise InbetweenError(f"gap: the input must hold at least 2 keyframes, it has {n_in} frame(s)")
+            src = list(range(n_in))
+            out_pos = [i * (int(gap) + 1) for i in range(n_in)]
+        if bvh.frame_time > 0 and abs(1.0 / bvh.frame_time - self.fps) > 0.5:
+            warnings.warn(f"{bvh.source}: {1.0 / bvh.frame_time:.3g} fps, the model was trained at {self.fps:.3g} "
+                          f"fps; gaps are counted in the file's frames", stacklevel=2)
+        fold, root_in, q_in = self._model_space(bvh)
+        n_out = out_pos[-1] + 1
+        root = np.full((n_out, 3), np.nan)
+        q = np.full((n_out, self.skeleton.num_joints, 4), np.nan)
+        root[out_pos], q[out_pos] = root_in[src], q_in[src]
+        pseudo: list[int] = []
+        root, q = self.fill_arrays(root, q, out_pos, max_gap=max_gap, segment=segment, _pseudo=pseudo)
+        out = self._to_bvh(bvh, fold, root, q, src, out_pos)
+        return FillResult(out, root, q, out_pos, self.skeleton, sorted(pseudo))
+
+    def _model_space(self, bvh: BVH) -> tuple[bool, np.ndarray, np.ndarray]:
+        """``(folded?, root (F, 3), local_q (F, J, 4))`` of a clip in the model's skeleton."""
+        names, ck = list(bvh.names), list(self.skeleton.names)
+        if names == ck:
+            return False, bvh.local_positions()[:, 0].copy(), bvh.local_rotations()
+        if names[1:] == ck:
+            try:
+                clip, _ = fold_static_root(bvh, bvh.source, root_name=names[0])
+            except DatasetError as e:
+                raise InbetweenError(str(e)) from None
+            return True, clip.root_pos, clip.local_q
+        i = next((i for i, (a, b) in enumerate(zip(names, ck)) if a != b), min(len(names), len(ck)))
+        here = repr(names[i]) if i < len(names) else "(none)"
+        there = repr(ck[i]) if i < len(ck) else "(none)"
+        raise InbetweenError(
+            f"skeleton mismatch: {bvh.source} has {len(names)} joints, the checkpoint's skeleton has {len(ck)}; "
+            f"first difference at joint {i}: file {here}, checkpoint {there}")
+
+    def _to_bvh(self, bvh: BVH, fold: bool, root: np.ndarray, q: np.ndarray, src: list[int], out_pos: list[int]):
+        n_out = root.shape[0]
+        t = np.arange(n_out)
+        keys = np.asarray(out_pos)
+        nearest = np.abs(t[:, None] - keys[None, :]).argmin(axis=1)  # ties -> the earlier keyframe
+        rows = np.asarray(src)[nearest]
+        file_q = bvh.local_rotations()[rows]
+        pos = bvh.channel_positions()[rows]
+        if not fold:
+            file_q[:] = q
+            pos[:, 0] = root
+        else:
+            top_q, top_p = file_q[:, 0], pos[:, 0]
+            file_q[:, 1] = qmul(qinv(top_q), q[:, 0])
+            file_q[:, 2:] = q[:, 1:]
+            layout_pos = {c for c in bvh.channels[1] if c.lower().endswith("position")}
+            if len(layout_pos) == 3:
+                pos[:, 1] = qrot(qinv(top_q), root - top_p)
+            elif sum(c.lower().endswith("position") for c in bvh.channels[0]) == 3:
+                pos[:, 0] = root - qrot(top_q, bvh.offsets[1][None])
+            else:
+                raise BVHError(f"neither {bvh.names[0]} nor {bvh.names[1]} has 3 position channels: "
+                               "cannot write the root translation", bvh.source)
+        out = bvh.with_motion(file_q, pos)
+        if fold:  # the folded top joint is copied raw from the nearest keyframe (no Euler round trip)
+            n_top = len(bvh.channels[0])
+            out.motion[:, :n_top] = bvh.motion[rows, :n_top]
+        out.motion[keys] = bvh.motion[np.asarray(src)]
+        return out
+
+
+def _continuous(q: np.ndarray) -> np.ndarray:
+    """Flip signs along axis 0 so consecutive quaternions have non-negative dot products."""
+    return remove_discontinuities(q, axis=0)

@@ -1,0 +1,71 @@
+"""``python -m inbetweening.export``: ONNX export of a trained network, checked against ONNX Runtime."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from inbetweening import export
+from inbetweening.train import load_module
+
+ort = pytest.importorskip("onnxruntime")
+onnx = pytest.importorskip("onnx")
+
+
+@pytest.fixture(scope="module")
+def exported(tiny_checkpoint, tmp_path_factory):
+    path = tmp_path_factory.mktemp("onnx") / "model.onnx"
+    assert export.run([f"ckpt_path={tiny_checkpoint}", "format=onnx", f"output={path}", "opset=17"]) == 0
+    return path, load_module(str(tiny_checkpoint))
+
+
+@pytest.mark.parametrize(("batch", "gap"), [(1, 30), (5, 4)])
+def test_onnxruntime_matches_pytorch(exported, batch, gap):
+    path, module = exported
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    x, known, interp = export.random_window(module, batch, gap, seed=batch)
+    got = export._run_ort(session, x, known, interp)
+    with torch.no_grad():
+        ref = module.net.eval()(x, known, interp).numpy()
+    assert got.shape == ref.shape == (batch, module.n_past + gap + 1, module.skeleton.num_joints, 7)
+    assert np.abs(got - ref).max() <= 1e-4
+
+
+def test_metadata_describes_the_inputs(exported):
+    path, module = exported
+    meta = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"]).get_modelmeta().custom_metadata_map
+    props = {k: json.loads(v) for k, v in meta.items()}
+    assert props["skeleton_names"] == list(module.skeleton.names)
+    assert props["skeleton_parents"] == list(module.skeleton.parents)
+    assert np.allclose(props["skeleton_offsets"], module.skeleton.offsets)
+    assert np.allclose(props["pos_mean"], module.mean) and np.allclose(props["pos_std"], module.std)
+    assert props["mask"] == "lerp" and props["n_past"] == 10 and props["forward_axis"] == [0.0, 0.0, 1.0]
+    graph_inputs = [i.name for i in onnx.load(str(path)).graph.input]
+    assert props["inputs"] == graph_inputs and graph_inputs[:2] == ["x", "known"]
+
+
+def test_export_prints_check(tiny_checkpoint, tmp_path, capsys):
+    assert export.run(["--ckpt_path", str(tiny_checkpoint), "--output", str(tmp_path / "m.onnx")]) == 0
+    out = capsys.readouterr().out
+    diff = float(out.rsplit("max abs diff", 1)[1])
+    assert diff <= 1e-4
+
+
+@pytest.mark.parametrize(
+    ("argv", "msg"),
+    [
+        (["ckpt_path=x.ckpt", "format=tflite", "output=m"], "format: unknown export format 'tflite'; supported: onnx"),
+        (["ckpt_path=missing.ckpt", "output=m.onnx"], "ckpt_path: missing.ckpt does not exist"),
+        (["format=onnx"], "missing ckpt_path=..., output=..."),
+        (["ckpt_path=x", "output=m", "opset=new"], "opset:"),
+    ],
+)
+def test_export_errors(argv, msg, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:
+        export.run(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and msg in err and len(err.strip().splitlines()) == 1

@@ -1,0 +1,257 @@
+"""Animator-facing in-betweening: :class:`inbetweening.Inbetweener` and ``python -m inbetweening.predict``."""
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from inbetweening import Inbetweener, predict
+from inbetweening.bvh import BVH, format_bvh, parse_bvh, read_bvh, write_bvh
+from inbetweening.datasets import fold_static_root
+from inbetweening.inbetweener import InbetweenError, interpolate_arrays
+from inbetweening.module import InbetweenModule
+from inbetweening.quaternion import qinv, qmul, qrot
+from inbetweening.synthetic import generate_clip, make_bvh
+from inbetweening.train import CheckpointError
+
+
+def _clip(frames: int = 120, seed: int = 0) -> BVH:
+    """A synthetic LAFAN-layout clip, passed through the writer/reader like a real file."""
+    return parse_bvh(format_bvh(make_bvh(*generate_clip(np.random.default_rng(seed), frames))), source="clip.bvh")
+
+
+def _same_rotations(a: np.ndarray, b: np.ndarray, atol: float) -> bool:
+    return bool(np.all(np.abs(np.abs((a * b).sum(-1)) - 1) < atol))
+
+
+def _yaw(deg: float) -> np.ndarray:
+    return np.array([math.cos(math.radians(deg) / 2), 0.0, math.sin(math.radians(deg) / 2), 0.0])
+
+
+def bandai_style(clip: BVH, top_yaw: float = 90.0, top_pos=(10.0, 0.0, -5.0)) -> BVH:
+    """The same motion under a static ``joint_Root`` above ``Hips``, every joint with 6 channels (pos + ZXY)."""
+    f, j = clip.num_frames, clip.num_joints
+    top_q = np.broadcast_to(_yaw(top_yaw), (f, 4))
+    top_p = np.broadcast_to(np.asarray(top_pos, float), (f, 3))
+    q = clip.local_rotations()
+    pos = clip.channel_positions()
+    q_bn = np.concatenate([top_q[:, None], q], axis=1)
+    q_bn[:, 1] = qmul(qinv(top_q), q[:, 0])
+    pos_bn = np.concatenate([top_p[:, None], pos], axis=1)
+    pos_bn[:, 1] = qrot(qinv(top_q), pos[:, 0] - top_p)
+    channels = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")] * (j + 1)
+    bn = BVH(["joint_Root"] + clip.names, [-1] + [p + 1 for p in clip.parents.tolist()],
+             np.vstack([np.zeros(3), clip.offsets]), channels, {k + 1: v for k, v in clip.end_sites.items()},
+             clip.frame_time, np.zeros((f, 6 * (j + 1))), source="bandai.bvh")
+    return parse_bvh(format_bvh(bn.with_motion(q_bn, pos_bn)), source="bandai.bvh")
+
+
+@pytest.fixture(scope="module")
+def ib(tiny_checkpoint) -> Inbetweener:
+    return Inbetweener.from_checkpoint(tiny_checkpoint)
+
+
+@pytest.fixture(scope="module")
+def clip() -> BVH:
+    return _clip()
+
+
+# ------------------------------------------------------------------ form A: keyframes of a clip
+def test_fill_keyframes_keeps_rows_and_hierarchy(ib, clip, tmp_path):
+    path = tmp_path / "in.bvh"
+    write_bvh(clip, path)
+    out = ib.fill(path, keyframes=[0, 30, 75])
+    assert out.num_frames == 76
+    assert np.array_equal(out.motion[[0, 30, 75]], clip.motion[[0, 30, 75]])
+    assert np.isfinite(out.motion).all()
+    assert not np.allclose(out.motion[1:30], out.motion[0])  # frames were actually generated
+    write_bvh(out, tmp_path / "out.bvh")
+    back = parse_bvh((tmp_path / "out.bvh").read_bytes(), source="out.bvh")
+    assert back.names == clip.names and back.channels == clip.channels
+    assert np.array_equal(back.parents, clip.parents) and np.array_equal(back.offsets, clip.offsets)
+    assert back.num_frames == 76 and back.frame_time == clip.frame_time
+    assert np.array_equal(back.motion[[0, 30, 75]], clip.motion[[0, 30, 75]])  # 6-decimal input: exact round trip
+
+
+def test_fill_uneven_gaps_and_dropped_frames(ib, clip):
+    keys = [5, 12, 40, 41, 100]
+    res = ib.fill_detailed(clip, keyframes=keys)
+    assert res.bvh.num_frames == 96 and res.known_frames == [0, 7, 35, 36, 95]
+    assert np.array_equal(res.bvh.motion[res.known_frames], clip.motion[keys])
+    assert res.pseudo_keyframes and all(36 < p < 95 for p in res.pseudo_keyframes)  # the 58-frame gap was split
+    assert np.isfinite(res.bvh.motion).all()
+
+
+def test_fill_gap_form(ib, clip):
+    keys = clip.motion[[0, 10, 20]]
+    keys_only = BVH(clip.names, clip.parents, clip.offsets, clip.channels, clip.end_sites, clip.frame_time, keys)
+    out = ib.fill(keys_only, gap=9)
+    assert out.num_frames == 3 + 2 * 9
+    assert np.array_equal(out.motion[[0, 10, 20]], keys)
+    # non-root channels only hold rotations here; the root's position columns are generated
+    assert np.isfinite(out.motion).all()
+
+
+def test_long_gap_is_segmented_or_refused(ib, clip):
+    assert ib.max_gap == ib.trained_gap == 30  # transition_max of the training run
+    res = ib.fill_detailed(clip, keyframes=[0, 80])
+    assert res.pseudo_keyframes == [27, 53]  # 3 segments, gaps of 26, 25 and 26 frames
+    assert np.array_equal(res.bvh.motion[[0, 80]], clip.motion[[0, 80]])
+    with pytest.raises(InbetweenError, match=r"gap between keyframes 0 and 80 is 79 frames, longer than max_gap=30"):
+        ib.fill(clip, keyframes=[0, 80], segment=False)
+    assert ib.fill_detailed(clip, keyframes=[0, 80], max_gap=10).pseudo_keyframes == list(range(10, 80, 10))
+    with pytest.raises(InbetweenError, match="max_gap"):
+        ib.fill(clip, keyframes=[0, 80], max_gap=1000)
+
+
+def test_fill_arrays_ignores_unknown_frames_and_is_yaw_equivariant(ib, clip):
+    root, q = clip.local_positions()[:50, 0], clip.local_rotations()[:50]
+    known = [0, 20, 49]
+    r1, q1 = ib.fill_arrays(root, q, known)
+    holes = np.setdiff1d(np.arange(50), known)
+    r_nan, q_nan = root.copy(), q.copy()
+    r_nan[holes], q_nan[holes] = np.nan, np.nan
+    r2, q2 = ib.fill_arrays(r_nan, q_nan, known)
+    assert np.array_equal(r1, r2) and np.array_equal(q1, q2)  # unknown frames are never read
+    assert np.array_equal(r1[known], root[known]) and np.array_equal(q1[known], q[known])
+    # the windows are normalised: turning and moving the whole clip turns and moves the result
+    y, t = _yaw(63.0), np.array([250.0, 0.0, -80.0])
+    q_rot = q.copy()
+    q_rot[:, 0] = qmul(y[None], q[:, 0])
+    r3, q3 = ib.fill_arrays(qrot(y[None], root) + t, q_rot, known)
+    np.testing.assert_allclose(r3, qrot(y[None], r1) + t, atol=1e-3)
+    assert _same_rotations(q3[:, 0], qmul(y[None], q1[:, 0]), 1e-5)
+    assert _same_rotations(q3[:, 1:], q1[:, 1:], 1e-5)
+
+
+def test_interpolation_model_reproduces_interpolation(clip):
+    """With the interpolation baseline as the network, normalise -> predict -> undo is exactly lerp/slerp."""
+    sk = clip.skeleton()
+    module = InbetweenModule(model={"name": "interpolation"}, skeleton=sk.to_dict(), pos_mean=[0.0] * 66,
+                             pos_std=[50.0] * 66, forward_axis=(0.0, 0.0, 1.0))
+    res = Inbetweener(module).fill_detailed(clip, keyframes=[0, 30, 75, 119])
+    ri, qi = interpolate_arrays(res.root, res.local_q, res.known_frames)
+    np.testing.assert_allclose(res.root, ri, atol=1e-3)
+    assert _same_rotations(res.local_q, qi, 1e-6)
+
+
+# ------------------------------------------------------------------ skeletons
+def test_bandai_namco_static_root_is_folded_and_unfolded(ib, clip):
+    bn = bandai_style(clip)
+    keys = [0, 25, 50]
+    res_bn = ib.fill_detailed(bn, keyframes=keys)
+    res = ib.fill_detailed(clip, keyframes=keys)
+    out = res_bn.bvh
+    assert out.names == bn.names and out.channels == bn.channels and out.num_frames == 51
+    assert np.array_equal(out.motion[keys], bn.motion[keys])
+    assert np.array_equal(out.motion[:, :6], np.broadcast_to(bn.motion[0, :6], (51, 6)))  # joint_Root static
+    # the model saw the same motion as for the plain file ...
+    np.testing.assert_allclose(res_bn.root, res.root, atol=1e-2)
+    assert _same_rotations(res_bn.local_q, res.local_q, 1e-6)
+    # ... and the written Hips-under-joint_Root channels give back the predicted global Hips transform
+    refolded, _ = fold_static_root(out, "out")
+    np.testing.assert_allclose(refolded.root_pos, res_bn.root, atol=1e-5)
+    assert _same_rotations(refolded.local_q, res_bn.local_q, 1e-10)
+
+
+def test_skeleton_mismatch_is_a_clear_error(ib, clip):
+    renamed = BVH(["Pelvis"] + clip.names[1:], clip.parents, clip.offsets, clip.channels, clip.end_sites,
+                  clip.frame_time, clip.motion)
+    with pytest.raises(InbetweenError, match=r"22 joints.*22.*joint 0: file 'Pelvis', checkpoint 'Hips'"):
+        ib.fill(renamed, keyframes=[0, 10])
+    j = clip.num_joints - 1  # drop the last joint (RightHand)
+    cut = BVH(clip.names[:j], clip.parents[:j], clip.offsets[:j], clip.channels[:j], {}, clip.frame_time,
+              clip.motion[:, : 6 + 3 * (j - 1)])
+    with pytest.raises(InbetweenError, match=r"has 21 joints, the checkpoint's skeleton has 22.*'RightHand'"):
+        ib.fill(cut, keyframes=[0, 10])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"keyframes": [0, 40, 30]}, r"sorted.*40 comes before 30"),
+        ({"keyframes": [0, 30, 30]}, "frame 30 is listed twice"),
+        ({"keyframes": [0, 130]}, r"frame 130 is out of range for a clip of 120 frames"),
+        ({"keyframes": [-1, 10]}, "frame -1 is out of range"),
+        ({"keyframes": [5]}, "at least 2 keyframes"),
+        ({"keyframes": []}, "at least 2 keyframes"),
+        ({"gap": 0}, "gap must be an integer >= 1"),
+        ({}, "exactly one of keyframes"),
+        ({"keyframes": [0, 10], "gap": 3}, "exactly one of keyframes"),
+    ],
+)
+def test_bad_keyframes(ib, clip, kwargs, match):
+    with pytest.raises(InbetweenError, match=match):
+        ib.fill(clip, **kwargs)
+
+
+def test_bad_checkpoint(tmp_path):
+    with pytest.raises(CheckpointError, match="does not exist"):
+        Inbetweener.from_checkpoint(tmp_path / "missing.ckpt")
+    bad = tmp_path / "bad.ckpt"
+    bad.write_text("not a checkpoint")
+    with pytest.raises(CheckpointError, match="not a readable PyTorch checkpoint"):
+        Inbetweener.from_checkpoint(bad)
+
+
+# ------------------------------------------------------------------ command line
+def _cli(*args: str, cwd) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONWARNINGS="ignore")
+    return subprocess.run([sys.executable, "-m", "inbetweening.predict", *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_cli_end_to_end_with_render(tiny_checkpoint, tmp_path):
+    from PIL import Image
+
+    write_bvh(_clip(60), tmp_path / "clip.bvh")
+    r = _cli(f"ckpt_path={tiny_checkpoint}", "input=clip.bvh", "keyframes=[0,12,24]", "output=out/filled.bvh",
+             "--render", "out/filled.gif", "--render-dpi", "40", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "25 frames (3 keyframes, 22 generated" in r.stdout
+    out = read_bvh(tmp_path / "out" / "filled.bvh")
+    assert out.num_frames == 25
+    with Image.open(tmp_path / "out" / "filled.gif") as im:
+        assert im.format == "GIF" and im.n_frames == 25
+
+
+def test_cli_in_process_forms(tiny_checkpoint, tmp_path, monkeypatch, capsys):
+    write_bvh(_clip(60), tmp_path / "clip.bvh")
+    monkeypatch.chdir(tmp_path)
+    assert predict.run(["--ckpt_path", str(tiny_checkpoint), "--input", "clip.bvh", "--gap", "2",
+                        "--output", "b.bvh"]) == 0
+    assert read_bvh(tmp_path / "b.bvh").num_frames == 60 + 59 * 2
+    assert predict.run([f"ckpt={tiny_checkpoint}", "input=clip.bvh", "keyframes=0,40", "output=a.bvh",
+                        "--no-segment", "--max-gap", "45"]) == 0
+    assert read_bvh(tmp_path / "a.bvh").num_frames == 41
+    assert predict.run(["--help"]) == 0
+    usage = capsys.readouterr().out
+    assert "keyframes=[0,30,75]" in usage and "gap=30" in usage and "Long gaps" in usage
+
+
+def test_cli_errors_exit_2_with_one_line(tiny_checkpoint, tmp_path, monkeypatch, capsys):
+    write_bvh(_clip(60), tmp_path / "clip.bvh")
+    r = _cli(f"ckpt_path={tiny_checkpoint}", "input=clip.bvh", "keyframes=0,30,90", "output=o.bvh", cwd=tmp_path)
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines() == [
+        "error: keyframes: frame 90 is out of range for a clip of 60 frames (valid: 0..59)"]
+    assert not (tmp_path / "o.bvh").exists()
+    monkeypatch.chdir(tmp_path)
+    cases = [
+        (["ckpt_path=missing.ckpt", "input=clip.bvh", "gap=3", "output=o.bvh"], "ckpt_path: missing.ckpt does not exist"),
+        ([f"ckpt_path={tiny_checkpoint}", "input=nope.bvh", "gap=3", "output=o.bvh"], "input: nope.bvh does not exist"),
+        (["input=clip.bvh", "gap=3"], "missing ckpt_path=..., output=..."),
+        (["ckpt_path=x", "input=clip.bvh", "output=o", "keyframes=0,a"], "keyframes: 'a' is not an integer"),
+        (["ckpt_path=x", "input=clip.bvh", "output=o", "gap=3", "colour=red"], "unknown option 'colour'"),
+        (["ckpt_path=x", "input=clip.bvh", "output=o"], "give exactly one of keyframes"),
+    ]
+    for argv, msg in cases:
+        with pytest.raises(SystemExit) as exc:
+            predict.run(argv)
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and err.startswith("error: ") and msg in err, err

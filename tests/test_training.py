@@ -1,0 +1,193 @@
+"""Training through Hydra configs: every model, user commands, multirun, resume, checkpoints, seeds, errors."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from conftest import TINY, compose_cfg
+
+from inbetweening import features as F
+from inbetweening.collect import collect, main as collect_main
+from inbetweening.config import ConfigError, validate
+from inbetweening.masks import apply_mask, transition_known
+from inbetweening.module import InbetweenModule
+from inbetweening.train import CheckpointError, load_module, make_datamodule, make_module, train
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL_TINY = {
+    "graph_transformer": ["model.d_model=16", "model.depth=1", "model.heads=2"],
+    "frame_transformer": ["model.d_model=16", "model.depth=1", "model.heads=2", "model.ffn_dim=32"],
+    "st_transformer": ["model.spatial_dim=8", "model.spatial_depth=1", "model.spatial_heads=2", "model.d_model=16",
+                       "model.temporal_depth=1", "model.heads=2"],
+    "resnet_lstm": ["model.hidden_dim=16", "model.res_blocks=1", "model.lstm_hidden=16", "model.lstm_layers=1"],
+    "unet1d": ["model.base_channels=8", "model.levels=2", "model.norm_groups=4"],
+    "zero_velocity": [],
+    "interpolation": [],
+}
+BASE = [o for o in TINY if not o.startswith("model.")] + ["callbacks=none", "logger=none"]
+
+
+def run_train(tmp_path, cache_dir, overrides, name="run"):
+    cfg = compose_cfg("train", overrides, tmp_path / name, cache_dir)
+    return train(cfg), cfg
+
+
+@pytest.mark.parametrize("model", sorted(MODEL_TINY))
+def test_fast_dev_run_every_model(model, tmp_path, cache_dir):
+    metrics, _ = run_train(tmp_path, cache_dir, BASE + [f"model={model}", *MODEL_TINY[model], "trainer.fast_dev_run=true"])
+    res = json.loads((tmp_path / "run" / "benchmark.json").read_text())
+    assert res["model"] == model and res["dataset"] == "synthetic" and res["n_windows"] > 0
+    assert set(res["metrics"]) == {f"{m}@{n}" for m in ("l2q", "l2p", "npss") for n in (5, 15, 30, 45)}
+    assert all(np.isfinite(v) for v in res["metrics"].values())
+    assert metrics == pytest.approx(res["metrics"])
+
+
+def test_interpolation_model_matches_numpy_baseline(tmp_path, cache_dir):
+    """The torch Interpolation model through the Lightning test loop scores like the numpy reference baseline."""
+    torch_metrics, cfg = run_train(tmp_path, cache_dir, BASE + ["model=interpolation"])
+    from inbetweening.train import evaluate
+
+    ecfg = compose_cfg("eval", ["model=interpolation", "data.synthetic.num_clips=10", "data.synthetic.min_frames=120",
+                                "data.synthetic.max_frames=160"], tmp_path / "eval", cache_dir)
+    np_metrics = evaluate(ecfg)
+    for k in np_metrics:
+        assert torch_metrics[k] == pytest.approx(np_metrics[k], rel=1e-3, abs=1e-4), k
+
+
+def test_resume_from_last_checkpoint(tmp_path, cache_dir):
+    over = [o for o in TINY if "max_steps" not in o] + ["callbacks=default", "callbacks.progress_bar=null",
+                                                       "callbacks.skeleton_figure=null", "logger=none",
+                                                       "trainer.max_epochs=5"]
+    run_train(tmp_path, cache_dir, over + ["trainer.max_steps=2", "run_test=false"], "a")
+    last = tmp_path / "a" / "checkpoints" / "last.ckpt"
+    assert last.exists()
+    assert torch.load(last, weights_only=False)["global_step"] == 2
+    run_train(tmp_path, cache_dir, over + ["trainer.max_steps=4", f"ckpt_path={last}", "run_test=false"], "b")
+    assert torch.load(tmp_path / "b" / "checkpoints" / "last.ckpt", weights_only=False)["global_step"] == 4
+
+
+def test_load_from_checkpoint_without_hydra_and_keyframes_exact(tmp_path, cache_dir):
+    over = TINY + ["callbacks=default", "callbacks.progress_bar=null", "callbacks.skeleton_figure=null", "logger=none"]
+    run_train(tmp_path, cache_dir, over)
+    ckpt = tmp_path / "run" / "checkpoints" / "last.ckpt"
+    module = InbetweenModule.load_from_checkpoint(ckpt, map_location="cpu")  # no Hydra involved
+    assert module.skeleton.num_joints == 22
+    assert not any(isinstance(v, torch.nn.Module) for v in module.hparams.values())
+    module.eval()
+    root = torch.randn(2, 26, 3, dtype=torch.float64) * 10
+    q = torch.nn.functional.normalize(torch.randn(2, 26, 22, 4, dtype=torch.float64), dim=-1)
+    feats = F.encode(root, q, module.skeleton, module.mean, module.std).float()
+    known = transition_known(2, 26, 22, 10, 15)
+    x, interp = apply_mask(module.mask_name, feats, known)
+    with torch.no_grad():
+        out = module(x, known, interp)
+    assert torch.equal(out[known], feats[known])  # keyframes and context pass through bit-exactly
+    assert torch.allclose(out[..., 3:].norm(dim=-1), torch.ones(2, 26, 22), atol=1e-5)
+    with pytest.raises(CheckpointError, match="does not exist"):
+        load_module(str(tmp_path / "missing.ckpt"))
+    bad = tmp_path / "bad.ckpt"
+    bad.write_bytes(b"not a checkpoint")
+    with pytest.raises(CheckpointError, match="not a readable"):
+        load_module(str(bad))
+
+
+def test_same_seed_same_metrics(tmp_path, cache_dir):
+    a, _ = run_train(tmp_path, cache_dir, BASE + MODEL_TINY["graph_transformer"], "a")
+    b, _ = run_train(tmp_path, cache_dir, BASE + MODEL_TINY["graph_transformer"], "b")
+    assert a == b
+    c, _ = run_train(tmp_path, cache_dir, BASE + MODEL_TINY["graph_transformer"] + ["seed=7"], "c")
+    assert a != c
+
+
+@pytest.mark.parametrize("norm", ["layer", "batch"])
+def test_norms_train_loss_decreases(norm, tmp_path, cache_dir):
+    cfg = compose_cfg("train", BASE + [f"model.norm={norm}", "model.d_model=32", "model.depth=2", "model.heads=2",
+                                       "model.dropout=0.0"], tmp_path, cache_dir)
+    torch.manual_seed(0)
+    dm = make_datamodule(cfg)
+    dm.setup("fit")
+    module = make_module(cfg, dm)
+    opt = torch.optim.Adam(module.parameters(), lr=3e-3)
+    batch = dm.collate_train(list(range(8)))
+
+    def loss():
+        return module._step_loss(batch, "train")
+
+    module.train()
+    first = float(loss())
+    for _ in range(25):
+        opt.zero_grad()
+        loss().backward()
+        opt.step()
+    assert float(loss()) < 0.7 * first
+
+
+@pytest.mark.parametrize(
+    "override,key",
+    [("mask.name=bogus", "mask.name"), ("model.heads=3", "model.heads"), ("model.depth=0", "model.depth"),
+     ("data.transition_min=20", "data.transition_min"), ("data.transition_max=60", "data.transition_max"),
+     ("+loss.l3=1", "loss.l3"), ("optim.lr=-1", "optim.lr")],
+)
+def test_config_validation_names_the_key(override, key, tmp_path, cache_dir):
+    extra = ["data.transition_max=10"] if override.startswith("data.transition_min") else []
+    cfg = compose_cfg("train", [override, *extra], tmp_path, cache_dir)
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        validate(cfg)
+
+
+def _cli(args, cwd, timeout=600):
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.run([sys.executable, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env)
+
+
+def test_user_command_single_run(tmp_path, cache_dir):
+    r = _cli(["train.py", "model.depth=6", "mask=lerp", *[o for o in TINY if not o.startswith("model.depth")],
+              "callbacks.progress_bar=null", f"hydra.run.dir={tmp_path}/run", f"paths.cache_dir={cache_dir}"], ROOT)
+    assert r.returncode == 0, r.stderr[-3000:]
+    res = json.loads((tmp_path / "run" / "benchmark.json").read_text())
+    assert res["model"] == "graph_transformer"
+    assert "| graph_transformer |" in r.stdout
+    assert (tmp_path / "run" / "checkpoints" / "last.ckpt").exists()
+    assert any((tmp_path / "run" / "tensorboard").iterdir())
+
+
+def test_user_command_multirun_and_collect(tmp_path, cache_dir):
+    r = _cli(["train.py", "-m", "mask=zero,lerp", *TINY, "callbacks=none", "logger=none",
+              f"hydra.sweep.dir={tmp_path}/sweep", f"paths.cache_dir={cache_dir}"], ROOT)
+    assert r.returncode == 0, r.stderr[-3000:]
+    rows = collect(tmp_path / "sweep")
+    assert len(rows) == 2 and {row["config"].split()[0] for row in rows} == {"mask=zero", "mask=lerp"}
+    assert rows[0]["l2p@15"] <= rows[1]["l2p@15"]
+    assert collect_main([str(tmp_path / "sweep")]) == 0
+    md = (tmp_path / "sweep" / "results.md").read_text()
+    assert "mask=zero" in md and "L2P@15" in md
+    assert (tmp_path / "sweep" / "results.csv").read_text().count("\n") == 3
+
+
+def test_cli_bad_config_is_one_clear_line(tmp_path, cache_dir):
+    r = _cli(["train.py", "model.heads=3", f"hydra.run.dir={tmp_path}/run", f"paths.cache_dir={cache_dir}"], ROOT)
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines()[-1].startswith("error: model.heads")
+    assert "Traceback" not in r.stderr
+
+
+def test_ablation_config_declares_grid(tmp_path, cache_dir):
+    cfg = compose_cfg("train", ["ablation=method"], tmp_path, cache_dir)
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    from conftest import CONF_DIR
+
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        full = compose("train", overrides=["ablation=method"], return_hydra_config=True)
+    params = full.hydra.sweeper.params
+    sizes = [len(str(v).split(",")) for v in params.values()]
+    assert str(full.hydra.mode) == "RunMode.MULTIRUN" and int(np.prod(sizes)) == 32
+    assert cfg.model.name == "graph_transformer"
