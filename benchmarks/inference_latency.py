@@ -1,0 +1,151 @@
+"""Inference latency and throughput of the default graph_transformer: PyTorch eager vs ONNX Runtime (CPU).
+
+    python benchmarks/inference_latency.py [--repeats 50] [--batch 64] [--threads 1] [--no-write]
+
+* latency: one 30-frame transition (batch 1, T = 10 context + 30 + 1 target = 41 frames), single-threaded
+  (``torch.set_num_threads(1)``, ONNX Runtime ``intra_op_num_threads=1``); the network alone, plus the whole
+  :meth:`Inbetweener.fill_arrays` path (window normalisation, FK features, mask, network, decoding);
+* throughput: batches of 64 such windows, transitions per second.
+
+The network is the default ``conf/model/graph_transformer.yaml`` (depth 6, d_model 64) with untrained weights
+(timing does not depend on the weights) on the 22-joint synthetic skeleton.  Results are printed as a markdown
+table and written as the "## Inference latency" section of ``BENCHMARKS.md`` (other sections are kept).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import platform
+import re
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from omegaconf import OmegaConf
+
+from inbetweening.export import export_onnx, random_window
+from inbetweening.inbetweener import Inbetweener
+from inbetweening.module import InbetweenModule
+from inbetweening.skeleton import Skeleton
+from inbetweening.synthetic import NAMES, OFFSETS, PARENTS, generate_clip
+
+ROOT = Path(__file__).resolve().parents[1]
+SECTION = "## Inference latency"
+GAP = 30
+
+
+def build_module() -> InbetweenModule:
+    model = OmegaConf.to_container(OmegaConf.load(ROOT / "conf" / "model" / "graph_transformer.yaml"))
+    skel = Skeleton(NAMES, PARENTS, OFFSETS)
+    j = skel.num_joints
+    return InbetweenModule(model=model, skeleton=skel.to_dict(), pos_mean=[0.0] * (3 * j), pos_std=[50.0] * (3 * j),
+                           forward_axis=(0.0, 0.0, 1.0)).eval()
+
+
+def timeit(fn, repeats: int, warmup: int = 3) -> list[float]:
+    for _ in range(warmup):
+        fn()
+    out = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t)
+    return out
+
+
+def ort_session(path: Path, threads: int):
+    import onnxruntime as ort
+
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = threads
+    opts.inter_op_num_threads = 1
+    opts.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    return ort.InferenceSession(str(path), sess_options=opts, providers=["CPUExecutionProvider"])
+
+
+def ort_feeds(session, x, known, interp) -> dict:
+    feeds = {"x": x.numpy(), "known": known.numpy(), "interp": interp.numpy()}
+    names = {i.name for i in session.get_inputs()}
+    return {k: v for k, v in feeds.items() if k in names}
+
+
+def run(repeats: int, batch: int, threads: int) -> tuple[list[tuple], str]:
+    module = build_module()
+    net = module.net
+    n_params = sum(p.numel() for p in net.parameters())
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "gt.onnx"
+        info = export_onnx(module, path, check=True)
+        for b, th in ((1, 1), (batch, threads)):
+            torch.set_num_threads(th)
+            session = ort_session(path, th)
+            x, known, interp = random_window(module, b, GAP, seed=b)
+            feeds = ort_feeds(session, x, known, interp)
+            with torch.inference_mode():
+                t_torch = timeit(lambda: net(x, known, interp), repeats if b == 1 else max(repeats // 5, 5))
+            t_ort = timeit(lambda: session.run(None, feeds), repeats if b == 1 else max(repeats // 5, 5))
+            rows.append(("PyTorch eager", b, th, t_torch))
+            rows.append(("ONNX Runtime", b, th, t_ort))
+        # the whole animator path for one transition (PyTorch): Inbetweener.fill_arrays
+        torch.set_num_threads(1)
+        ib = Inbetweener(module, max_gap=GAP)
+        q, root = generate_clip(np.random.default_rng(0), GAP + 2)
+        rows.append(("Inbetweener.fill_arrays (PyTorch, end to end)", 1, 1,
+                     timeit(lambda: ib.fill_arrays(root, q, [0, GAP + 1]), repeats)))
+    lines = [
+        f"| path | batch | threads | median latency (ms) | p90 (ms) | transitions/s |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for name, b, th, ts in rows:
+        med = statistics.median(ts)
+        p90 = float(np.percentile(ts, 90))
+        lines.append(f"| {name} | {b} | {th} | {med * 1e3:.2f} | {p90 * 1e3:.2f} | {b / med:,.0f} |")
+    table = "\n".join(lines)
+    note = (f"graph_transformer, default config (depth 6, d_model 64, heads 4; {n_params:,} parameters), 22 joints, "
+            f"one {GAP}-frame transition = {module.n_past + GAP + 1}-frame window; ONNX opset 17 "
+            f"(ORT vs PyTorch max abs diff {info['max_abs_diff']:.1e}).")
+    return rows, table + "\n\n" + note
+
+
+def write_section(path: Path, body: str) -> None:
+    """Add or replace the ``## Inference latency`` section of ``path``, keeping every other section."""
+    text = path.read_text() if path.exists() else "# Benchmarks\n"
+    section = f"{SECTION}\n\n{body.strip()}\n"
+    pattern = re.compile(rf"^{re.escape(SECTION)}\s*\n.*?(?=^## |\Z)", re.MULTILINE | re.DOTALL)
+    if pattern.search(text):
+        text = pattern.sub(lambda _: section + "\n", text, count=1)
+    else:
+        text = text.rstrip("\n") + "\n\n" + section
+    path.write_text(text.rstrip("\n") + "\n")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeats", type=int, default=50, help="timed runs for batch 1 (batch runs: a fifth)")
+    ap.add_argument("--batch", type=int, default=64)
+    ap.add_argument("--threads", type=int, default=1, help="threads for the batch throughput runs")
+    ap.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    args = ap.parse_args()
+    import onnxruntime
+
+    _, body = run(args.repeats, args.batch, args.threads)
+    cmd = "python benchmarks/inference_latency.py" + "".join(
+        f" --{k} {v}" for k, v in (("repeats", args.repeats), ("batch", args.batch), ("threads", args.threads))
+        if v != ap.get_default(k))
+    header = (f"Command: `{cmd}` ({_dt.date.today().isoformat()}, 2-core CPU dev machine, "
+              f"{platform.processor() or platform.machine()}; torch {torch.__version__}, "
+              f"onnxruntime {onnxruntime.__version__}).  Untrained weights: timing does not depend on them.  "
+              "The dev machine is shared, so expect some noise; medians of repeated runs.")
+    text = header + "\n\n" + body
+    print(text)
+    if not args.no_write:
+        write_section(ROOT / "BENCHMARKS.md", text)
+        print(f"\nwrote the '{SECTION}' section of {ROOT / 'BENCHMARKS.md'}")
+
+
+if __name__ == "__main__":
+    main()

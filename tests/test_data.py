@@ -1,0 +1,271 @@
+"""Datasets (LAFAN1 / Bandai-Namco / synthetic), caching, and the benchmark protocol."""
+from __future__ import annotations
+
+import time
+import urllib.request
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from inbetweening import benchmark as B
+from inbetweening.bvh import BVH, parse_bvh, write_bvh
+from inbetweening.datasets import (
+    DatasetError,
+    bandai_namco_split,
+    fold_static_root,
+    lafan_split,
+    load_dataset,
+    resolve_path,
+    verify_lafan1,
+)
+from inbetweening.quaternion import euler_to_quat_np, qrot, quat_to_euler_np
+from inbetweening.skeleton import Skeleton
+from inbetweening.synthetic import generate_clip, make_bvh
+
+SHARED_BN2 = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "bandai-namco-2.zip"
+
+
+def write_lafan_folder(folder: Path, n_per_subject: int = 2, frames: int = 140, seed: int = 1) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    for s in range(1, 6):
+        for i in range(n_per_subject):
+            write_bvh(make_bvh(*generate_clip(rng, frames + 7 * i)), folder / f"motion{i}_subject{s}.bvh")
+    return folder
+
+
+def bn_bvh(rng, frames: int) -> BVH:
+    """A Bandai-Namco-layout clip: static joint_Root above Hips, every joint 6 channels ZXY."""
+    syn = make_bvh(*generate_clip(rng, frames))
+    q = syn.local_rotations()
+    pos = syn.channel_positions()
+    j = syn.num_joints + 1
+    ch = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+    motion = np.zeros((frames, j * 6))
+    eul = quat_to_euler_np(q, "zxy")
+    for k in range(1, j):
+        motion[:, 6 * k : 6 * k + 3] = pos[:, k - 1]
+        motion[:, 6 * k + 3 : 6 * k + 6] = eul[:, k - 1]
+    return BVH(["joint_Root", *syn.names], np.array([-1, *[p + 1 for p in syn.parents]]),
+               np.vstack([np.zeros(3), syn.offsets]), [ch] * j, {k + 1: v for k, v in syn.end_sites.items()},
+               syn.frame_time, motion)
+
+
+def write_bn_zip(path: Path, takes=range(1, 13), frames: int = 130) -> Path:
+    rng = np.random.default_rng(2)
+    with zipfile.ZipFile(path, "w") as z:
+        for t in takes:
+            bvh = bn_bvh(rng, frames)
+            from inbetweening.bvh import format_bvh
+
+            z.writestr(f"Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk_normal_{t:03d}.bvh", format_bvh(bvh))
+    return path
+
+
+# ------------------------------------------------------------------------------------------ windows
+def test_window_starts_strict():
+    assert B.window_starts(100, 50, 20) == [0, 20, 40]  # 40 + 50 < 100, 60 + 50 >= 100
+    assert B.window_starts(110, 50, 20) == [0, 20, 40]  # 60 + 50 == 110 is excluded (strict)
+    assert B.window_starts(111, 50, 20) == [0, 20, 40, 60]
+    assert B.window_starts(50, 50, 20) == []
+    assert B.window_starts(65 + 1, 65, 40) == [0]
+
+
+def _toy_skeleton():
+    return Skeleton(["r", "a", "b"], [-1, 0, 1], np.array([[0, 0, 0], [0, 10.0, 0], [0, 10.0, 0]]))
+
+
+def test_centre_and_rotate_faces_plus_x_and_centres():
+    rng = np.random.default_rng(0)
+    sk = _toy_skeleton()
+    t = 30
+    yaw = np.linspace(0, 120, t)
+    q = np.zeros((2, t, 3, 4))
+    q[..., 0] = 1
+    q[:, :, 0] = euler_to_quat_np(np.stack([np.zeros(t), yaw, np.zeros(t)], -1), "xyz")
+    root = np.cumsum(rng.normal(size=(2, t, 3)), 1) + np.array([50.0, 90.0, -30.0])
+    X = sk.local_positions(root)
+    Xn, Qn = B.centre_and_rotate(X, q, sk.parents, forward_axis=(0, 0, 1))
+    # root XZ centred over the window; height untouched
+    np.testing.assert_allclose(Xn[:, :, 0, [0, 2]].mean(1), 0, atol=1e-9)
+    np.testing.assert_allclose(Xn[:, :, 0, 1], X[:, :, 0, 1], atol=1e-9)
+    # root forward (+Z local) at frame 9 points to +X
+    fwd = qrot(Qn[:, 9, 0], np.array([0, 0, 1.0]))
+    np.testing.assert_allclose(fwd / np.linalg.norm(fwd, axis=-1, keepdims=True), [[1, 0, 0]] * 2, atol=1e-7)
+    # non-root local positions stay the offsets; torch path agrees
+    np.testing.assert_allclose(Xn[:, :, 1:], X[:, :, 1:], atol=1e-9)
+    Xt, Qt = B.centre_and_rotate(torch.from_numpy(X), torch.from_numpy(q), sk.parents, forward_axis=(0, 0, 1))
+    np.testing.assert_allclose(Xt.numpy(), Xn, atol=1e-9)
+    np.testing.assert_allclose(Qt.numpy(), Qn, atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------ metrics
+def test_l2q_hand_computed():
+    gt = np.zeros((1, 2, 2, 4))
+    gt[..., 0] = 1
+    pred = gt.copy()
+    pred[0, 0, 0] = [0, 1, 0, 0]  # frame 0: one joint differs by (-1, 1, 0, 0) -> norm sqrt(2)
+    pred[0, 1, :, 0] = 0.0  # frame 1: both joints differ by (-1,0,0,0) -> norm sqrt(2)
+    assert B.l2q(pred, gt) == pytest.approx(np.sqrt(2))
+
+
+def test_l2p_hand_computed():
+    gt = np.zeros((1, 1, 2, 3))
+    pred = gt.copy()
+    pred[0, 0, 1] = [3.0, 4.0, 0.0]
+    assert B.l2p(pred, gt, np.zeros(6), np.ones(6)) == pytest.approx(5.0)
+    assert B.l2p(pred, gt, np.zeros(6), np.full(6, 2.0)) == pytest.approx(2.5)  # z-scored
+    assert B.l2p(pred, gt, np.full(6, 7.0), np.ones(6)) == pytest.approx(5.0)  # mean cancels
+
+
+def test_npss_hand_computed():
+    # one window, T=2, one dimension: FFT of [a, b] = [a+b, a-b]
+    gt = np.array([[[1.0], [0.0]]])  # power [1, 1] -> cdf [0.5, 1]
+    pred = np.array([[[1.0], [1.0]]])  # power [4, 0] -> cdf [1, 1]
+    assert B.npss(gt, pred) == pytest.approx(0.5)
+    assert B.npss(gt, gt) == 0.0
+    # weighting by ground-truth total power: a second dimension with 4x power and zero distance
+    gt2 = np.concatenate([gt, 2 * gt], -1)
+    pred2 = np.concatenate([pred, 2 * gt], -1)
+    assert B.npss(gt2, pred2) == pytest.approx(0.5 * 2 / (2 + 8))
+
+
+def test_interpolation_baseline_is_exact_on_linear_motion_and_zero_velocity_repeats():
+    n = 5
+    t = np.arange(B.N_PAST + n + 1, dtype=float)
+    root = np.stack([t, np.zeros_like(t), 2 * t], -1)[None]
+    q = np.zeros((1, len(t), 2, 4))
+    q[..., 0] = 1
+    r, qq = B.interpolation(root, q, n)
+    np.testing.assert_allclose(r[0], root[0, B.N_PAST : B.N_PAST + n], atol=1e-6)
+    np.testing.assert_allclose(qq, q[:, B.N_PAST : B.N_PAST + n])
+    zr, zq = B.zero_velocity(root, q, n)
+    np.testing.assert_allclose(zr[0], np.repeat(root[0, 9:10], n, 0))
+
+
+def test_evaluate_rejects_leaky_predictors(tmp_path):
+    folder = write_lafan_folder(tmp_path / "lafan")
+    bench = load_dataset("lafan1", path=folder, cache_dir=tmp_path / "c").benchmark_set()
+
+    def cheat(root, q, n):  # reads the (NaN) transition frames
+        return root[:, B.N_PAST : B.N_PAST + n], q[:, B.N_PAST : B.N_PAST + n]
+
+    with pytest.raises(ValueError, match="non-finite"):
+        B.evaluate_transitions(bench, cheat, (5,))
+    res = B.evaluate_transitions(bench, B.interpolation, (5, 15))
+    assert set(res) == {"l2q@5", "l2p@5", "npss@5", "l2q@15", "l2p@15", "npss@15"}
+
+
+# ------------------------------------------------------------------------------------------ datasets
+def test_lafan1_folder_and_zip_split_and_protocol(tmp_path):
+    folder = write_lafan_folder(tmp_path / "lafan")
+    d = load_dataset("lafan1", path=folder, cache_dir=tmp_path / "c")
+    assert len(d.train) == 8 and len(d.test) == 2
+    assert d.forward_axis == (0.0, 1.0, 0.0) and d.skeleton.num_joints == 22
+    expected = sum(len(B.window_starts(c.num_frames, 65, 40)) for c in d.test)
+    assert d.test_X.shape == (expected, 65, 22, 3)
+    # stats = mean/std of FK global positions over the training windows
+    X, Q = B.prepare_windows(d.train, d.skeleton, 50, 20, d.forward_axis)
+    m, s = B.position_stats(X, Q, d.skeleton.parents)
+    np.testing.assert_allclose(d.pos_mean, m)
+    np.testing.assert_allclose(d.pos_std, s)
+    zpath = tmp_path / "lafan1.zip"
+    with zipfile.ZipFile(zpath, "w") as z:
+        for f in folder.iterdir():
+            z.write(f, f"lafan1/{f.name}")
+    dz = load_dataset("lafan1", path=zpath, cache_dir=tmp_path / "c")
+    np.testing.assert_allclose(dz.test_X, d.test_X)
+
+
+def test_split_rules():
+    assert lafan_split("aiming1_subject1.bvh") == "train"
+    assert lafan_split("walk3_subject5.bvh") == "test"
+    assert lafan_split("README.md") is None
+    assert bandai_namco_split("dataset-2_walk_normal_010.bvh") == "test"
+    assert bandai_namco_split("dataset-2_walk-left_happy_011.bvh") == "train"
+    assert bandai_namco_split("dataset-1_run_active_100.bvh") == "test"
+
+
+def test_lafan1_missing_path_offline_says_where_to_put_it(tmp_path, monkeypatch):
+    def offline(*a, **k):
+        raise urllib.error.URLError("no network")
+
+    monkeypatch.setattr(urllib.request, "urlopen", offline)
+    with pytest.raises(DatasetError, match=r"Put lafan1.zip .* at .*lafan1.zip"):
+        resolve_path("lafan1", tmp_path / "lafan1.zip", download=True)
+    with pytest.raises(DatasetError, match="does not exist"):
+        resolve_path("lafan1", tmp_path / "nope", download=False)
+    bad = tmp_path / "fake.zip"
+    bad.write_bytes(b"x" * 10)
+    with pytest.raises(DatasetError, match="144051503"):
+        verify_lafan1(bad)
+
+
+def test_bandai_namco_fold_root_preserves_animation_and_split(tmp_path):
+    rng = np.random.default_rng(3)
+    bvh = parse_bvh(__import__("inbetweening.bvh", fromlist=["format_bvh"]).format_bvh(bn_bvh(rng, 40)), "x.bvh")
+    clip, sk = fold_static_root(bvh, "x")
+    assert sk.names[0] == "Hips" and sk.num_joints == bvh.num_joints - 1
+    _, full = bvh.skeleton().fk(bvh.local_rotations(), bvh.channel_positions())
+    _, folded = sk.fk(clip.local_q, sk.local_positions(clip.root_pos))
+    np.testing.assert_allclose(folded, full[:, 1:], atol=1e-3)  # print precision of the file
+    d = load_dataset("bandai_namco", path=write_bn_zip(tmp_path / "bn.zip"), cache_dir=tmp_path / "c")
+    assert len(d.test) == 1 and len(d.train) == 11 and d.forward_axis == (0.0, 0.0, 1.0)
+
+
+def test_cache_is_fast_and_keyed_by_content_and_settings(tmp_path):
+    folder = write_lafan_folder(tmp_path / "lafan")
+    cache = tmp_path / "c"
+    d1 = load_dataset("lafan1", path=folder, cache_dir=cache)
+    t = time.perf_counter()
+    d2 = load_dataset("lafan1", path=folder, cache_dir=cache)
+    assert time.perf_counter() - t < 5  # loose: the benchmark script measures it properly
+    np.testing.assert_array_equal(d1.test_X, d2.test_X)
+    assert len(list((cache / "prepared").glob("*.npz"))) == 1
+    load_dataset("lafan1", path=folder, cache_dir=cache, forward_axis=(0, 0, 1))  # new setting -> new entry
+    assert len(list((cache / "prepared").glob("*.npz"))) == 2
+    f = next(folder.glob("*subject5.bvh"))
+    b = parse_bvh(f.read_bytes(), f.name)
+    b.motion[:, 0] += 100.0  # changed file content -> new entry, new data
+    write_bvh(b, f)
+    d3 = load_dataset("lafan1", path=folder, cache_dir=cache)
+    assert len(list((cache / "prepared").glob("*.npz"))) == 3
+    assert [c.root_pos[0, 0] for c in d3.test] != [c.root_pos[0, 0] for c in d1.test]
+
+
+def test_synthetic_is_deterministic_and_lafan_like(tmp_path):
+    a = load_dataset("synthetic", cache_dir=tmp_path / "a", synthetic={"num_clips": 6, "min_frames": 100, "max_frames": 120})
+    b = load_dataset("synthetic", cache_dir=tmp_path / "b", synthetic={"num_clips": 6, "min_frames": 100, "max_frames": 120})
+    np.testing.assert_array_equal(a.test_X, b.test_X)
+    assert a.skeleton.num_joints == 22 and len(a.test) == 1
+    files = sorted((tmp_path / "a" / "synthetic").rglob("*.bvh"))
+    assert len(files) == 6 and files[0].name.endswith("_subject1.bvh")
+    # smooth motion: small frame-to-frame change of the root
+    v = np.diff(a.train[0].root_pos, axis=0)
+    assert np.abs(np.diff(v, axis=0)).max() < 5.0
+    c = load_dataset("synthetic", cache_dir=tmp_path / "a", synthetic={"num_clips": 6, "min_frames": 100,
+                                                                      "max_frames": 120, "seed": 1})
+    assert not np.allclose(c.train[0].root_pos[:50], a.train[0].root_pos[:50])
+
+
+def test_unknown_dataset_and_missing_files(tmp_path):
+    with pytest.raises(DatasetError, match="unknown dataset"):
+        load_dataset("mocapx")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(Exception, match="empty"):
+        load_dataset("lafan1", path=tmp_path / "empty", cache_dir=tmp_path / "c")
+
+
+@pytest.mark.skipif(not SHARED_BN2.exists(), reason=f"Bandai-Namco-2 not found at {SHARED_BN2}")
+def test_bandai_namco_2_integration(tmp_path):
+    d = load_dataset("bandai_namco", path=SHARED_BN2, cache_dir=tmp_path / "c")
+    s = d.summary()
+    assert s["train_clips"] == 2640 and s["test_clips"] == 262
+    assert s["train_frames"] + s["test_frames"] == 384931
+    assert d.skeleton.num_joints == 21 and d.skeleton.names[0] == "Hips"
+    assert d.test_X.shape[1:] == (65, 21, 3) and np.isfinite(d.test_X).all()
+    res = B.evaluate_transitions(d.benchmark_set(), B.interpolation, (5,))
+    assert 0 < res["l2p@5"] < 2
