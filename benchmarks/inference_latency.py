@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import os
 import platform
 import re
 import statistics
@@ -85,9 +86,10 @@ def run(repeats: int, batch: int, threads: int) -> tuple[list[tuple], str]:
             session = ort_session(path, th)
             x, known, interp = random_window(module, b, GAP, seed=b)
             feeds = ort_feeds(session, x, known, interp)
+            n_rep = repeats if b == 1 else max(repeats // 5, 5)
             with torch.inference_mode():
-                t_torch = timeit(lambda: net(x, known, interp), repeats if b == 1 else max(repeats // 5, 5))
-            t_ort = timeit(lambda: session.run(None, feeds), repeats if b == 1 else max(repeats // 5, 5))
+                t_torch = timeit(lambda x=x, known=known, interp=interp: net(x, known, interp), n_rep)
+            t_ort = timeit(lambda session=session, feeds=feeds: session.run(None, feeds), n_rep)
             rows.append(("PyTorch eager", b, th, t_torch))
             rows.append(("ONNX Runtime", b, th, t_ort))
         # the whole animator path for one transition (PyTorch): Inbetweener.fill_arrays
@@ -97,7 +99,7 @@ def run(repeats: int, batch: int, threads: int) -> tuple[list[tuple], str]:
         rows.append(("Inbetweener.fill_arrays (PyTorch, end to end)", 1, 1,
                      timeit(lambda: ib.fill_arrays(root, q, [0, GAP + 1]), repeats)))
     lines = [
-        f"| path | batch | threads | median latency (ms) | p90 (ms) | transitions/s |",
+        "| path | batch | threads | median latency (ms) | p90 (ms) | transitions/s |",
         "|---|---:|---:|---:|---:|---:|",
     ]
     for name, b, th, ts in rows:
@@ -123,6 +125,16 @@ def write_section(path: Path, body: str) -> None:
     path.write_text(text.rstrip("\n") + "\n")
 
 
+def cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=50, help="timed runs for batch 1 (batch runs: a fifth)")
@@ -132,14 +144,16 @@ def main() -> None:
     args = ap.parse_args()
     import onnxruntime
 
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     _, body = run(args.repeats, args.batch, args.threads)
     cmd = "python benchmarks/inference_latency.py" + "".join(
         f" --{k} {v}" for k, v in (("repeats", args.repeats), ("batch", args.batch), ("threads", args.threads))
         if v != ap.get_default(k))
     header = (f"Command: `{cmd}` ({_dt.date.today().isoformat()}, 2-core CPU dev machine, "
-              f"{platform.processor() or platform.machine()}; torch {torch.__version__}, "
+              f"{cpu_name()}; torch {torch.__version__}, "
               f"onnxruntime {onnxruntime.__version__}).  Untrained weights: timing does not depend on them.  "
-              "The dev machine is shared, so expect some noise; medians of repeated runs.")
+              f"The dev machine is shared (1-min load average {load:.1f} when started), so expect noise; medians of "
+              "repeated runs.")
     text = header + "\n\n" + body
     print(text)
     if not args.no_write:

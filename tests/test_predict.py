@@ -202,7 +202,7 @@ def test_bad_checkpoint(tmp_path):
 def _cli(*args: str, cwd) -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONWARNINGS="ignore")
     return subprocess.run([sys.executable, "-m", "inbetweening.predict", *args], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=300)
+                          capture_output=True, text=True, timeout=300, check=False)
 
 
 def test_cli_end_to_end_with_render(tiny_checkpoint, tmp_path):
@@ -242,7 +242,8 @@ def test_cli_errors_exit_2_with_one_line(tiny_checkpoint, tmp_path, monkeypatch,
     assert not (tmp_path / "o.bvh").exists()
     monkeypatch.chdir(tmp_path)
     cases = [
-        (["ckpt_path=missing.ckpt", "input=clip.bvh", "gap=3", "output=o.bvh"], "ckpt_path: missing.ckpt does not exist"),
+        (["ckpt_path=missing.ckpt", "input=clip.bvh", "gap=3", "output=o.bvh"],
+         "ckpt_path: missing.ckpt does not exist"),
         ([f"ckpt_path={tiny_checkpoint}", "input=nope.bvh", "gap=3", "output=o.bvh"], "input: nope.bvh does not exist"),
         (["input=clip.bvh", "gap=3"], "missing ckpt_path=..., output=..."),
         (["ckpt_path=x", "input=clip.bvh", "output=o", "keyframes=0,a"], "keyframes: 'a' is not an integer"),

@@ -66,7 +66,7 @@ def parse_args(argv: Sequence[str], options: dict[str, Callable[[str], object]],
             body = tok[2:]
             if "=" in body:
                 raw, value = body.split("=", 1)
-            elif body.startswith("no-") or body.startswith("no_"):
+            elif body.startswith(("no-", "no_")):
                 k = key_of(body[3:])
                 if options[k] is not parse_bool:
                     raise UsageError(f"--{body} is only valid for true/false options")

@@ -8,7 +8,8 @@
 * ``synthetic``    - procedurally generated LAFAN-format BVH files (see :mod:`inbetweening.synthetic`),
                      read back through the same BVH reader; test = subject5.
 
-Prepared data (clips, benchmark windows, statistics) is cached as ``.npz`` keyed by a hash of the
+Prepared data (clips, benchmark windows, statistics) is cached as ``.npy`` files (memory-mapped on load)
+in a folder keyed by a hash of the
 source files' bytes and of every preprocessing setting, so a changed file or setting never
 serves stale data.
 """
@@ -18,6 +19,8 @@ import hashlib
 import json
 import os
 import re
+import shutil
+import tempfile
 import urllib.request
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -30,7 +33,7 @@ from .bvh import BVH, BVHError, iter_bvh_sources, parse_bvh
 from .quaternion import qmul, qrot, remove_discontinuities
 from .skeleton import Skeleton
 
-CACHE_VERSION = 2
+CACHE_VERSION = 3
 LAFAN1_URL = "https://github.com/ubisoft/ubisoft-laforge-animation-dataset/raw/master/lafan1/lafan1.zip"
 LAFAN1_SIZE = 144_051_503
 LAFAN1_SHA256 = "ea918082b500a5d158e9d3aa39039df04cd42e25f5c02fe8f7e88e8e9365a977"
@@ -150,8 +153,23 @@ def bandai_namco_split(fname: str):
 # ------------------------------------------------------------------------------------------
 # Sources, hashing, cache
 # ------------------------------------------------------------------------------------------
-def hash_source(path: Path) -> str:
-    """sha1 over the bytes of a zip file, or over the names and bytes of every .bvh file in a folder."""
+def _stat_signature(path: Path) -> list:
+    files = [path] if path.is_file() else sorted(path.rglob("*.bvh"))
+    return [(str(f), f.stat().st_size, f.stat().st_mtime_ns) for f in files]
+
+
+def hash_source(path: Path, memo_dir: Path | None = None) -> str:
+    """sha1 over the bytes of a zip file, or over the names and bytes of every .bvh file in a folder.
+
+    With ``memo_dir``, the digest is remembered against the files' (path, size, mtime) so an
+    unchanged source is not re-read; any change to a file's size or modification time re-hashes it.
+    """
+    memo = None
+    if memo_dir is not None:
+        sig = json.dumps(_stat_signature(path))
+        memo = Path(memo_dir) / "hashes" / (hashlib.sha1(sig.encode()).hexdigest() + ".txt")
+        if memo.exists():
+            return memo.read_text().strip()
     h = hashlib.sha1()
     if path.is_file():
         with open(path, "rb") as f:
@@ -161,7 +179,11 @@ def hash_source(path: Path) -> str:
         for p in sorted(path.rglob("*.bvh")):
             h.update(p.name.encode())
             h.update(p.read_bytes())
-    return h.hexdigest()
+    digest = h.hexdigest()
+    if memo is not None:
+        memo.parent.mkdir(parents=True, exist_ok=True)
+        memo.write_text(digest)
+    return digest
 
 
 def _settings_key(settings: dict) -> str:
@@ -172,7 +194,12 @@ def default_cache_dir() -> Path:
     return Path(os.environ.get("INBETWEENING_CACHE", Path.home() / ".cache" / "inbetweening"))
 
 
+_SMALL = ("pos_mean", "pos_std", "offsets")
+
+
 def _save_cache(path: Path, data: MotionData) -> None:
+    """One folder per key: ``meta.json`` + one ``.npy`` per array (memory-mapped on load), written
+    to a private temporary folder and renamed into place, so readers never see a partial entry."""
     path.parent.mkdir(parents=True, exist_ok=True)
     arrays = {
         "pos_mean": data.pos_mean,
@@ -193,17 +220,23 @@ def _save_cache(path: Path, data: MotionData) -> None:
         clips = getattr(data, split)
         meta[f"{split}_names"] = [c.name for c in clips]
         meta[f"{split}_lengths"] = [c.num_frames for c in clips]
-        arrays[f"{split}_q"] = np.concatenate([c.local_q for c in clips]) if clips else np.zeros((0, 1, 4))
+        j = data.skeleton.num_joints
+        arrays[f"{split}_q"] = np.concatenate([c.local_q for c in clips]) if clips else np.zeros((0, j, 4))
         arrays[f"{split}_root"] = np.concatenate([c.root_pos for c in clips]) if clips else np.zeros((0, 3))
-    tmp = path.with_suffix(".tmp.npz")
-    np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays)
-    os.replace(tmp, path)
+    tmp = Path(tempfile.mkdtemp(prefix=path.name + ".", dir=path.parent))
+    for k, v in arrays.items():
+        np.save(tmp / f"{k}.npy", np.ascontiguousarray(v))
+    (tmp / "meta.json").write_text(json.dumps(meta))
+    try:
+        os.rename(tmp, path)
+    except OSError:  # another process wrote the same entry first
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _load_cache(path: Path) -> MotionData:
-    with np.load(path, allow_pickle=False) as z:
-        meta = json.loads(str(z["meta"]))
-        arrays = {k: z[k] for k in z.files if k != "meta"}
+    meta = json.loads((path / "meta.json").read_text())
+    arrays = {f.stem: np.load(f, mmap_mode=None if f.stem in _SMALL else "r", allow_pickle=False)
+              for f in path.glob("*.npy")}
     skel = Skeleton(tuple(meta["names"]), tuple(meta["parents"]), arrays["offsets"])
     splits = {}
     for split in ("train", "test"):
@@ -212,7 +245,8 @@ def _load_cache(path: Path) -> MotionData:
         splits[split] = [Clip(n, q[a:b], r[a:b]) for n, a, b in zip(meta[f"{split}_names"], bounds[:-1], bounds[1:])]
     return MotionData(
         meta["name"], skel, meta["fps"], tuple(meta["forward_axis"]), splits["train"], splits["test"],
-        arrays["pos_mean"], arrays["pos_std"], arrays["test_X"], arrays["test_Q"], meta["source"],
+        arrays["pos_mean"], arrays["pos_std"], np.asarray(arrays["test_X"]), np.asarray(arrays["test_Q"]),
+        meta["source"],
     )
 
 
@@ -333,13 +367,13 @@ def load_dataset(
     }
     if not use_cache:
         return prepare(name, src, spec["split"], spec["fold_root"], axis)
-    key = f"{name}-{hash_source(src)[:16]}-{_settings_key(settings)}"
-    cache_file = cache_root / "prepared" / f"{key}.npz"
-    if cache_file.exists():
+    key = f"{name}-{hash_source(src, cache_root)[:16]}-{_settings_key(settings)}"
+    cache_file = cache_root / "prepared" / key
+    if (cache_file / "meta.json").exists():
         try:
             return _load_cache(cache_file)
         except (OSError, ValueError, KeyError):
-            cache_file.unlink(missing_ok=True)  # corrupt/partial cache: rebuild
+            shutil.rmtree(cache_file, ignore_errors=True)  # corrupt cache entry: rebuild
     data = prepare(name, src, spec["split"], spec["fold_root"], axis)
     _save_cache(cache_file, data)
     return data

@@ -32,6 +32,7 @@ keyframe).
 """
 from __future__ import annotations
 
+import itertools
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -98,7 +99,7 @@ def interpolate_arrays(root, local_q, known_frames) -> tuple[np.ndarray, np.ndar
     """
     root = np.array(root, dtype=np.float64)
     q = np.array(local_q, dtype=np.float64)
-    for a, b in zip(known_frames[:-1], known_frames[1:]):
+    for a, b in itertools.pairwise(known_frames):
         if b - a < 2:
             continue
         w = (np.arange(a + 1, b) - a) / (b - a)
@@ -227,7 +228,7 @@ class Inbetweener:
         seg = self.segment if segment is None else bool(segment)
         q[known] = qnormalize(q[known])
         exact_r, exact_q = root[known].copy(), np.array(local_q, dtype=np.float64)[known]
-        for a, b in zip(known[:-1], known[1:]):
+        for a, b in itertools.pairwise(known):
             gap = b - a - 1
             if gap == 0:
                 continue
@@ -243,7 +244,7 @@ class Inbetweener:
                 q[points[1:-1]] = slerp_np(q[a][None], q[b][None], w[:, None])
                 if _pseudo is not None:
                     _pseudo.extend(points[1:-1])
-            for s, e in zip(points[:-1], points[1:]):
+            for s, e in itertools.pairwise(points):
                 if e - s > 1:
                     self._generate(root, q, s, e)
         root[known], q[known] = exact_r, exact_q
@@ -347,7 +348,7 @@ class Inbetweener:
             except DatasetError as e:
                 raise InbetweenError(str(e)) from None
             return True, clip.root_pos, clip.local_q
-        i = next((i for i, (a, b) in enumerate(zip(names, ck)) if a != b), min(len(names), len(ck)))
+        i = next((i for i, (a, b) in enumerate(zip(names, ck, strict=False)) if a != b), min(len(names), len(ck)))
         here = repr(names[i]) if i < len(names) else "(none)"
         there = repr(ck[i]) if i < len(ck) else "(none)"
         raise InbetweenError(

@@ -108,13 +108,18 @@ def run(argv: Sequence[str]) -> int:
     from .inbetweener import Inbetweener, InbetweenError
     from .train import CheckpointError
 
+    if not Path(args["input"]).is_file():
+        fail(f"input: {args['input']} does not exist")
+    device = args.get("device", "cpu")
+    import torch
+
+    if str(device).startswith("cuda") and not torch.cuda.is_available():
+        fail(f"device: {device} requested but CUDA is not available (use device=cpu)")
     t0 = time.perf_counter()
     try:
-        kw = {k: args[k] for k in ("max_gap", "segment") if k in args}
-        ib = Inbetweener.from_checkpoint(args["ckpt_path"], device=args.get("device", "cpu"), **kw)
-        if not Path(args["input"]).is_file():
-            raise InbetweenError(f"input: {args['input']} does not exist")
         clip = read_bvh(args["input"])
+        kw = {k: args[k] for k in ("max_gap", "segment") if k in args}
+        ib = Inbetweener.from_checkpoint(args["ckpt_path"], device=device, **kw)
         res = ib.fill_detailed(clip, keyframes=args.get("keyframes"), gap=args.get("gap"))
         out = Path(args["output"])
         out.parent.mkdir(parents=True, exist_ok=True)
