@@ -1,11 +1,11 @@
 """Inference latency and throughput of the default graph_transformer: PyTorch eager vs ONNX Runtime (CPU).
 
-    python benchmarks/inference_latency.py [--repeats 50] [--batch 64] [--threads 1] [--no-write]
+    python benchmarks/inference_latency.py [--repeats 50] [--batch 64] [--threads 1,2] [--no-write]
 
 * latency: one 30-frame transition (batch 1, T = 10 context + 30 + 1 target = 41 frames), single-threaded
   (``torch.set_num_threads(1)``, ONNX Runtime ``intra_op_num_threads=1``); the network alone, plus the whole
   :meth:`Inbetweener.fill_arrays` path (window normalisation, FK features, mask, network, decoding);
-* throughput: batches of 64 such windows, transitions per second.
+* throughput: batches of 64 such windows, transitions per second, with 1 and 2 threads.
 
 The network is the default ``conf/model/graph_transformer.yaml`` (depth 6, d_model 64) with untrained weights
 (timing does not depend on the weights) on the 22-joint synthetic skeleton.  Results are printed as a markdown
@@ -73,7 +73,7 @@ def ort_feeds(session, x, known, interp) -> dict:
     return {k: v for k, v in feeds.items() if k in names}
 
 
-def run(repeats: int, batch: int, threads: int) -> tuple[list[tuple], str]:
+def run(repeats: int, batch: int, threads: list[int]) -> tuple[list[tuple], str]:
     module = build_module()
     net = module.net
     n_params = sum(p.numel() for p in net.parameters())
@@ -81,7 +81,7 @@ def run(repeats: int, batch: int, threads: int) -> tuple[list[tuple], str]:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "gt.onnx"
         info = export_onnx(module, path, check=True)
-        for b, th in ((1, 1), (batch, threads)):
+        for b, th in [(1, 1)] + [(batch, t) for t in threads]:
             torch.set_num_threads(th)
             session = ort_session(path, th)
             x, known, interp = random_window(module, b, GAP, seed=b)
@@ -139,13 +139,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=50, help="timed runs for batch 1 (batch runs: a fifth)")
     ap.add_argument("--batch", type=int, default=64)
-    ap.add_argument("--threads", type=int, default=1, help="threads for the batch throughput runs")
+    ap.add_argument("--threads", default="1,2", help="comma-separated thread counts for the batch throughput runs")
     ap.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
     args = ap.parse_args()
     import onnxruntime
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    _, body = run(args.repeats, args.batch, args.threads)
+    _, body = run(args.repeats, args.batch, [int(t) for t in args.threads.split(",")])
     cmd = "python benchmarks/inference_latency.py" + "".join(
         f" --{k} {v}" for k, v in (("repeats", args.repeats), ("batch", args.batch), ("threads", args.threads))
         if v != ap.get_default(k))

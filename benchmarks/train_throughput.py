@@ -319,7 +319,7 @@ def main() -> None:
         "What limits the achieved rate: every counted FLOP is in small or thin matrix products — d_model-64 "
         f"linears (K = 64) over {b * t * j:,} tokens and thousands of tiny batched attention products over "
         f"{j}-joint and {t}-frame sequences with head dim 16 — which run at a fraction of the 1024 x 1024 matmul "
-        f"rate (per-shape rates above), and they take {mm_time}; the rest is FLOP-free, memory-bound work "
+        f"rate (per-shape rates above), and they take {mm_time}; the rest is uncounted (no matrix products), memory-bound work "
         "launched as many small kernels per layer, forward and backward: layout copies between the spatial "
         "(B·T, J, D) and temporal (B·J, T, D) orders, dropout masks, softmax and the M ⊙ probabilities product, "
         "LayerNorm, GELU, bias-gradient sums.  The step is memory-/overhead-bound rather than FLOP-bound, so the "

@@ -10,10 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from conftest import TINY, compose_cfg
 
+from conftest import TINY, compose_cfg
 from inbetweening import features as F
-from inbetweening.collect import collect, main as collect_main
+from inbetweening.collect import collect
+from inbetweening.collect import main as collect_main
 from inbetweening.config import ConfigError, validate
 from inbetweening.masks import apply_mask, transition_known
 from inbetweening.module import InbetweenModule
@@ -191,3 +192,35 @@ def test_ablation_config_declares_grid(tmp_path, cache_dir):
     sizes = [len(str(v).split(",")) for v in params.values()]
     assert str(full.hydra.mode) == "RunMode.MULTIRUN" and int(np.prod(sizes)) == 32
     assert cfg.model.name == "graph_transformer"
+
+
+@pytest.mark.parametrize("model", ["graph_transformer", "unet1d", "interpolation"])
+def test_mocap_recovery_mask_trains_and_reports_rmse(model, tmp_path, cache_dir):
+    metrics, _ = run_train(tmp_path, cache_dir, BASE + [f"model={model}", *MODEL_TINY[model], "mask=joints",
+                                                        "mask.gap_min=5", "mask.gap_max=40"])
+    assert metrics["recovery_rmse"] > 0 and np.isfinite(metrics["recovery_rmse"])
+    assert json.loads((tmp_path / "run" / "benchmark.json").read_text())["metrics"]["recovery_rmse"] > 0
+
+
+def test_all_loss_terms_train(tmp_path, cache_dir):
+    metrics, _ = run_train(tmp_path, cache_dir, BASE + MODEL_TINY["graph_transformer"] + [
+        "loss.fk_pos=0.5", "loss.quat=0.5", "loss.bone=0.1", "loss.smooth=0.1", "loss.foot=0.1", "optim=sgd"])
+    assert all(np.isfinite(v) for v in metrics.values())
+
+
+@pytest.mark.parametrize("ablation,runs", [("models", 7), ("axes", 6)])
+def test_other_ablations_declare_grids(ablation, runs):
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    from conftest import CONF_DIR
+
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        full = compose("train", overrides=[f"ablation={ablation}"], return_hydra_config=True)
+        params = full.hydra.sweeper.params
+        assert int(np.prod([len(str(v).split(",")) for v in params.values()])) == runs
+        if ablation == "axes":  # every variant composes
+            for v in str(params["+variant"]).split(","):
+                c = compose("train", overrides=[f"+variant={v}"])
+                validate(c)

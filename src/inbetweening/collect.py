@@ -49,9 +49,12 @@ def collect(sweep_dir: str | Path, sort: str = "l2p@15") -> list[dict]:
 
 
 def metric_columns(rows: list[dict]) -> list[str]:
-    keys = {k for r in rows for k in r if "@" in k}
-    return sorted(keys, key=lambda k: (METRIC_ORDER.index(k.split("@")[0]) if k.split("@")[0] in METRIC_ORDER else 9,
-                                       int(k.split("@")[1]) if k.split("@")[1].isdigit() else 0))
+    keys = {k for r in rows for k in r if "@" in k or k == "recovery_rmse"}
+    def order(k: str):
+        m, _, n = k.partition("@")
+        return (METRIC_ORDER.index(m) if m in METRIC_ORDER else 9, int(n) if n.isdigit() else 0)
+
+    return sorted(keys, key=order)
 
 
 def to_markdown(rows: list[dict]) -> str:

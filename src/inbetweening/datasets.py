@@ -380,6 +380,14 @@ def load_dataset(
 
 
 __all__ = [
-    "BVHError", "Clip", "DatasetError", "MotionData", "load_dataset", "fold_static_root", "clip_from_bvh",
-    "lafan_split", "bandai_namco_split", "FORWARD_AXES",
+    "FORWARD_AXES",
+    "BVHError",
+    "Clip",
+    "DatasetError",
+    "MotionData",
+    "bandai_namco_split",
+    "clip_from_bvh",
+    "fold_static_root",
+    "lafan_split",
+    "load_dataset",
 ]

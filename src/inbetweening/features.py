@@ -10,7 +10,7 @@ import torch
 
 from .quaternion import qnormalize
 
-__all__ = ["FEATURES", "POS", "QUAT", "encode", "decode", "global_positions", "qnormalize"]
+__all__ = ["FEATURES", "POS", "QUAT", "decode", "encode", "global_positions", "qnormalize"]
 from .skeleton import Skeleton, fk
 
 FEATURES = 7

@@ -17,7 +17,7 @@ from . import features as F
 from .benchmark import N_PAST
 from .inference import predict_features
 from .losses import total_loss
-from .masks import MASK_NAMES, apply_mask, transition_known
+from .masks import MASK_NAMES, apply_mask, joints_known, transition_known
 from .metrics import BenchmarkMetric, PerJointError
 from .models import MODELS, build_model
 from .skeleton import Skeleton, fk
@@ -36,6 +36,8 @@ class InbetweenModule(L.LightningModule):
         val_lengths, test_lengths: transition lengths scored by the benchmark metrics.
         dataset: name of the training dataset (recorded in ``benchmark.json``).
         forward_axis, fps, train_window: data conventions, kept so tools can prepare new windows alike.
+        joint_mask: gap settings of the mocap-recovery task (``mask=joints``): ``gap_min``, ``gap_max``,
+            ``frac_min``, ``frac_max``; validation/test then also score recovery of missing joints.
     """
 
     def __init__(
@@ -54,6 +56,7 @@ class InbetweenModule(L.LightningModule):
         forward_axis: Sequence[float] = (0.0, 1.0, 0.0),
         fps: float = 30.0,
         train_window: int = 50,
+        joint_mask: dict | None = None,
     ):
         super().__init__()
         self.save_hyperparameters()
@@ -74,6 +77,9 @@ class InbetweenModule(L.LightningModule):
         self.val_joint = PerJointError(j)
         self.test_joint = PerJointError(j)
         self.test_results: dict[str, float] = {}
+        self.joint_mask = {k: v for k, v in (joint_mask or {}).items() if k != "name"}
+        self.val_recovery = PerJointError(j)
+        self.test_recovery = PerJointError(j)
 
     @staticmethod
     def build_network(model_cfg: dict, skeleton: Skeleton) -> torch.nn.Module:
@@ -131,11 +137,32 @@ class InbetweenModule(L.LightningModule):
             joint.update(pr_gp, gt_gp, pr_gq, gt_gq, unknown)
         self.log(f"{stage}/loss", torch.stack(losses).mean(), prog_bar=True, batch_size=root.shape[0])
 
+    def _recovery_step(self, batch: dict, batch_idx: int, metric: PerJointError) -> None:
+        """Mocap recovery: random joints missing over random gaps of the whole window (seeded per batch)."""
+        root, q = batch["root"], batch["q"]
+        feats = F.encode(root, q, self.skeleton, self.mean, self.std).float()
+        b, t, j, _ = feats.shape
+        jm = self.joint_mask
+        gen = torch.Generator().manual_seed(1000 + batch_idx)
+        known = joints_known(b, t, j, int(jm.get("gap_min", 10)), int(jm.get("gap_max", 200)),
+                             float(jm.get("frac_min", 0.1)), float(jm.get("frac_max", 0.3)), generator=gen,
+                             device=feats.device)
+        pred, _ = predict_features(self.net, self.mask_name, feats, known)
+        pr_root, pr_q = F.decode(pred.double(), self.mean, self.std)
+        pr_gq, _ = fk(pr_q, self.skeleton.local_positions(pr_root), self.skeleton.parents)
+        gt_gq, gt_gp = fk(q, self.skeleton.local_positions(root), self.skeleton.parents)
+        # recovered positions are the predicted global positions of the missing joints
+        metric.update(F.global_positions(pred.double(), self.mean, self.std), gt_gp, pr_gq, gt_gq, ~known)
+
     def validation_step(self, batch: dict, batch_idx: int) -> None:
         self._bench_step(batch, self.val_bench, self.val_joint, "val")
+        if self.mask_name == "joints":
+            self._recovery_step(batch, batch_idx, self.val_recovery)
 
     def test_step(self, batch: dict, batch_idx: int) -> None:
         self._bench_step(batch, self.test_bench, self.test_joint, "test")
+        if self.mask_name == "joints":
+            self._recovery_step(batch, batch_idx, self.test_recovery)
 
     def _log_epoch(self, bench: BenchmarkMetric, joint: PerJointError, stage: str) -> dict[str, float]:
         res = bench.compute()
@@ -153,11 +180,24 @@ class InbetweenModule(L.LightningModule):
         self.log_dict(logs, sync_dist=False)
         return {k: v for k, v in res.items()}
 
+    def _log_recovery(self, metric: PerJointError, stage: str) -> dict[str, float]:
+        if self.mask_name != "joints":
+            return {}
+        res = metric.compute()
+        metric.reset()
+        logs = {f"{stage}/recovery_rmse": float(res["rmse"])}
+        for i, name in enumerate(self.skeleton.names):
+            logs[f"{stage}_recovery_pos/{name}"] = float(res["pos"][i])
+        self.log_dict(logs)
+        return {"recovery_rmse": logs[f"{stage}/recovery_rmse"]}
+
     def on_validation_epoch_end(self) -> None:
         self._log_epoch(self.val_bench, self.val_joint, "val")
+        self._log_recovery(self.val_recovery, "val")
 
     def on_test_epoch_end(self) -> None:
         self.test_results = self._log_epoch(self.test_bench, self.test_joint, "test")
+        self.test_results.update(self._log_recovery(self.test_recovery, "test"))
 
     # ------------------------------------------------------------------ optimisation
     def configure_optimizers(self):

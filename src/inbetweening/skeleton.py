@@ -118,10 +118,10 @@ class Skeleton:
         return {"names": list(self.names), "parents": list(self.parents), "offsets": self.offsets.tolist()}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Skeleton":
+    def from_dict(cls, d: dict) -> Skeleton:
         return cls(tuple(d["names"]), tuple(d["parents"]), np.asarray(d["offsets"], dtype=np.float64))
 
-    def same_topology(self, other: "Skeleton") -> bool:
+    def same_topology(self, other: Skeleton) -> bool:
         return self.names == other.names and self.parents == other.parents
 
     def __eq__(self, other) -> bool:  # offsets are an array: compare explicitly

@@ -59,6 +59,7 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
         optim=OmegaConf.to_container(cfg.optim, resolve=True),
         val_lengths=list(cfg.data.val_lengths),
         test_lengths=list(cfg.data.test_lengths),
+        joint_mask=OmegaConf.to_container(cfg.mask, resolve=True) if cfg.mask.name == "joints" else None,
         **dm.model_kwargs(),
     )
 
@@ -127,6 +128,8 @@ def train(cfg: DictConfig) -> dict[str, float]:
         write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics)
         print(f"\nTest benchmark ({dm.data.name}, {len(dm.test_set)} windows, checkpoint: {best or 'final weights'})")
         print(B.format_table({name: metrics}, cfg.data.test_lengths))
+        if "recovery_rmse" in metrics:
+            print(f"mocap recovery: RMSE of recovered joint positions = {metrics['recovery_rmse']:.3f}")
         for lg in trainer.loggers:
             if hasattr(lg, "log_hyperparams"):
                 lg.log_hyperparams(_flat_hparams(cfg), metrics={f"hp/{k}": v for k, v in metrics.items()})

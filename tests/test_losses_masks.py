@@ -1,0 +1,127 @@
+"""Masks (transition / mocap-recovery, zero / lerp fill) and loss terms."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from inbetweening import losses as L
+from inbetweening.masks import apply_mask, joints_known, lerp_fill, transition_known, zero_fill
+from inbetweening.quaternion import qnormalize, slerp_np
+from inbetweening.skeleton import Skeleton
+from inbetweening.synthetic import NAMES, OFFSETS, PARENTS
+
+SK = Skeleton(NAMES, PARENTS, OFFSETS)
+MEAN, STD = np.zeros(66), np.ones(66)
+
+
+def test_transition_known_per_batch_and_per_sample():
+    k = transition_known(2, 20, 3, 10, 5)
+    assert k[:, :10].all() and not k[:, 10:15].any() and k[:, 15:].all()
+    k2 = transition_known(2, 20, 3, 10, torch.tensor([3, 6]))
+    assert not k2[0, 10:13].any() and k2[0, 13].all() and not k2[1, 10:16].any() and k2[1, 16].all()
+
+
+def test_joints_known_fraction_and_gap():
+    g = torch.Generator().manual_seed(0)
+    k = joints_known(16, 60, 20, 10, 30, 0.1, 0.3, generator=g)
+    assert k[:, 0].all() and k[:, -1].all()
+    missing_joints = (~k).any(1).sum(-1)
+    assert (missing_joints >= 2).all() and (missing_joints <= 6).all()
+    gap = (~k).any(2).sum(1)
+    assert (gap >= 10).all() and (gap <= 30).all()
+
+
+def test_zero_and_lerp_fill():
+    x = torch.randn(2, 12, 3, 7, dtype=torch.float64)
+    x[..., 3:] = qnormalize(x[..., 3:])
+    known = transition_known(2, 12, 3, 4, 6)  # frames 4..9 unknown, 3 and 10 known
+    z = zero_fill(x, known)
+    assert (z[:, 4:10] == 0).all() and torch.equal(z[known], x[known])
+    lf = lerp_fill(x, known)
+    w = (7 - 3) / (10 - 3)
+    np.testing.assert_allclose(lf[:, 7, :, :3], x[:, 3, :, :3] + w * (x[:, 10, :, :3] - x[:, 3, :, :3]), atol=1e-12)
+    ref = slerp_np(x[:, 3, :, 3:].numpy(), x[:, 10, :, 3:].numpy(), w)
+    np.testing.assert_allclose(lf[:, 7, :, 3:].numpy(), ref, atol=1e-9)
+    # unknown values are never read, even when they are NaN
+    xn = x.clone()
+    xn[~known] = float("nan")
+    assert torch.isfinite(lerp_fill(xn, known)).all() and torch.isfinite(zero_fill(xn, known)).all()
+    with pytest.raises(ValueError, match="unknown mask"):
+        apply_mask("blur", x, known)
+
+
+def test_lerp_fill_per_joint_gaps_hold_at_edges():
+    x = torch.arange(10, dtype=torch.float64)[None, :, None, None].expand(1, 10, 2, 7).clone()
+    known = torch.ones(1, 10, 2, dtype=torch.bool)
+    known[0, 2:5, 0] = False  # interior gap on joint 0
+    known[0, 7:, 1] = False  # trailing gap on joint 1: hold the last known value
+    out = lerp_fill(x, known)
+    np.testing.assert_allclose(out[0, 2:5, 0, 0], [2, 3, 4])
+    np.testing.assert_allclose(out[0, 7:, 1, 0], [6, 6, 6])
+
+
+def _features(b=2, t=12, noise=0.0, seed=0):
+    g = torch.Generator().manual_seed(seed)
+    f = torch.randn(b, t, 22, 7, generator=g, dtype=torch.float64)
+    f[..., 3:] = qnormalize(f[..., 3:])
+    return f
+
+
+def test_l1_only_counts_masked_entries():
+    gt = _features()
+    pred = gt.clone()
+    mask = torch.zeros(2, 12, 22, dtype=torch.bool)
+    mask[:, 5] = True
+    pred[:, 3] += 10.0  # outside the mask: ignored
+    assert float(L.l1(pred, gt, mask)) == 0.0
+    pred[:, 5, :, 0] += 7.0
+    assert float(L.l1(pred, gt, mask)) == pytest.approx(1.0)  # 7 over 7 features
+
+
+@pytest.mark.parametrize("term", ["fk_pos", "quat", "bone", "smooth", "foot"])
+def test_each_term_is_zero_on_truth_and_positive_when_wrong(term):
+    from inbetweening import features as F
+
+    rng = np.random.default_rng(0)
+    root = torch.from_numpy(np.cumsum(rng.normal(size=(2, 12, 3)), 1) * 3)
+    q = qnormalize(torch.from_numpy(rng.normal(size=(2, 12, 22, 4))) * 0.1 + torch.tensor([1.0, 0, 0, 0]))
+    gt = F.encode(root, q, SK, MEAN, STD)
+    mask = torch.zeros(2, 12, 22, dtype=torch.bool)
+    mask[:, 4:8] = True
+    weights = {"l1": 0.0, term: 1.0}
+    zero, _ = L.total_loss(gt, gt, mask, weights, SK, MEAN, STD)
+    wrong = gt.clone()
+    wrong[:, 4:8, :, :3] += torch.randn(2, 4, 22, 3, dtype=torch.float64)  # positions off
+    wrong[:, 4:8, :, 3:] = qnormalize(wrong[:, 4:8, :, 3:] + 0.5)  # rotations off
+    bad, terms = L.total_loss(wrong, gt, mask, weights, SK, MEAN, STD)
+    if term == "smooth":  # zero on linear motion, positive once frames are jittered
+        lin = gt.clone()
+        lin[..., :3] = torch.linspace(0, 1, 12, dtype=torch.float64)[None, :, None, None] * gt[:, -1:, :, :3]
+        assert float(L.total_loss(lin, lin, mask, weights, SK, MEAN, STD)[0]) == pytest.approx(0.0, abs=1e-9)
+        jitter = lin.clone()
+        jitter[:, 4:8, :, :3] += torch.randn(2, 4, 22, 3, dtype=torch.float64)
+        assert float(L.total_loss(jitter, lin, mask, weights, SK, MEAN, STD)[0]) > 0.1
+    elif term == "foot":
+        gt_static = gt.clone()
+        gt_static[:, :, :, :3] = gt[:, :1, :, :3]  # feet in contact all along
+        w2 = gt_static.clone()
+        w2[:, 4:8, :, :3] += 1.0
+        w2[:, 6, :, :3] += 1.0
+        assert float(L.total_loss(gt_static, gt_static, mask, weights, SK, MEAN, STD)[0]) == 0.0
+        assert float(L.total_loss(w2, gt_static, mask, weights, SK, MEAN, STD)[0]) > 0.0
+    else:
+        assert float(zero) == pytest.approx(0.0, abs=1e-6)
+        assert float(bad) > 1e-3
+    assert term in terms
+
+
+def test_unknown_loss_term_raises():
+    gt = _features()
+    with pytest.raises(ValueError, match="unknown term"):
+        L.total_loss(gt, gt, torch.ones(2, 12, 22, dtype=torch.bool), {"l1": 1.0, "l3": 1.0}, SK, MEAN, STD)
+
+
+def test_foot_joints_found_by_name():
+    idx = L.foot_joint_indices(SK)
+    assert [SK.names[i] for i in idx] == ["LeftFoot", "LeftToe", "RightFoot", "RightToe"]
