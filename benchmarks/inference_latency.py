@@ -1,11 +1,12 @@
 """Inference latency and throughput of the default graph_transformer: PyTorch eager vs ONNX Runtime (CPU).
 
-    python benchmarks/inference_latency.py [--repeats 50] [--batch 64] [--threads 1,2] [--no-write]
+    python benchmarks/inference_latency.py [--repeats 50] [--batch 64] [--threads 1] [--no-write]
 
 * latency: one 30-frame transition (batch 1, T = 10 context + 30 + 1 target = 41 frames), single-threaded
   (``torch.set_num_threads(1)``, ONNX Runtime ``intra_op_num_threads=1``); the network alone, plus the whole
   :meth:`Inbetweener.fill_arrays` path (window normalisation, FK features, mask, network, decoding);
-* throughput: batches of 64 such windows, transitions per second, with 1 and 2 threads.
+* throughput: batches of 64 such windows, transitions per second (single-threaded by default: on the shared
+  2-core dev machine 2-thread runs were dominated by contention with other jobs; try `--threads 1,2`).
 
 The network is the default ``conf/model/graph_transformer.yaml`` (depth 6, d_model 64) with untrained weights
 (timing does not depend on the weights) on the 22-joint synthetic skeleton.  Results are printed as a markdown
@@ -139,7 +140,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=int, default=50, help="timed runs for batch 1 (batch runs: a fifth)")
     ap.add_argument("--batch", type=int, default=64)
-    ap.add_argument("--threads", default="1,2", help="comma-separated thread counts for the batch throughput runs")
+    ap.add_argument("--threads", default="1", help="comma-separated thread counts for the batch throughput runs")
     ap.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
     args = ap.parse_args()
     import onnxruntime
