@@ -79,6 +79,7 @@ class InbetweenDataModule(L.LightningDataModule):
         joint_mask: dict | None = None,
         max_train_windows: int | None = None,
         max_eval_windows: int | None = None,
+        max_val_windows: int | None = None,
     ):
         super().__init__()
         self.save_hyperparameters(logger=False)  # the module logs the resolved data conventions
@@ -109,7 +110,8 @@ class InbetweenDataModule(L.LightningDataModule):
         self.train_feats = window_features(X[:, :, 0], Q, sk, data.pos_mean, data.pos_std)
         vX, vQ = B.prepare_windows(val_clips or train_clips[:1], sk, B.TEST_WINDOW, B.TEST_OFFSET, axis)
         lim = h.max_eval_windows
-        self.val_set = _Windows(vX[:lim], vQ[:lim])
+        vlim = h.max_val_windows or lim
+        self.val_set = _Windows(vX[:vlim], vQ[:vlim])
         self.test_set = _Windows(data.test_X[:lim], data.test_Q[:lim])
 
     @property
