@@ -114,6 +114,12 @@ class InbetweenDataModule(L.LightningDataModule):
         self.val_set = _Windows(vX[:vlim], vQ[:vlim])
         self.test_set = _Windows(data.test_X[:lim], data.test_Q[:lim])
 
+    def test_benchmark_set(self) -> B.BenchmarkSet:
+        """The (possibly capped) test windows as a :class:`~inbetweening.benchmark.BenchmarkSet`."""
+        d = self.data
+        n = len(self.test_set)
+        return B.BenchmarkSet(d.test_X[:n], d.test_Q[:n], d.skeleton, d.pos_mean, d.pos_std)
+
     @property
     def skeleton(self):
         return self.data.skeleton

@@ -127,7 +127,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
         name = cfg.model.name
         write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics)
         print(f"\nTest benchmark ({dm.data.name}, {len(dm.test_set)} windows, checkpoint: {best or 'final weights'})")
-        print(B.format_table({name: metrics}, cfg.data.test_lengths))
+        print(B.format_table(with_baselines(name, metrics, dm, cfg.data.test_lengths), cfg.data.test_lengths))
         if "recovery_rmse" in metrics:
             print(f"mocap recovery: RMSE of recovered joint positions = {metrics['recovery_rmse']:.3f}")
         for lg in trainer.loggers:
@@ -135,6 +135,16 @@ def train(cfg: DictConfig) -> dict[str, float]:
                 lg.log_hyperparams(_flat_hparams(cfg), metrics={f"hp/{k}": v for k, v in metrics.items()})
                 lg.finalize("success")
     return metrics
+
+
+def with_baselines(name: str, metrics: dict, dm: InbetweenDataModule, lengths) -> dict[str, dict[str, float]]:
+    """Rows for the printed table: the model, then zero-velocity and interpolation on the same windows."""
+    rows = {name: metrics}
+    if name not in B.BASELINES:
+        bench = dm.test_benchmark_set()
+        for base in ("zero_velocity", "interpolation"):
+            rows[base] = B.evaluate_transitions(bench, B.BASELINES[base], tuple(lengths))
+    return rows
 
 
 def check_checkpoint(path: str) -> dict:
