@@ -108,9 +108,14 @@ def run(repeats: int, batch: int, threads: list[int]) -> tuple[list[tuple], str]
         p90 = float(np.percentile(ts, 90))
         lines.append(f"| {name} | {b} | {th} | {med * 1e3:.2f} | {p90 * 1e3:.2f} | {b / med:,.0f} |")
     table = "\n".join(lines)
+    per = {(name, b, th): statistics.median(ts) / b for name, b, th, ts in rows}
+    batch_note = " ".join(
+        f"{name}: {per[(name, batch, 1)] * 1e3:.1f} ms per transition at batch {batch} vs "
+        f"{per[(name, 1, 1)] * 1e3:.1f} ms at batch 1 (1 thread)."
+        for name in ("PyTorch eager", "ONNX Runtime") if (name, batch, 1) in per)
     note = (f"graph_transformer, default config (depth 6, d_model 64, heads 4; {n_params:,} parameters), 22 joints, "
             f"one {GAP}-frame transition = {module.n_past + GAP + 1}-frame window; ONNX opset 17 "
-            f"(ORT vs PyTorch max abs diff {info['max_abs_diff']:.1e}).")
+            f"(ORT vs PyTorch max abs diff {info['max_abs_diff']:.1e}).  {batch_note}")
     return rows, table + "\n\n" + note
 
 

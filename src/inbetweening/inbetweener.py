@@ -126,7 +126,8 @@ def _check_frames(frames, length: int, what: str) -> list[int]:
         raise InbetweenError(f"{what}: need at least 2 keyframes, got {len(out)} ({out})")
     for k in out:
         if not 0 <= k < length:
-            raise InbetweenError(f"{what}: frame {k} is out of range for a clip of {length} frames (valid: 0..{length - 1})")
+            raise InbetweenError(
+                f"{what}: frame {k} is out of range for a clip of {length} frames (valid: 0..{length - 1})")
     for i in range(1, len(out)):
         if out[i] == out[i - 1]:
             raise InbetweenError(f"{what}: frame {out[i]} is listed twice")
