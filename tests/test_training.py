@@ -231,3 +231,16 @@ def test_experiment_configs_compose(tmp_path, cache_dir):
         cfg = compose_cfg("train", [f"experiment={exp}"], tmp_path, cache_dir)
         validate(cfg)
     assert cfg.data.name == "bandai_namco" and cfg.trainer.max_time == "00:01:25:00"
+
+
+@pytest.mark.parametrize("exp,target", [("joblib", "JoblibLauncher"), ("slurm", "SlurmLauncher")])
+def test_launcher_experiments_compose(exp, target):
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    from conftest import CONF_DIR
+
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        full = compose("train", overrides=[f"experiment={exp}"], return_hydra_config=True)
+    assert full.hydra.launcher._target_.endswith(target)

@@ -173,6 +173,7 @@ def load_module(path: str) -> InbetweenModule:
 
 def evaluate(cfg: DictConfig) -> dict[str, float]:
     """Benchmark a checkpoint (``ckpt_path``) or a baseline (``model=zero_velocity|interpolation``)."""
+    validate(cfg)
     out = output_dir(cfg)
     ckpt_path = cfg.get("ckpt_path")
     if not ckpt_path:
