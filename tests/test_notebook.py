@@ -32,6 +32,7 @@ def test_notebook_runs(tmp_path, monkeypatch):
         "display_name": "inbetweening tests", "language": "python",
     }))
     monkeypatch.setenv("JUPYTER_PATH", str(tmp_path / "jupyter"))
+    monkeypatch.delenv("MPLBACKEND", raising=False)  # a headless Agg override would hide the inline figures
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.setenv("WALKTHROUGH_DIR", str(work))
