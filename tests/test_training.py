@@ -227,10 +227,10 @@ def test_other_ablations_declare_grids(ablation, runs):
 
 
 def test_experiment_configs_compose(tmp_path, cache_dir):
-    for exp in ("quick", "bn2_reference"):
+    for exp in ("quick", "bn2_ablation", "bn2_reference"):
         cfg = compose_cfg("train", [f"experiment={exp}"], tmp_path, cache_dir)
         validate(cfg)
-    assert cfg.data.name == "bandai_namco" and cfg.trainer.max_time == "00:01:25:00"
+    assert cfg.data.name == "bandai_namco" and cfg.trainer.max_time == "00:01:22:00"
 
 
 @pytest.mark.parametrize("exp,target", [("joblib", "JoblibLauncher"), ("slurm", "SlurmLauncher")])

@@ -44,6 +44,10 @@ def collect(sweep_dir: str | Path, sort: str = "l2p@15") -> list[dict]:
                      **res.get("metrics", {})})
     if not rows:
         raise FileNotFoundError(f"no benchmark.json under {root}")
+    # overrides shared by every run say nothing about a row: drop them from the labels
+    common = set.intersection(*(set(r["config"].split()) for r in rows)) if len(rows) > 1 else set()
+    for r in rows:
+        r["config"] = " ".join(o for o in r["config"].split() if o not in common) or "(shared settings)"
     rows.sort(key=lambda r: (r.get(sort) is None, r.get(sort, 0.0)))
     return rows
 
