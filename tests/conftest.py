@@ -66,3 +66,27 @@ def tiny_checkpoint(tmp_path_factory, cache_dir) -> Path:
     ckpts = sorted((out / "checkpoints").glob("*.ckpt"))
     assert ckpts, f"training wrote no checkpoint under {out}"
     return ckpts[-1]
+
+
+def sinusoid_batch(joints: int, b: int = 16, t: int = 12, seed: int = 1, island: bool = False):
+    """A smooth regression task for tiny training tests: sinusoid positions/rotations per joint, the middle
+    frames masked.  Returns ``(masked x, known, target)`` with shapes ``(b, t, joints, 7)``, ``(b, t, joints)``."""
+    import math
+
+    import torch
+
+    g = torch.Generator().manual_seed(seed)
+    phase = torch.rand(b, 1, 1, 1, generator=g) * 2 * math.pi
+    freq = 0.3 + 0.3 * torch.rand(b, 1, 1, 1, generator=g)
+    tt = torch.arange(t, dtype=torch.float32)[None, :, None, None]
+    jj = torch.arange(joints, dtype=torch.float32)[None, None, :, None]
+    pos = torch.sin(freq * tt + phase + 0.5 * jj + torch.arange(3.0))
+    half = 0.4 * torch.sin(freq * tt + phase + jj)
+    quat = torch.cat([torch.cos(half), torch.zeros_like(half), torch.zeros_like(half), torch.sin(half)], dim=-1)
+    y = torch.cat([pos, quat], dim=-1)
+    known = torch.zeros(b, t, joints, dtype=torch.bool)
+    known[:, :3] = True
+    known[:, -2:] = True
+    if island:
+        known[:, 5:7, :3] = True  # a per-joint island inside the gap
+    return y * known[..., None], known, y

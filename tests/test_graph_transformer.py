@@ -1,12 +1,11 @@
 """Graph-attention transformer and shared blocks: contract, graph locality, trainability, validation."""
 from __future__ import annotations
 
-import math
-
 import pytest
 import torch
 import torch.nn.functional as F
 
+from conftest import sinusoid_batch
 from inbetweening.models import MODELS, GraphTransformer, build_model
 from inbetweening.models.blocks import MultiHeadAttention, Norm
 
@@ -208,27 +207,11 @@ def test_batch_norm_flattens_leading_dims():
 
 
 # ------------------------------------------------------------------ trainability
-def sinusoid_batch(b=16, t=12, seed=1):
-    g = torch.Generator().manual_seed(seed)
-    phase = torch.rand(b, 1, 1, 1, generator=g) * 2 * math.pi
-    freq = 0.3 + 0.3 * torch.rand(b, 1, 1, 1, generator=g)
-    tt = torch.arange(t, dtype=torch.float32)[None, :, None, None]
-    jj = torch.arange(J, dtype=torch.float32)[None, None, :, None]
-    pos = torch.sin(freq * tt + phase + 0.5 * jj + torch.arange(3.0))
-    half = 0.4 * torch.sin(freq * tt + phase + jj)
-    quat = torch.cat([torch.cos(half), torch.zeros_like(half), torch.zeros_like(half), torch.sin(half)], dim=-1)
-    y = torch.cat([pos, quat], dim=-1)
-    known = torch.zeros(b, t, J, dtype=torch.bool)
-    known[:, :3] = True
-    known[:, -2:] = True
-    return y * known[..., None], known, y
-
-
 @pytest.mark.parametrize("norm", ["layer", "batch"])
 def test_trains(norm):
     model = tiny(norm=norm)
     opt = torch.optim.Adam(model.parameters(), lr=3e-3)
-    x, known, y = sinusoid_batch()
+    x, known, y = sinusoid_batch(J)
     losses = []
     for _ in range(30):
         loss = (model(x, known) - y).abs().mean()

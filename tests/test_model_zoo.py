@@ -2,13 +2,13 @@
 and per-joint masks), unit quaternions, dynamic length, residual-to-interpolation start, trainability, ONNX export."""
 from __future__ import annotations
 
-import math
 import warnings
 
 import numpy as np
 import pytest
 import torch
 
+from conftest import sinusoid_batch
 from inbetweening.models import MODELS, Interpolation, ZeroVelocity, build_model
 
 PARENTS = [-1, 0, 1, 2, 1, 4]  # small tree: 0-1-2-3 and 1-4-5
@@ -129,28 +129,11 @@ def test_parameter_count(name):
 
 
 # ------------------------------------------------------------------ trainability
-def sinusoid_batch(b=8, t=12, seed=1):
-    g = torch.Generator().manual_seed(seed)
-    phase = torch.rand(b, 1, 1, 1, generator=g) * 2 * math.pi
-    freq = 0.3 + 0.3 * torch.rand(b, 1, 1, 1, generator=g)
-    tt = torch.arange(t, dtype=torch.float32)[None, :, None, None]
-    jj = torch.arange(J, dtype=torch.float32)[None, None, :, None]
-    pos = torch.sin(freq * tt + phase + 0.5 * jj + torch.arange(3.0))
-    half = 0.4 * torch.sin(freq * tt + phase + jj)
-    quat = torch.cat([torch.cos(half), torch.zeros_like(half), torch.zeros_like(half), torch.sin(half)], dim=-1)
-    y = torch.cat([pos, quat], dim=-1)
-    known = torch.zeros(b, t, J, dtype=torch.bool)
-    known[:, :3] = True
-    known[:, -2:] = True
-    known[:, 5:7, :3] = True  # a per-joint island inside the gap
-    return y * known[..., None], known, y
-
-
 @pytest.mark.parametrize("name", TRAINABLE)
 def test_trains(name):
     model = tiny(name)
     opt = torch.optim.Adam(model.parameters(), lr=3e-3)
-    x, known, y = sinusoid_batch()
+    x, known, y = sinusoid_batch(J, b=8, island=True)
     free = ~known
     losses = []
     for _ in range(20):
