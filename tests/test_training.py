@@ -244,3 +244,13 @@ def test_launcher_experiments_compose(exp, target):
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
         full = compose("train", overrides=[f"experiment={exp}"], return_hydra_config=True)
     assert full.hydra.launcher._target_.endswith(target)
+
+
+def test_ablation_name_launches_multirun(tmp_path, cache_dir):
+    """`python train.py ablation=axes` runs its whole grid (hydra.mode MULTIRUN declared in the config)."""
+    r = _cli(["train.py", "ablation=axes", *TINY, "callbacks=none", "logger=none",
+              f"hydra.sweep.dir={tmp_path}/sweep", f"paths.cache_dir={cache_dir}"], ROOT)
+    assert r.returncode == 0, r.stderr[-3000:]
+    rows = collect(tmp_path / "sweep")
+    assert sorted(row["config"] for row in rows) == sorted(
+        f"+variant={v}" for v in ("base", "mask_zero", "graph_none", "norm_batch", "depth_12", "heads_8"))
