@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -69,3 +70,22 @@ def test_export_errors(argv, msg, capsys, tmp_path, monkeypatch):
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and msg in err and len(err.strip().splitlines()) == 1
+
+
+def test_inference_only_checkpoint_loads_alone(tiny_checkpoint, tmp_path):
+    import subprocess
+    import sys
+
+    from inbetweening.module import InbetweenModule
+
+    out = tmp_path / "model.ckpt"
+    r = subprocess.run([sys.executable, "-m", "inbetweening.export", f"ckpt_path={tiny_checkpoint}", "format=ckpt",
+                        f"output={out}"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    slim = torch.load(out, weights_only=False)
+    assert "optimizer_states" not in slim and all(k.startswith("net.") for k in slim["state_dict"])
+    assert out.stat().st_size < Path(tiny_checkpoint).stat().st_size
+    a = InbetweenModule.load_from_checkpoint(tiny_checkpoint, map_location="cpu").eval()
+    b = InbetweenModule.load_from_checkpoint(out, map_location="cpu").eval()
+    for (ka, va), (kb, vb) in zip(a.net.state_dict().items(), b.net.state_dict().items()):
+        assert ka == kb and torch.equal(va, vb)

@@ -32,15 +32,17 @@ import torch
 
 from ._cli import UsageError, fail, parse_args, parse_bool
 
-FORMATS = ("onnx",)
+FORMATS = ("onnx", "ckpt")
 
 USAGE = """\
-usage: python -m inbetweening.export ckpt_path=<model.ckpt> format=onnx output=<model.onnx> [opset=17] [check=true]
+usage: python -m inbetweening.export ckpt_path=<model.ckpt> format=onnx|ckpt output=<file> [opset=17] [check=true]
 
 Export the network of a training checkpoint.  Options may be given as key=value or --key value.
 
   ckpt_path=PATH   training checkpoint (.ckpt)                                       (required)
-  format=onnx      export format; only onnx is supported                             (default onnx)
+  format=onnx      ONNX graph of the network                                         (default onnx)
+  format=ckpt      inference-only Lightning checkpoint: weights + hyper-parameters, no optimiser
+                   state (loads with InbetweenModule.load_from_checkpoint / Inbetweener)
   output=PATH      file to write                                                     (required)
   opset=N          ONNX opset version                                                (default 17)
   check=BOOL       run the exported model with ONNX Runtime on a random window and
@@ -152,6 +154,26 @@ def check_onnx(module, path: str | Path, batch: int = 3, gap: int = 7, seed: int
     return float(np.abs(got - ref).max())
 
 
+INFERENCE_KEYS = ("state_dict", "hyper_parameters", "pytorch-lightning_version", "epoch", "global_step")
+
+
+def export_checkpoint(src: str | Path, dst: str | Path) -> dict:
+    """Write an inference-only copy of a training checkpoint (no optimiser/scheduler/loop state).
+
+    The result still loads with ``InbetweenModule.load_from_checkpoint`` and ``Inbetweener.from_checkpoint``;
+    metric states are dropped from the state dict.  Returns ``{"path", "bytes"}``.
+    """
+    from .train import check_checkpoint
+
+    ckpt = check_checkpoint(str(src))
+    slim = {k: ckpt[k] for k in INFERENCE_KEYS if k in ckpt}
+    slim["state_dict"] = {k: v for k, v in ckpt["state_dict"].items() if k.startswith("net.")}
+    dst = Path(dst)
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    torch.save(slim, dst)
+    return {"path": str(dst), "bytes": dst.stat().st_size}
+
+
 def run(argv: Sequence[str]) -> int:
     try:
         args = parse_args(argv, {"ckpt_path": str, "format": str, "output": str, "opset": int, "check": parse_bool},
@@ -170,6 +192,10 @@ def run(argv: Sequence[str]) -> int:
     from .train import CheckpointError, load_module
 
     try:
+        if fmt == "ckpt":
+            info = export_checkpoint(args["ckpt_path"], args["output"])
+            print(f"wrote {info['path']} ({info['bytes'] / 1e6:.2f} MB, weights and hyper-parameters only)")
+            return 0
         module = load_module(args["ckpt_path"])
         info = export_onnx(module, args["output"], opset=args.get("opset", 17), check=args.get("check", True))
     except (CheckpointError, ExportError, OSError) as e:
