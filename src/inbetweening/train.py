@@ -47,7 +47,8 @@ def make_datamodule(cfg: DictConfig) -> InbetweenDataModule:
         transition_max=d["transition_max"], transition_per=d.get("transition_per", "batch"),
         train_window=d.get("train_window", B.TRAIN_WINDOW), train_offset=d.get("train_offset", B.TRAIN_OFFSET),
         mask=cfg.mask.name, joint_mask=OmegaConf.to_container(cfg.mask, resolve=True),
-        max_train_windows=d.get("max_train_windows"), max_eval_windows=d.get("max_eval_windows"), max_val_windows=d.get("max_val_windows"),
+        max_train_windows=d.get("max_train_windows"), max_eval_windows=d.get("max_eval_windows"),
+        max_val_windows=d.get("max_val_windows"),
     )
 
 
