@@ -231,3 +231,9 @@ def test_wrong_input_shape_raises(name):
     x, known, interp = make_batch()
     with pytest.raises(ValueError, match="x must be"):
         tiny(name)(x[:, :, :4], known[:, :, :4], interp[:, :, :4])
+
+
+def test_baselines_ignore_architecture_settings():
+    for name in ("zero_velocity", "interpolation"):
+        m = MODELS[name](num_joints=J, adjacency=None, dropout=0.0, depth=6)
+        assert sum(p.numel() for p in m.parameters()) == 0

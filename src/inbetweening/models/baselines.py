@@ -27,7 +27,9 @@ class _Baseline(InbetweenModel):
         feature_dim: int = FEATURE_DIM,
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
+        **architecture: object,
     ):
+        # architecture settings shared by a sweep (dropout, depth, ...) mean nothing to a baseline: ignored
         super().__init__()
         validate_common(type(self).__name__, num_joints, adjacency, feature_dim, max_frames)
         self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
