@@ -254,3 +254,32 @@ def test_ablation_name_launches_multirun(tmp_path, cache_dir):
     rows = collect(tmp_path / "sweep")
     assert sorted(row["config"] for row in rows) == sorted(
         f"+variant={v}" for v in ("base", "mask_zero", "graph_none", "norm_batch", "depth_12", "heads_8"))
+
+
+@pytest.mark.parametrize("centre,equivariant", [("known", True), ("window", False)])
+def test_known_centring_removes_the_window_centring_leak(centre, equivariant):
+    """Shifting a whole window in XZ (what a different whole-window centre does) shifts a centre=known model's
+    prediction by exactly that much; a centre=window model sees the absolute position and changes its answer."""
+    from inbetweening.inference import predict_features
+    from inbetweening.synthetic import NAMES, OFFSETS, PARENTS
+    from inbetweening.skeleton import Skeleton
+
+    torch.manual_seed(0)
+    sk = Skeleton(NAMES, PARENTS, OFFSETS)
+    mean, std = np.zeros(66), np.full(66, 50.0)
+    module = InbetweenModule(model={"name": "graph_transformer", "d_model": 16, "depth": 1, "heads": 2, "dropout": 0.0},
+                             skeleton=sk.to_dict(), pos_mean=mean.tolist(), pos_std=std.tolist(), centre=centre).eval()
+    with torch.no_grad():  # a non-trivial head so the prediction depends on the input
+        module.net.out_weight.normal_(0, 0.3)
+    root = torch.randn(2, 21, 3, dtype=torch.float64) * 20
+    q = torch.nn.functional.normalize(torch.randn(2, 21, 22, 4, dtype=torch.float64), dim=-1)
+    known = transition_known(2, 21, 22, 10, 10)
+    shift = torch.tensor([35.0, 0.0, -20.0], dtype=torch.float64)
+    outs = []
+    for r in (root, root + shift):
+        feats = F.encode(r, q, sk, mean, std).float()
+        pred, _ = predict_features(module.net, "lerp", feats, known, centre, std)
+        assert torch.equal(pred[known], feats[known])
+        outs.append(F.global_positions(pred.double(), mean, std))
+    moved = torch.allclose(outs[1], outs[0] + shift, atol=1e-3)
+    assert moved == equivariant

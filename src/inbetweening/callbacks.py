@@ -5,7 +5,8 @@ import lightning as L
 import torch
 
 from . import features as F
-from .masks import apply_mask, transition_known
+from .inference import predict_features
+from .masks import transition_known
 from .render import draw_sequences
 from .skeleton import fk
 
@@ -25,9 +26,8 @@ class SkeletonFigure(L.Callback):
         feats = F.encode(root[None, :t].double(), q[None, :t].double(), sk, pl_module.mean, pl_module.std).float()
         feats = feats.to(pl_module.device)
         known = transition_known(1, t, sk.num_joints, p, n, device=feats.device)
-        x, interp = apply_mask(pl_module.mask_name, feats, known)
-        with torch.no_grad():
-            pred = pl_module.net(x, known, interp)
+        pred, interp = predict_features(pl_module.net, pl_module.mask_name, feats, known, pl_module.centre,
+                                        pl_module.std)
         out = {}
         for label, f in (("ground truth", feats), ("prediction", pred), ("interpolation", interp)):
             r, lq = F.decode(f.double().cpu(), pl_module.mean, pl_module.std)

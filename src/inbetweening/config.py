@@ -58,6 +58,9 @@ def validate(cfg: DictConfig) -> None:
         max_frames = _get(cfg, "model.max_frames")
         if max_frames is not None and window > int(max_frames) and mask == "joints":
             raise ConfigError(f"model.max_frames={max_frames} is shorter than data.train_window={window}")
+    centre = _get(cfg, "centre", "known")
+    if centre not in ("known", "window"):
+        raise ConfigError(f"centre: must be 'known' or 'window', got {centre!r}")
     per = _get(cfg, "data.transition_per", "batch")
     if per not in ("batch", "sample"):
         raise ConfigError(f"data.transition_per: must be 'batch' or 'sample', got {per!r}")

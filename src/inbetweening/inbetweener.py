@@ -272,7 +272,7 @@ class Inbetweener:
         dev = self.device
         feats = window_features(wr[None], wq[None], self.skeleton, self.mean, self.std, device=dev)
         known = transition_known(1, len(idx), self.skeleton.num_joints, p, n, device=dev)
-        pred, _ = predict_features(self.net, self.mask_name, feats, known)
+        pred, _ = predict_features(self.net, self.mask_name, feats, known, self.module.centre, self.std)
         pr, pq = F.decode(pred.double(), self.mean, self.std)
         pr = pr[0, p : p + n].cpu().numpy()
         pq = pq[0, p : p + n].cpu().numpy()

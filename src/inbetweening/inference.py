@@ -20,16 +20,53 @@ def window_features(root, local_q, skeleton: Skeleton, mean, std, dtype=torch.fl
     return F.encode(r, q, skeleton, mean, std).to(dtype=dtype, device=device)
 
 
-@torch.no_grad()
-def predict_features(net, mask: str, feats: torch.Tensor, known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Masked input -> network -> ``(prediction, interpolation)``, both ``(B, T, J, 7)``."""
+CENTRES = ("window", "known")
+
+
+def known_centre_shift(feats: torch.Tensor, known: torch.Tensor, std) -> torch.Tensor:
+    """Feature-space shift that moves the mean root XZ of the KNOWN frames to the origin.  ``-> (B, 1, 1, 7)``.
+
+    Benchmark windows are centred on the mean root XZ over all their frames, including the ones to be
+    predicted, so absolute positions leak where the transition goes.  Subtracting this shift (and adding
+    it back to the prediction) makes the network see only what is known: ``centre="known"``.
+    """
+    s = torch.as_tensor(std, dtype=feats.dtype, device=feats.device).reshape(-1, 3)
+    root_known = known[:, :, 0].to(feats.dtype)  # (B, T)
+    xz = (feats[:, :, 0, [0, 2]] * root_known[..., None]).sum(1) / root_known.sum(1, keepdim=True).clamp(min=1)
+    shift = torch.zeros(feats.shape[0], 1, feats.shape[2], feats.shape[3], dtype=feats.dtype, device=feats.device)
+    # positions are z-scored per joint coordinate: a world shift d is d / std_j in each joint's features
+    shift[:, 0, :, 0] = xz[:, None, 0] * s[0, 0] / s[:, 0]
+    shift[:, 0, :, 2] = xz[:, None, 1] * s[0, 2] / s[:, 2]
+    return shift
+
+
+def masked_forward(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str = "window", std=None):
+    """Mask -> (optional known-frame centring) -> network, with gradients.  Returns ``(pred, interp, target)``
+    where ``target`` is ``feats`` in the frame the prediction lives in (for the loss)."""
+    if centre not in CENTRES:
+        raise ValueError(f"centre must be one of {list(CENTRES)}, got {centre!r}")
+    if centre == "known":
+        feats = feats - known_centre_shift(feats, known, std)
     x, interp = apply_mask(mask, feats, known)
-    return net(x, known, interp), interp
+    return net(x, known, interp), interp, feats
+
+
+@torch.no_grad()
+def predict_features(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str = "window",
+                     std=None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Masked input -> network -> ``(prediction, interpolation)``, both ``(B, T, J, 7)`` in the input's frame;
+    known values are returned bit-exactly."""
+    pred, interp, shifted = masked_forward(net, mask, feats, known, centre, std)
+    if centre == "known":
+        d = feats - shifted
+        pred = torch.where(known[..., None], feats, pred + d)
+        interp = torch.where(known[..., None], feats, interp + d)
+    return pred, interp
 
 
 def predict_transitions(
     net, mask: str, root, local_q, n: int, skeleton: Skeleton, mean, std, n_past: int = 10,
-    device=None, batch_size: int = 256,
+    device=None, batch_size: int = 256, centre: str = "window",
 ) -> tuple[np.ndarray, np.ndarray]:
     """The benchmark's predictor contract for a network.
 
@@ -43,7 +80,7 @@ def predict_transitions(
                                 device=device)
         b, t, j, _ = feats.shape
         known = transition_known(b, t, j, n_past, n, device=device)
-        pred, _ = predict_features(net, mask, feats, known)
+        pred, _ = predict_features(net, mask, feats, known, centre, std)
         r, q = F.decode(pred.double(), mean, std)
         outs_r.append(r[:, n_past : n_past + n].cpu().numpy())
         outs_q.append(q[:, n_past : n_past + n].cpu().numpy())

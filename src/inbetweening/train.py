@@ -61,6 +61,7 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
         val_lengths=list(cfg.data.val_lengths),
         test_lengths=list(cfg.data.test_lengths),
         joint_mask=OmegaConf.to_container(cfg.mask, resolve=True) if cfg.mask.name == "joints" else None,
+        centre=cfg.get("centre", "known"),
         **dm.model_kwargs(),
     )
 

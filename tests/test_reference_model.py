@@ -1,0 +1,68 @@
+"""The committed reference model (models/bn2_reference) loads alone, fills real Bandai-Namco clips better
+than interpolation, and (slow) reproduces its reported benchmark."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from inbetweening import Inbetweener
+from inbetweening.bvh import iter_bvh_sources, parse_bvh
+from inbetweening.datasets import bandai_namco_split, fold_static_root
+from inbetweening.inbetweener import interpolate_arrays
+from inbetweening.module import InbetweenModule
+
+ROOT = Path(__file__).resolve().parents[1]
+CKPT = ROOT / "models" / "bn2_reference" / "model.ckpt"
+BN2 = ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip"
+needs_bn2 = pytest.mark.skipif(not BN2.exists(), reason=f"Bandai-Namco-2 not found at {BN2}")
+
+
+def test_reference_model_loads_without_training_state():
+    ckpt = torch.load(CKPT, map_location="cpu", weights_only=False)
+    assert "optimizer_states" not in ckpt and "lr_schedulers" not in ckpt
+    m = InbetweenModule.load_from_checkpoint(CKPT, map_location="cpu")
+    assert m.hparams.dataset == "bandai_namco" and m.skeleton.num_joints == 21 and m.skeleton.names[0] == "Hips"
+    assert m.hparams.model["name"] == "graph_transformer" and m.hparams.model["depth"] == 6
+
+
+@needs_bn2
+def test_reference_model_beats_interpolation_on_real_test_clips(tmp_path):
+    """Fill every 30th frame of a few real test clips; the model's joint positions are closer to the truth."""
+    inb = Inbetweener.from_checkpoint(CKPT)
+    sk = inb.module.skeleton
+    errs = {"model": [], "interpolation": []}
+    clips = [(n, raw) for n, raw in iter_bvh_sources(BN2) if bandai_namco_split(n) == "test"][:6]
+    for name, raw in clips:
+        bvh = parse_bvh(raw, name)
+        clip, _ = fold_static_root(bvh, name)
+        f = (min(clip.num_frames, 121) - 1) // 30 * 30 + 1  # keyframes every 30 frames, last frame a keyframe
+        keys = list(range(0, f, 30))
+        root, q = clip.root_pos[:f], clip.local_q[:f]
+        _, gt = sk.fk(q, sk.local_positions(root))
+        unknown = np.setdiff1d(np.arange(f), keys)
+        for label, (r, qq) in (("model", inb.fill_arrays(root, q, keys)),
+                               ("interpolation", interpolate_arrays(root, q, keys))):
+            _, gp = sk.fk(qq, sk.local_positions(r))
+            errs[label].append(np.linalg.norm(gp[unknown] - gt[unknown], axis=-1).mean())
+        out = inb.fill(bvh, keyframes=keys)  # the BVH path too: keyframe rows exact
+        assert all(np.array_equal(out.motion[k], bvh.motion[k]) for k in keys)
+    print({k: round(float(np.mean(v)), 2) for k, v in errs.items()})
+    assert np.mean(errs["model"]) < 0.9 * np.mean(errs["interpolation"]), errs
+
+
+@pytest.mark.slow
+@needs_bn2
+def test_eval_reproduces_reported_benchmark(tmp_path):
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "eval.py", f"ckpt_path={CKPT}", "data=bandai_namco", f"data.path={BN2}",
+                        f"hydra.run.dir={tmp_path}"], cwd=ROOT, capture_output=True, text=True, timeout=1800)
+    assert r.returncode == 0, r.stderr[-2000:]
+    got = json.loads((tmp_path / "benchmark.json").read_text())["metrics"]
+    want = json.loads((ROOT / "results" / "bn2_reference_benchmark.json").read_text())["metrics"]
+    assert got == pytest.approx(want, abs=1e-6)
