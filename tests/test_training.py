@@ -109,7 +109,7 @@ def test_same_seed_same_metrics(tmp_path, cache_dir):
 @pytest.mark.parametrize("norm", ["layer", "batch"])
 def test_norms_train_loss_decreases(norm, tmp_path, cache_dir):
     cfg = compose_cfg("train", BASE + [f"model.norm={norm}", "model.d_model=32", "model.depth=2", "model.heads=2",
-                                       "model.dropout=0.0"], tmp_path, cache_dir)
+                                       "model.dropout=0.0", "model.residual_to_interpolation=false"], tmp_path, cache_dir)
     torch.manual_seed(0)
     dm = make_datamodule(cfg)
     dm.setup("fit")
