@@ -18,12 +18,12 @@ import argparse
 import datetime as _dt
 import os
 import platform
-import re
 import statistics
 import tempfile
 import time
 from pathlib import Path
 
+import _report  # noqa: E402  (benchmarks/ helper; scripts run as python benchmarks/<name>.py)
 import numpy as np
 import torch
 from omegaconf import OmegaConf
@@ -120,15 +120,8 @@ def run(repeats: int, batch: int, threads: list[int]) -> tuple[list[tuple], str]
 
 
 def write_section(path: Path, body: str) -> None:
-    """Add or replace the ``## Inference latency`` section of ``path``, keeping every other section."""
-    text = path.read_text() if path.exists() else "# Benchmarks\n"
-    section = f"{SECTION}\n\n{body.strip()}\n"
-    pattern = re.compile(rf"^{re.escape(SECTION)}\s*\n.*?(?=^## |\Z)", re.MULTILINE | re.DOTALL)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: section + "\n", text, count=1)
-    else:
-        text = text.rstrip("\n") + "\n\n" + section
-    path.write_text(text.rstrip("\n") + "\n")
+    """Add or replace this script's section of ``path``, keeping every other section."""
+    _report.write_section(path, SECTION, body)
 
 
 def cpu_name() -> str:

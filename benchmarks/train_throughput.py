@@ -26,7 +26,6 @@ import argparse
 import datetime as _dt
 import os
 import platform
-import re
 import statistics
 import sys
 import tempfile
@@ -34,6 +33,7 @@ import time
 import warnings
 from pathlib import Path
 
+import _report
 import lightning as L
 import torch
 from hydra import compose, initialize_config_dir
@@ -262,15 +262,8 @@ def run(args) -> tuple:
 
 
 def write_section(path: Path, body: str) -> None:
-    """Add or replace this script's section of ``path`` (re-read now), keeping every other section intact."""
-    text = path.read_text() if path.exists() else "# Benchmarks\n"
-    section = f"{SECTION}\n\n{body.strip()}\n"
-    pattern = re.compile(rf"^{re.escape(SECTION)}[ \t]*\n.*?(?=^## |\Z)", re.MULTILINE | re.DOTALL)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: section + "\n", text, count=1)
-    else:
-        text = text.rstrip("\n") + "\n\n" + section
-    path.write_text(text.rstrip("\n") + "\n")
+    """Add or replace this script's section of ``path``, keeping every other section."""
+    _report.write_section(path, SECTION, body)
 
 
 def main() -> None:

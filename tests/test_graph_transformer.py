@@ -8,18 +8,15 @@ import torch.nn.functional as F
 from conftest import sinusoid_batch
 from inbetweening.models import MODELS, GraphTransformer, build_model
 from inbetweening.models.blocks import MultiHeadAttention, Norm
+from inbetweening.skeleton import Skeleton
 
 PARENTS = [-1, 0, 1, 2, 1, 4]  # small tree: 0-1-2-3 and 1-4-5
 J = len(PARENTS)
 
 
 def adjacency(parents=PARENTS) -> list[list[float]]:
-    n = len(parents)
-    a = [[1.0 if i == j else 0.0 for j in range(n)] for i in range(n)]
-    for c, p in enumerate(parents):
-        if p >= 0:
-            a[c][p] = a[p][c] = 1.0
-    return a
+    """The parent/child relation matrix with self-loops, from the project's Skeleton."""
+    return Skeleton([f"j{i}" for i in range(len(parents))], parents, [[0.0, 0.0, 0.0]] * len(parents)).adjacency(1).tolist()
 
 
 M = torch.tensor(adjacency())

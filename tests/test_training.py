@@ -261,8 +261,8 @@ def test_known_centring_removes_the_window_centring_leak(centre, equivariant):
     """Shifting a whole window in XZ (what a different whole-window centre does) shifts a centre=known model's
     prediction by exactly that much; a centre=window model sees the absolute position and changes its answer."""
     from inbetweening.inference import predict_features
-    from inbetweening.synthetic import NAMES, OFFSETS, PARENTS
     from inbetweening.skeleton import Skeleton
+    from inbetweening.synthetic import NAMES, OFFSETS, PARENTS
 
     torch.manual_seed(0)
     sk = Skeleton(NAMES, PARENTS, OFFSETS)

@@ -1,0 +1,17 @@
+"""Shared helper of the benchmark scripts: write one section of BENCHMARKS.md, keeping the others."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+
+def write_section(path: Path, section: str, body: str) -> None:
+    """Add or replace the ``section`` heading (e.g. ``## Inference latency``) of ``path``; re-reads the file now."""
+    text = path.read_text() if path.exists() else "# Benchmarks\n"
+    block = f"{section}\n\n{body.strip()}\n"
+    pattern = re.compile(rf"^{re.escape(section)}[ \t]*\n.*?(?=^## |\Z)", re.MULTILINE | re.DOTALL)
+    if pattern.search(text):
+        text = pattern.sub(lambda _: block + "\n", text, count=1)
+    else:
+        text = text.rstrip("\n") + "\n\n" + block
+    path.write_text(text.rstrip("\n") + "\n")
