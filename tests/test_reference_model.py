@@ -31,9 +31,9 @@ def test_reference_model_loads_without_training_state():
 
 @needs_bn2
 def test_reference_model_fills_real_test_clips(tmp_path):
-    """Fill between every 30th frame of a few real test clips: keyframes exact, errors of the same order as
-    interpolation's.  (It does NOT beat interpolation from sparse keyframes: it was trained on benchmark windows
-    with 10 context frames and whole-window centring; see RESULTS.md.)"""
+    """Fill between every 30th frame of a few real test clips: keyframes exact, the mean joint error below
+    interpolation's by the measured margin (only 2%: the model was trained on benchmark windows with 10 context
+    frames; see RESULTS.md)."""
     inb = Inbetweener.from_checkpoint(CKPT)
     sk = inb.module.skeleton
     errs = {"model": [], "interpolation": []}
@@ -53,7 +53,8 @@ def test_reference_model_fills_real_test_clips(tmp_path):
         out = inb.fill(bvh, keyframes=keys)  # the BVH path too: keyframe rows exact
         assert all(np.array_equal(out.motion[k], bvh.motion[k]) for k in keys)
     assert np.isfinite(errs["model"]).all()
-    assert np.mean(errs["model"]) < 2.0 * np.mean(errs["interpolation"]), errs
+    # the measured claim (RESULTS.md): 9.89 cm vs 10.06 cm for interpolation on these 6 clips, ratio 0.982
+    assert np.mean(errs["model"]) <= 0.99 * np.mean(errs["interpolation"]), errs
 
 
 @pytest.mark.slow

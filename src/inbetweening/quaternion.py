@@ -171,7 +171,10 @@ def quat_to_euler_np(q: np.ndarray, order: str, degrees: bool = True) -> np.ndar
     a, b, c = (_AXES[ch] for ch in order)
     if len({a, b, c}) != 3:
         raise ValueError(f"quat_to_euler_np: order {order!r} must name three different axes")
-    m = quat_to_matrix_np(qnormalize(np.asarray(q, dtype=np.float64)))
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim == 1:  # one quaternion: the gimbal-lock branch below assigns into arrays
+        return quat_to_euler_np(q[None], order, degrees)[0]
+    m = quat_to_matrix_np(qnormalize(q))
     # parity of the permutation (a, b, c): +1 for cyclic (xyz, yzx, zxy), -1 otherwise
     sign = 1.0 if (b - a) % 3 == 1 else -1.0
     cos_mid = np.hypot(m[..., a, a], m[..., a, b])

@@ -1,0 +1,119 @@
+"""Skeleton and FK/IK pinned by hand-derived poses (a branching tree, so parent lookups matter)."""
+import numpy as np
+import pytest
+import torch
+
+from inbetweening.skeleton import Skeleton, fk, ik
+
+S2 = np.sqrt(0.5)
+# 90 degrees about +z, wxyz
+RZ90 = np.array([S2, 0.0, 0.0, S2])
+IDENT = np.array([1.0, 0.0, 0.0, 0.0])
+
+# root(0) -> spine(1) -> head(2); root(0) -> leg(3): joint 3's parent is not joint 2
+NAMES = ("root", "spine", "head", "leg")
+PARENTS = (-1, 0, 1, 0)
+OFFSETS = np.array([[0.0, 0, 0], [1.0, 0, 0], [0.0, 1, 0], [0.0, 0, 2]])
+
+
+def skel():
+    return Skeleton(NAMES, PARENTS, OFFSETS)
+
+
+def pose():
+    """Local rotations (J, 4) and local positions (J, 3) of one frame, with the global result written by hand."""
+    q = np.stack([RZ90, RZ90, IDENT, IDENT])
+    p = np.array([[1.0, 2.0, 3.0], *OFFSETS[1:]])
+    # root: Rz90 at (1,2,3); spine: Rz90*Rz90 = Rz180 at (1,2,3) + Rz90 (1,0,0) = (1,3,3);
+    # head: Rz180 at (1,3,3) + Rz180 (0,1,0) = (1,2,3); leg: Rz90 at (1,2,3) + Rz90 (0,0,2) = (1,2,5)
+    want_q = np.stack([RZ90, [0.0, 0, 0, 1.0], [0.0, 0, 0, 1.0], RZ90])
+    want_p = np.array([[1.0, 2, 3], [1.0, 3, 3], [1.0, 2, 3], [1.0, 2, 5]])
+    return q, p, want_q, want_p
+
+
+@pytest.mark.parametrize("lib", ["numpy", "torch"])
+def test_fk_hand_derived_branching_pose(lib):
+    q, p, want_q, want_p = pose()
+    if lib == "torch":
+        gq, gp = fk(torch.from_numpy(q), torch.from_numpy(p), PARENTS)
+        gq, gp = gq.numpy(), gp.numpy()
+    else:
+        gq, gp = fk(q, p, PARENTS)
+    np.testing.assert_allclose(gq, want_q, atol=1e-15)
+    np.testing.assert_allclose(gp, want_p, atol=1e-15)
+
+
+def test_ik_inverts_fk_and_method_forms():
+    q, p, want_q, want_p = pose()
+    lq, lp = ik(want_q, want_p, PARENTS)
+    np.testing.assert_allclose(lq, q, atol=1e-15)
+    np.testing.assert_allclose(lp, p, atol=1e-15)
+    sk = skel()
+    np.testing.assert_allclose(sk.fk(q, p)[1], want_p, atol=1e-15)
+    np.testing.assert_allclose(sk.ik(want_q, want_p)[0], q, atol=1e-15)
+    # batched (B, T, J, ...) with random rotations: ik(fk(x)) == x
+    rng = np.random.default_rng(0)
+    qr = rng.normal(size=(2, 3, 4, 4))
+    qr /= np.linalg.norm(qr, axis=-1, keepdims=True)
+    pr = sk.local_positions(rng.normal(size=(2, 3, 3)))
+    lq, lp = ik(*fk(qr, pr, PARENTS), PARENTS)
+    np.testing.assert_allclose(lq, qr, atol=1e-12)
+    np.testing.assert_allclose(lp, pr, atol=1e-12)
+
+
+@pytest.mark.parametrize("lib", ["numpy", "torch"])
+def test_local_positions_root_then_offsets(lib):
+    sk = skel()
+    root = np.array([[[5.0, 6.0, 7.0], [8.0, 9.0, 10.0]]])  # (1, 2, 3)
+    x = torch.from_numpy(root) if lib == "torch" else root
+    out = sk.local_positions(x)
+    out = out.numpy() if lib == "torch" else out
+    assert out.shape == (1, 2, 4, 3)
+    np.testing.assert_array_equal(out[0, 1, 0], [8.0, 9.0, 10.0])
+    np.testing.assert_array_equal(out[0, 0, 1:], OFFSETS[1:])
+    np.testing.assert_array_equal(sk.offsets[0], [0.0, 0, 0])  # the skeleton's own offsets are not modified
+
+
+def test_adjacency_hops_and_self_loops():
+    sk = skel()
+    m1 = np.array([[1, 1, 0, 1], [1, 1, 1, 0], [0, 1, 1, 0], [1, 0, 0, 1]], dtype=np.float32)
+    np.testing.assert_array_equal(sk.adjacency(1), m1)
+    m2 = np.ones((4, 4), dtype=np.float32)
+    m2[2, 3] = m2[3, 2] = 0  # head - spine - root - leg: 3 bones apart
+    np.testing.assert_array_equal(sk.adjacency(2), m2)
+    np.testing.assert_array_equal(sk.adjacency(3), np.ones((4, 4)))
+    np.testing.assert_array_equal(sk.adjacency(0), np.eye(4))
+    np.testing.assert_array_equal(sk.adjacency(1, self_loops=False), m1 - np.eye(4))
+    assert sk.adjacency().dtype == np.float32
+
+
+def test_structure_helpers():
+    sk = skel()
+    assert sk.num_joints == 4 and sk.index("leg") == 3
+    assert sk.children(0) == [1, 3] and sk.children(2) == []
+    np.testing.assert_array_equal(sk.bone_pairs(), [[1, 0], [2, 1], [3, 0]])
+    assert Skeleton(("r",), (-1,), np.zeros((1, 3))).bone_pairs().shape == (0, 2)
+    d = sk.to_dict()
+    assert d == {"names": list(NAMES), "parents": list(PARENTS), "offsets": OFFSETS.tolist()}
+    back = Skeleton.from_dict(d)
+    assert back == sk and hash(back) == hash(sk) and back.same_topology(sk)
+    other = Skeleton(NAMES, PARENTS, OFFSETS * 2)
+    assert other != sk and other.same_topology(sk)
+    assert not Skeleton(("a", "b", "c", "d"), PARENTS, OFFSETS).same_topology(sk)
+    assert sk != "not a skeleton"
+
+
+@pytest.mark.parametrize(
+    "names, parents, offsets, match",
+    [
+        (("a", "b"), (-1,), np.zeros((2, 3)), "2 names, 1 parents, 2 offsets"),
+        (("a", "b"), (-1, 0), np.zeros((3, 3)), "2 names, 2 parents, 3 offsets"),
+        ((), (), np.zeros((0, 3)), "joint 0 must be the root"),
+        (("a", "b"), (0, 0), np.zeros((2, 3)), "joint 0 must be the root"),
+        (("a", "b", "c"), (-1, 2, 0), np.zeros((3, 3)), "joint 'b' has parent 2; parents must come first"),
+        (("a", "b"), (-1, -1), np.zeros((2, 3)), "joint 'b' has parent -1"),
+    ],
+)
+def test_invalid_skeletons(names, parents, offsets, match):
+    with pytest.raises(ValueError, match=match):
+        Skeleton(names, parents, offsets)
