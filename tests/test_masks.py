@@ -49,6 +49,12 @@ def test_joints_known_gap_fraction_and_clipping():
     # seeded: the same generator seed gives the same mask
     again = joints_known(400, 40, 10, 4, 6, 0.0, 0.05, generator=torch.Generator().manual_seed(1))
     assert torch.equal(again, k2)
+    # every draw comes from the generator, none from the global RNG
+    torch.manual_seed(123)
+    a = joints_known(8, 40, 10, 4, 20, 0.1, 0.9, generator=torch.Generator().manual_seed(5))
+    torch.manual_seed(456)
+    b = joints_known(8, 40, 10, 4, 20, 0.1, 0.9, generator=torch.Generator().manual_seed(5))
+    assert torch.equal(a, b)
 
 
 def test_zero_fill():

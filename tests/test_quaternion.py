@@ -21,6 +21,14 @@ def about(axis, rad):
     return np.concatenate([[np.cos(rad / 2)], np.sin(rad / 2) * a])
 
 
+def assert_quat(got, want, atol=2e-9):
+    """``got`` equals ``want`` in direction to ``atol`` (qnormalize's eps leaves |got| = 1 - 1e-8)."""
+    got = np.asarray(got.detach().numpy() if isinstance(got, torch.Tensor) else got)
+    norm = np.linalg.norm(got, axis=-1, keepdims=True)
+    np.testing.assert_allclose(norm, 1.0, atol=3e-8, rtol=0)
+    np.testing.assert_allclose(got / norm, want, atol=atol, rtol=0)
+
+
 # ------------------------------------------------------------------ qbetween
 def test_qbetween_unnormalised_value_is_the_half_way_formula():
     # w = |a||b| + a.b, xyz = a x b (the reference's unnormalised form), written out by hand
@@ -64,7 +72,7 @@ def test_euler_to_quat_shapes_and_float32_input():
     # one rotation written out: zxy = q_z(a) * q_x(b) * q_y(c)
     a, b, c = np.radians(ang[1, 3])
     qz, qx, qy = about([0, 0, 1], a), about([1, 0, 0], b), about([0, 1, 0], c)
-    np.testing.assert_allclose(q[1, 3], Q.qmul(Q.qmul(qz, qx), qy), atol=1e-15)
+    np.testing.assert_allclose(q[1, 3], Q.qmul(Q.qmul(qz, qx), qy), atol=1e-15, rtol=0)
     # float32 angles are converted before the trigonometry (full float64 precision of the float32 values)
     a32 = ang.astype(np.float32)
     np.testing.assert_allclose(Q.euler_to_quat_np(a32, "zxy"), Q.euler_to_quat_np(a32.astype(np.float64), "zxy"),
@@ -75,7 +83,7 @@ def test_quat_to_matrix_batched_shape():
     q = np.broadcast_to(about([0, 0, 1], np.pi / 2), (2, 3, 4))
     m = Q.quat_to_matrix_np(q)
     assert m.shape == (2, 3, 3, 3)
-    np.testing.assert_allclose(m[1, 2], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-15)
+    np.testing.assert_allclose(m[1, 2], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-15, rtol=0)
 
 
 def test_quat_to_euler_single_quaternion_radians_and_precision():
@@ -114,9 +122,8 @@ def test_slerp_orthogonal_endpoints_keep_q1_sign():
     # dot exactly 0: the reference only negates q1 when dot < 0, so the path goes from +q0 towards +q1
     q0, q1 = np.array([1.0, 0, 0, 0]), np.array([0, 1.0, 0, 0])
     want = np.array([np.cos(np.pi / 8), np.sin(np.pi / 8), 0, 0])  # a quarter of the 90-degree arc
-    np.testing.assert_allclose(Q.slerp_np(q0, q1, 0.25), want, atol=1e-15)
-    np.testing.assert_allclose(Q.slerp_torch(torch.from_numpy(q0), torch.from_numpy(q1), 0.25).numpy(), want,
-                               atol=1e-15)
+    assert_quat(Q.slerp_np(q0, q1, 0.25), want)
+    assert_quat(Q.slerp_torch(torch.from_numpy(q0), torch.from_numpy(q1), 0.25), want)
 
 
 def test_slerp_angle_interpolation_closed_form_and_float32_inputs():
@@ -124,9 +131,11 @@ def test_slerp_angle_interpolation_closed_form_and_float32_inputs():
     t = np.array([0.1, 0.5, 0.9])
     q0, q1 = about([0, 1, 0], 0.3), about([0, 1, 0], 2.1)
     want = np.stack([about([0, 1, 0], 0.3 + tt * 1.8) for tt in t])
-    np.testing.assert_allclose(Q.slerp_np(q0[None], q1[None], t), want, atol=1e-15)
-    np.testing.assert_allclose(Q.slerp_torch(torch.from_numpy(q0)[None], torch.from_numpy(q1)[None],
-                                             torch.from_numpy(t)).numpy(), want, atol=1e-15)
+    assert_quat(Q.slerp_np(q0[None], q1[None], t), want)
+    assert_quat(Q.slerp_torch(torch.from_numpy(q0)[None], torch.from_numpy(q1)[None], torch.from_numpy(t)), want)
+    # a Python float t is used at the quaternions' precision (float64), on a long arc where float32 would show
+    assert_quat(Q.slerp_torch(torch.tensor(about([0, 1, 0], 0.0)), torch.tensor(about([0, 1, 0], 3.0)), 0.3),
+                about([0, 1, 0], 0.9))
     # float32 endpoints are taken to float64 before normalising (numpy path)
     a, b = q0.astype(np.float32), q1.astype(np.float32)
     np.testing.assert_allclose(Q.slerp_np(a, b, 0.3), Q.slerp_np(a.astype(np.float64), b.astype(np.float64), 0.3),
@@ -143,14 +152,14 @@ def test_slerp_linear_fallback_weights(lib):
         got = Q.slerp_torch(torch.from_numpy(q0), torch.from_numpy(q1), t).numpy()
     else:
         got = Q.slerp_np(q0, q1, t)
-    np.testing.assert_allclose(got, want, atol=1e-15)
+    assert_quat(got, want)
     # just outside the fallback (dot = cos(0.075) ~ 0.9972 is inside; cos(0.15) ~ 0.9888 is outside): true slerp
     q2 = about([1, 0, 0], 0.3)
     f = Q.slerp_torch if lib == "torch" else Q.slerp_np
     a, b = (torch.from_numpy(q0), torch.from_numpy(q2)) if lib == "torch" else (q0, q2)
     got = f(a, b, t)
     got = got.numpy() if lib == "torch" else got
-    np.testing.assert_allclose(got, about([1, 0, 0], 0.09), atol=1e-15)
+    assert_quat(got, about([1, 0, 0], 0.09))
 
 
 def test_slerp_torch_gradient_finite_for_identical_endpoints():
@@ -159,7 +168,7 @@ def test_slerp_torch_gradient_finite_for_identical_endpoints():
     out = Q.slerp_torch(q, r, torch.tensor(0.4, dtype=torch.float64))
     out.sum().backward()
     assert torch.isfinite(q.grad).all() and torch.isfinite(r.grad).all()
-    np.testing.assert_allclose(out.detach().numpy(), about([0, 0, 1], 0.7), atol=1e-15)
+    assert_quat(out, about([0, 0, 1], 0.7))
 
 
 def test_slerp_roma_takes_the_short_arc():
@@ -170,8 +179,18 @@ def test_slerp_roma_takes_the_short_arc():
     assert abs(abs(float((got * torch.from_numpy(want)).sum())) - 1.0) < 1e-12
 
 
+def test_qnormalize_unit_length_and_zero_stays_finite():
+    q = np.array([[3.0, 0, 4.0, 0], [0.0, 0, 0, 0]])
+    np.testing.assert_allclose(Q.qnormalize(q), [[0.6, 0, 0.8, 0], [0, 0, 0, 0]], atol=1e-8, rtol=0)
+    tiny = Q.qnormalize(torch.tensor([1e-9, 0.0, 0.0, 0.0], dtype=torch.float64))  # below eps: shrinks, never blows up
+    assert torch.isfinite(tiny).all() and float(tiny[0]) == pytest.approx(1e-9 / (1e-9 + 1e-8))
+
+
 def test_qangle_degrees_and_sign_invariance():
     a, b = about([0, 0, 1], 0.2), about([0, 0, 1], 1.2)
     assert Q.qangle(a, b) == pytest.approx(1.0, abs=1e-7)
     assert Q.qangle(a, -b) == pytest.approx(1.0, abs=1e-7)
-    assert float(Q.qangle(torch.from_numpy(a), -torch.from_numpy(b))) == pytest.approx(1.0, abs=1e-7)
+    t = Q.qangle(torch.from_numpy(np.stack([a, a])), -torch.from_numpy(np.stack([b, a])))
+    assert isinstance(t, torch.Tensor) and t.shape == (2,)
+    np.testing.assert_allclose(t.numpy(), [1.0, 0.0], atol=1e-7)
+    assert Q.qangle(np.stack([a, b]), np.stack([b, b])).shape == (2,)

@@ -87,12 +87,21 @@ def test_adjacency_hops_and_self_loops():
     assert sk.adjacency().dtype == np.float32
 
 
+def test_offsets_as_plain_values_become_a_float64_table():
+    sk = Skeleton(["a", "b"], [-1, 0], [0, 0, 0, 1, 2, 3])  # lists, flat
+    assert sk.offsets.shape == (2, 3) and sk.offsets.dtype == np.float64
+    np.testing.assert_array_equal(sk.offsets[1], [1.0, 2.0, 3.0])
+    assert isinstance(sk.names, tuple) and isinstance(sk.parents, tuple)
+
+
 def test_structure_helpers():
     sk = skel()
     assert sk.num_joints == 4 and sk.index("leg") == 3
     assert sk.children(0) == [1, 3] and sk.children(2) == []
     np.testing.assert_array_equal(sk.bone_pairs(), [[1, 0], [2, 1], [3, 0]])
-    assert Skeleton(("r",), (-1,), np.zeros((1, 3))).bone_pairs().shape == (0, 2)
+    lone = Skeleton(("r",), (-1,), np.zeros((1, 3))).bone_pairs()
+    assert lone.shape == (0, 2) and lone.dtype == np.int64
+    np.testing.assert_array_equal(sk.adjacency(), sk.adjacency(1))  # default: the parent/child matrix M
     d = sk.to_dict()
     assert d == {"names": list(NAMES), "parents": list(PARENTS), "offsets": OFFSETS.tolist()}
     back = Skeleton.from_dict(d)
@@ -108,8 +117,9 @@ def test_structure_helpers():
     [
         (("a", "b"), (-1,), np.zeros((2, 3)), "2 names, 1 parents, 2 offsets"),
         (("a", "b"), (-1, 0), np.zeros((3, 3)), "2 names, 2 parents, 3 offsets"),
-        ((), (), np.zeros((0, 3)), "joint 0 must be the root"),
-        (("a", "b"), (0, 0), np.zeros((2, 3)), "joint 0 must be the root"),
+        ((), (), np.zeros((0, 3)), r"^Skeleton: joint 0 must be the root \(parent -1\)$"),
+        (("a", "b"), (0, 0), np.zeros((2, 3)), r"^Skeleton: joint 0 must be the root"),
+        (("a", "b"), (-1, 1), np.zeros((2, 3)), "joint 'b' has parent 1; parents must come first"),
         (("a", "b", "c"), (-1, 2, 0), np.zeros((3, 3)), "joint 'b' has parent 2; parents must come first"),
         (("a", "b"), (-1, -1), np.zeros((2, 3)), "joint 'b' has parent -1"),
     ],

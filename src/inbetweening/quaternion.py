@@ -109,11 +109,15 @@ def remove_discontinuities(q: Array, axis: int = 0) -> Array:
 
 
 def qangle(a: Array, b: Array) -> Array:
-    """Geodesic angle (radians) between rotations, sign invariant.  ``(..., 4), (..., 4) -> (...)``."""
-    d = _sum_last(qnormalize(a) * qnormalize(b), False)
+    """Geodesic angle (radians) between rotations, sign invariant.  ``(..., 4), (..., 4) -> (...)``.
+
+    ``2 atan2(|xyz|, |w|)`` of ``a* ⊗ b``: exact near 0, where ``2 acos(|a·b|)`` loses half the digits.
+    """
+    d = qmul(qinv(a), b)
+    s = _sum_last(d[..., 1:] * d[..., 1:], False) ** 0.5
     if _is_torch(d):
-        return 2.0 * torch.acos(d.abs().clamp(max=1.0))
-    return 2.0 * np.arccos(np.clip(np.abs(d), 0.0, 1.0))
+        return 2.0 * torch.atan2(s, d[..., 0].abs())
+    return 2.0 * np.arctan2(s, np.abs(d[..., 0]))
 
 
 # --------------------------------------------------------------------------------------------
