@@ -751,8 +751,9 @@ def write_bvh(bvh: BVH, path_or_file, precision: int = 6) -> None:
     """Write :func:`format_bvh` text to a path or to an open text/binary file object."""
     text = format_bvh(bvh, precision)
     if isinstance(path_or_file, (str, os.PathLike)):
-        with open(path_or_file, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
+        from .atomic import write_text
+
+        write_text(path_or_file, text)  # atomic: an interrupted write never leaves half a file
         return
     try:
         path_or_file.write(text)

@@ -47,6 +47,7 @@ Export the network of a training checkpoint.  Options may be given as key=value 
   opset=N          ONNX opset version                                                (default 17)
   check=BOOL       run the exported model with ONNX Runtime on a random window and
                    print the largest difference to PyTorch                           (default true)
+  --force          allow output to be the input checkpoint itself (refused otherwise)
 
 The ONNX graph computes net(x, known, interp) with dynamic batch and frame axes; the skeleton, the
 normalisation statistics, the mask, the forward axis and n_past are stored as JSON in metadata_props.
@@ -116,22 +117,24 @@ def export_onnx(module, path: str | Path, opset: int = 17, check: bool = True) -
         import onnx
     except ImportError:
         raise ExportError("format=onnx needs the onnx package: pip install 'inbetweening[export]'") from None
+    from .atomic import atomic_path
+
     net = module.net.eval().cpu()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     example = random_window(module, 2, 15)
     axes = {"x": {0: "batch", 1: "frames"}, "known": {0: "batch", 1: "frames"},
             "interp": {0: "batch", 1: "frames"}, "out": {0: "batch", 1: "frames"}}
-    with warnings.catch_warnings(), torch.no_grad():
-        warnings.simplefilter("ignore")
-        torch.onnx.export(net, example, str(path), dynamo=False, opset_version=int(opset),
-                          input_names=["x", "known", "interp"], output_names=["out"], dynamic_axes=axes)
-    model = onnx.load(str(path))
-    inputs = [i.name for i in model.graph.input]
-    for k, v in metadata(module, inputs).items():
-        entry = model.metadata_props.add()
-        entry.key, entry.value = k, v
-    onnx.save(model, str(path))
+    with atomic_path(path) as tmp:  # an interrupted export never leaves half a file under the final name
+        with warnings.catch_warnings(), torch.no_grad():
+            warnings.simplefilter("ignore")
+            torch.onnx.export(net, example, str(tmp), dynamo=False, opset_version=int(opset),
+                              input_names=["x", "known", "interp"], output_names=["out"], dynamic_axes=axes)
+        model = onnx.load(str(tmp))
+        inputs = [i.name for i in model.graph.input]
+        for k, v in metadata(module, inputs).items():
+            entry = model.metadata_props.add()
+            entry.key, entry.value = k, v
+        onnx.save(model, str(tmp))
     info = {"path": str(path), "inputs": inputs, "max_abs_diff": None}
     if check:
         info["max_abs_diff"] = check_onnx(module, path)
@@ -163,20 +166,23 @@ def export_checkpoint(src: str | Path, dst: str | Path) -> dict:
     The result still loads with ``InbetweenModule.load_from_checkpoint`` and ``Inbetweener.from_checkpoint``;
     metric states are dropped from the state dict.  Returns ``{"path", "bytes"}``.
     """
-    from .train import check_checkpoint
+    from .checkpoint import read_checkpoint
 
-    ckpt = check_checkpoint(str(src))
+    ckpt = read_checkpoint(str(src))
     slim = {k: ckpt[k] for k in INFERENCE_KEYS if k in ckpt}
     slim["state_dict"] = {k: v for k, v in ckpt["state_dict"].items() if k.startswith("net.")}
+    from .atomic import atomic_path
+
     dst = Path(dst)
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    torch.save(slim, dst)
+    with atomic_path(dst) as tmp:
+        torch.save(slim, tmp)
     return {"path": str(dst), "bytes": dst.stat().st_size}
 
 
 def run(argv: Sequence[str]) -> int:
     try:
-        args = parse_args(argv, {"ckpt_path": str, "format": str, "output": str, "opset": int, "check": parse_bool},
+        args = parse_args(argv, {"ckpt_path": str, "format": str, "output": str, "opset": int, "check": parse_bool,
+                                 "force": parse_bool},
                           {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "out": "output", "o": "output"})
     except UsageError as e:
         fail(e)
@@ -189,7 +195,12 @@ def run(argv: Sequence[str]) -> int:
     fmt = str(args.get("format", "onnx")).lower()
     if fmt not in FORMATS:
         fail(f"format: unknown export format {args['format']!r}; supported: {', '.join(FORMATS)}")
-    from .train import CheckpointError, load_module
+    from .atomic import same_file
+    from .checkpoint import CheckpointError, load_module
+
+    if same_file(args["ckpt_path"], args["output"]) and not args.get("force", False):
+        fail(f"output: {args['output']} is the checkpoint being exported; writing it would destroy the input "
+             "(choose another output, or --force to overwrite)")
 
     try:
         if fmt == "ckpt":

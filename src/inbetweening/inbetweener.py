@@ -175,9 +175,9 @@ class Inbetweener:
         ``kw`` go to the constructor (``max_gap``, ``segment``); ``trained_gap`` defaults to the data module's
         ``transition_max`` recorded in the checkpoint.
         """
-        from .train import check_checkpoint, load_module
+        from .checkpoint import load_module, read_checkpoint
 
-        ckpt = check_checkpoint(str(path))
+        ckpt = read_checkpoint(str(path))
         dm = ckpt.get("datamodule_hyper_parameters") or {}
         if "trained_gap" not in kw and dm.get("mask", "lerp") != "joints" and dm.get("transition_max"):
             kw["trained_gap"] = int(dm["transition_max"])

@@ -52,6 +52,7 @@ options:
                         same keyframes, keyframes drawn in red
   render_dpi=N          GIF resolution (default 80)
   device=cpu|cuda       where the model runs (default cpu)
+  --force               allow output (or render) to be the input file itself (refused otherwise)
   -h, --help            show this help
 
 examples:
@@ -63,7 +64,7 @@ examples:
 
 OPTIONS = {
     "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "gap": int, "max_gap": int,
-    "segment": parse_bool, "render": str, "render_dpi": int, "device": str,
+    "segment": parse_bool, "render": str, "render_dpi": int, "device": str, "force": parse_bool,
 }
 ALIASES = {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "in": "input", "out": "output", "o": "output",
            "keys": "keyframes"}
@@ -105,11 +106,18 @@ def run(argv: Sequence[str]) -> int:
              "between consecutive input frames); see --help")
 
     from .bvh import BVHError, read_bvh, write_bvh
+    from .checkpoint import CheckpointError
     from .inbetweener import Inbetweener, InbetweenError
-    from .train import CheckpointError
 
     if not Path(args["input"]).is_file():
         fail(f"input: {args['input']} does not exist")
+    from .atomic import same_file
+
+    for key in ("output", "render"):
+        for src in ("input", "ckpt_path"):
+            if key in args and same_file(args[src], args[key]) and not args.get("force", False):
+                fail(f"{key}: {args[key]} is the {src} file; writing it would destroy the {src} "
+                     f"(choose another {key}, or --force to overwrite)")
     device = args.get("device", "cpu")
     import torch
 

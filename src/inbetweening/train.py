@@ -12,22 +12,18 @@ from collections.abc import Callable
 from pathlib import Path
 
 import lightning as L
-import torch
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from . import benchmark as B
 from .bvh import BVHError
+from .checkpoint import CheckpointError, load_module, read_checkpoint
 from .config import ConfigError, validate
 from .datamodule import InbetweenDataModule
 from .datasets import DatasetError
 from .module import InbetweenModule
 
 log = logging.getLogger("inbetweening")
-
-
-class CheckpointError(ValueError):
-    """A checkpoint is missing, unreadable or not an inbetweening checkpoint."""
 
 
 # ------------------------------------------------------------------------------------------
@@ -123,7 +119,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
     if cfg.get("run_test", True):
         test_trainer = make_trainer(cfg, callbacks=False, loggers=False)
         if best and Path(best).exists():
-            module = InbetweenModule.load_from_checkpoint(best, map_location="cpu")
+            module = load_module(best)
         test_trainer.test(module, datamodule=dm, verbose=False)
         metrics = dict(module.test_results)
         name = cfg.model.name
@@ -150,27 +146,8 @@ def with_baselines(name: str, metrics: dict, dm: InbetweenDataModule, lengths) -
 
 
 def check_checkpoint(path: str) -> dict:
-    """Load a checkpoint's dict, or raise :class:`CheckpointError` saying what is wrong with it."""
-    p = Path(path)
-    if not p.is_file():
-        raise CheckpointError(f"ckpt_path: {p} does not exist")
-    try:
-        ckpt = torch.load(p, map_location="cpu", weights_only=False)
-    except Exception as e:  # noqa: BLE001 - any unpickling failure means "not a checkpoint"
-        raise CheckpointError(f"ckpt_path: {p} is not a readable PyTorch checkpoint ({type(e).__name__}: {e})") from None
-    hp = ckpt.get("hyper_parameters") if isinstance(ckpt, dict) else None
-    if not hp or "model" not in hp or "skeleton" not in hp or "state_dict" not in ckpt:
-        raise CheckpointError(f"ckpt_path: {p} is not an inbetweening checkpoint (no model/skeleton hyper-parameters)")
-    return ckpt
-
-
-def load_module(path: str) -> InbetweenModule:
-    """``InbetweenModule.load_from_checkpoint`` with a clear error for wrong files."""
-    check_checkpoint(path)
-    try:
-        return InbetweenModule.load_from_checkpoint(path, map_location="cpu")
-    except (RuntimeError, KeyError, TypeError, ValueError) as e:
-        raise CheckpointError(f"ckpt_path: {path} does not match this version's models ({e})") from None
+    """Load a checkpoint's dict safely, or raise :class:`CheckpointError` saying what is wrong with it."""
+    return read_checkpoint(path)
 
 
 def evaluate(cfg: DictConfig) -> dict[str, float]:

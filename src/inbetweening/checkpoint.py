@@ -1,0 +1,83 @@
+"""Reading checkpoints safely: no code runs while loading, and a wrong file is one clear error.
+
+Every load of the package (training resume, ``eval.py``, ``predict``, ``export``, ``Inbetweener``) goes
+through :func:`read_checkpoint` / :func:`load_module`: ``torch.load(weights_only=True)`` only rebuilds
+tensors, numbers, strings, lists and dicts, so a checkpoint carrying a pickled code payload is refused before
+anything in it runs.  Inference tools import this module, never the training code.
+"""
+from __future__ import annotations
+
+import io
+import math
+import pickle
+import re
+import warnings
+from pathlib import Path
+
+import torch
+
+
+class CheckpointError(ValueError):
+    """A checkpoint is missing, unreadable, unsafe, non-finite or not an inbetweening checkpoint."""
+
+
+def _read_bytes(path: str | Path) -> bytes:
+    p = Path(path)
+    if not p.is_file():
+        raise CheckpointError(f"ckpt_path: {p} does not exist")
+    return p.read_bytes()
+
+
+def _load(raw: bytes, p: str) -> dict:
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # torch's notes on pickle protocols: the error below says it all
+            return torch.load(io.BytesIO(raw), map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as e:
+        found = re.search(r"GLOBAL (\S+)", str(e))
+        if found is None:  # not a pickle of the kind torch.save writes
+            raise CheckpointError(f"ckpt_path: {p} is not a readable PyTorch checkpoint (corrupt or another format)") \
+                from None
+        raise CheckpointError(f"ckpt_path: {p} refused: it holds a Python object ({found.group(1)}) that could run code "
+                              "when loaded; checkpoints may hold only tensors and plain values") from None
+    except Exception as e:  # noqa: BLE001 - any other failure means "not a checkpoint"
+        raise CheckpointError(f"ckpt_path: {p} is not a readable PyTorch checkpoint ({type(e).__name__}: {e})") from None
+
+
+def non_finite_tensor(state_dict: dict) -> str | None:
+    """Name of the first floating-point tensor of ``state_dict`` holding NaN or inf, else ``None``."""
+    for k, v in state_dict.items():
+        if isinstance(v, torch.Tensor) and v.is_floating_point() and not bool(torch.isfinite(v).all()):
+            return k
+        if isinstance(v, float) and not math.isfinite(v):
+            return k
+    return None
+
+
+def read_checkpoint(path: str | Path, raw: bytes | None = None) -> dict:
+    """The checkpoint's dict, loaded without running code, checked to be an inbetweening checkpoint with
+    finite weights; :class:`CheckpointError` says what is wrong otherwise."""
+    p = str(path)
+    ckpt = _load(_read_bytes(path) if raw is None else raw, p)
+    hp = ckpt.get("hyper_parameters") if isinstance(ckpt, dict) else None
+    if not hp or "model" not in hp or "skeleton" not in hp or "state_dict" not in ckpt:
+        raise CheckpointError(f"ckpt_path: {p} is not an inbetweening checkpoint (no model/skeleton hyper-parameters)")
+    bad = non_finite_tensor(ckpt["state_dict"])
+    if bad is not None:
+        raise CheckpointError(f"ckpt_path: {p} has non-finite weights ({bad} holds NaN or inf); "
+                              "use an earlier checkpoint of the run")
+    return ckpt
+
+
+def load_module(path: str | Path):
+    """The :class:`~inbetweening.module.InbetweenModule` of a checkpoint, on the CPU, in eval mode."""
+    from .module import InbetweenModule
+
+    raw = _read_bytes(path)
+    read_checkpoint(path, raw)
+    try:
+        module = InbetweenModule.load_from_checkpoint(io.BytesIO(raw), map_location="cpu", weights_only=True)
+    except (RuntimeError, KeyError, TypeError, ValueError) as e:
+        msg = " ".join(str(e).split())
+        raise CheckpointError(f"ckpt_path: {path} does not match this version's models ({msg[:300]})") from None
+    return module.eval()
