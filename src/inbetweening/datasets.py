@@ -16,12 +16,11 @@ serves stale data.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import re
 import shutil
-import tempfile
 import urllib.request
+import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,10 +29,11 @@ import numpy as np
 
 from . import benchmark as B
 from .bvh import BVH, BVHError, iter_bvh_sources, parse_bvh
+from .cache import CacheCorrupt, default_cache_dir, hash_source, load_entry, save_entry, settings_key
 from .quaternion import qmul, qrot, remove_discontinuities
 from .skeleton import Skeleton
 
-CACHE_VERSION = 3
+CACHE_VERSION = 4  # 4: checksums in meta.json
 LAFAN1_URL = "https://github.com/ubisoft/ubisoft-laforge-animation-dataset/raw/master/lafan1/lafan1.zip"
 LAFAN1_SIZE = 144_051_503
 LAFAN1_SHA256 = "ea918082b500a5d158e9d3aa39039df04cd42e25f5c02fe8f7e88e8e9365a977"
@@ -151,56 +151,9 @@ def bandai_namco_split(fname: str):
 
 
 # ------------------------------------------------------------------------------------------
-# Sources, hashing, cache
+# Cache entries (the format lives in :mod:`inbetweening.cache`)
 # ------------------------------------------------------------------------------------------
-def _stat_signature(path: Path) -> list:
-    files = [path] if path.is_file() else sorted(path.rglob("*.bvh"))
-    return [(str(f), f.stat().st_size, f.stat().st_mtime_ns) for f in files]
-
-
-def hash_source(path: Path, memo_dir: Path | None = None) -> str:
-    """sha1 over the bytes of a zip file, or over the names and bytes of every .bvh file in a folder.
-
-    With ``memo_dir``, the digest is remembered against the files' (path, size, mtime) so an
-    unchanged source is not re-read; any change to a file's size or modification time re-hashes it.
-    """
-    memo = None
-    if memo_dir is not None:
-        sig = json.dumps(_stat_signature(path))
-        memo = Path(memo_dir) / "hashes" / (hashlib.sha1(sig.encode()).hexdigest() + ".txt")
-        if memo.exists():
-            return memo.read_text().strip()
-    h = hashlib.sha1()
-    if path.is_file():
-        with open(path, "rb") as f:
-            while chunk := f.read(1 << 22):
-                h.update(chunk)
-    else:
-        for p in sorted(path.rglob("*.bvh")):
-            h.update(p.name.encode())
-            h.update(p.read_bytes())
-    digest = h.hexdigest()
-    if memo is not None:
-        memo.parent.mkdir(parents=True, exist_ok=True)
-        memo.write_text(digest)
-    return digest
-
-
-def _settings_key(settings: dict) -> str:
-    return hashlib.sha1(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]
-
-
-def default_cache_dir() -> Path:
-    return Path(os.environ.get("INBETWEENING_CACHE", Path.home() / ".cache" / "inbetweening"))
-
-
-_SMALL = ("pos_mean", "pos_std", "offsets")
-
-
 def _save_cache(path: Path, data: MotionData) -> None:
-    """One folder per key: ``meta.json`` + one ``.npy`` per array (memory-mapped on load), written
-    to a private temporary folder and renamed into place, so readers never see a partial entry."""
-    path.parent.mkdir(parents=True, exist_ok=True)
     arrays = {
         "pos_mean": data.pos_mean,
         "pos_std": data.pos_std,
@@ -223,20 +176,11 @@ def _save_cache(path: Path, data: MotionData) -> None:
         j = data.skeleton.num_joints
         arrays[f"{split}_q"] = np.concatenate([c.local_q for c in clips]) if clips else np.zeros((0, j, 4))
         arrays[f"{split}_root"] = np.concatenate([c.root_pos for c in clips]) if clips else np.zeros((0, 3))
-    tmp = Path(tempfile.mkdtemp(prefix=path.name + ".", dir=path.parent))
-    for k, v in arrays.items():
-        np.save(tmp / f"{k}.npy", np.ascontiguousarray(v))
-    (tmp / "meta.json").write_text(json.dumps(meta))
-    try:
-        os.rename(tmp, path)
-    except OSError:  # another process wrote the same entry first
-        shutil.rmtree(tmp, ignore_errors=True)
+    save_entry(path, arrays, meta)
 
 
 def _load_cache(path: Path) -> MotionData:
-    meta = json.loads((path / "meta.json").read_text())
-    arrays = {f.stem: np.load(f, mmap_mode=None if f.stem in _SMALL else "r", allow_pickle=False)
-              for f in path.glob("*.npy")}
+    arrays, meta = load_entry(path)
     skel = Skeleton(tuple(meta["names"]), tuple(meta["parents"]), arrays["offsets"])
     splits = {}
     for split in ("train", "test"):
@@ -367,13 +311,14 @@ def load_dataset(
     }
     if not use_cache:
         return prepare(name, src, spec["split"], spec["fold_root"], axis)
-    key = f"{name}-{hash_source(src, cache_root)[:16]}-{_settings_key(settings)}"
+    key = f"{name}-{hash_source(src, cache_root)[:16]}-{settings_key(settings)}"
     cache_file = cache_root / "prepared" / key
     if (cache_file / "meta.json").exists():
         try:
             return _load_cache(cache_file)
-        except (OSError, ValueError, KeyError):
-            shutil.rmtree(cache_file, ignore_errors=True)  # corrupt cache entry: rebuild
+        except (CacheCorrupt, OSError, ValueError, KeyError) as e:  # corrupt entry: say so, rebuild it
+            warnings.warn(f"dataset cache entry {cache_file} is unreadable or corrupt ({e}); rebuilding it", stacklevel=2)
+            shutil.rmtree(cache_file, ignore_errors=True)
     data = prepare(name, src, spec["split"], spec["fold_root"], axis)
     _save_cache(cache_file, data)
     return data
