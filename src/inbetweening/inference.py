@@ -31,8 +31,9 @@ def known_centre_shift(feats: torch.Tensor, known: torch.Tensor, std) -> torch.T
     it back to the prediction) makes the network see only what is known: ``centre="known"``.
     """
     s = torch.as_tensor(std, dtype=feats.dtype, device=feats.device).reshape(-1, 3)
-    root_known = known[:, :, 0].to(feats.dtype)  # (B, T)
-    xz = (feats[:, :, 0, [0, 2]] * root_known[..., None]).sum(1) / root_known.sum(1, keepdim=True).clamp(min=1)
+    root_known = known[:, :, 0]  # (B, T)
+    xz_known = torch.where(root_known[..., None], feats[:, :, 0, [0, 2]], 0.0)  # unknown frames never read (NaN ok)
+    xz = xz_known.sum(1) / root_known.to(feats.dtype).sum(1, keepdim=True).clamp(min=1)
     shift = torch.zeros(feats.shape[0], 1, feats.shape[2], feats.shape[3], dtype=feats.dtype, device=feats.device)
     # positions are z-scored per joint coordinate: a world shift d is d / std_j in each joint's features
     shift[:, 0, :, 0] = xz[:, None, 0] * s[0, 0] / s[:, 0]
@@ -40,27 +41,33 @@ def known_centre_shift(feats: torch.Tensor, known: torch.Tensor, std) -> torch.T
     return shift
 
 
+def _centred_forward(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str, std):
+    """``(pred, interp, target, shift)``; ``shift`` is ``None`` for ``centre="window"``."""
+    if centre not in CENTRES:
+        raise ValueError(f"centre must be one of {list(CENTRES)}, got {centre!r}")
+    shift = None
+    if centre == "known":
+        shift = known_centre_shift(feats, known, std)
+        feats = feats - shift
+    x, interp = apply_mask(mask, feats, known)
+    return net(x, known, interp), interp, feats, shift
+
+
 def masked_forward(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str = "window", std=None):
     """Mask -> (optional known-frame centring) -> network, with gradients.  Returns ``(pred, interp, target)``
     where ``target`` is ``feats`` in the frame the prediction lives in (for the loss)."""
-    if centre not in CENTRES:
-        raise ValueError(f"centre must be one of {list(CENTRES)}, got {centre!r}")
-    if centre == "known":
-        feats = feats - known_centre_shift(feats, known, std)
-    x, interp = apply_mask(mask, feats, known)
-    return net(x, known, interp), interp, feats
+    return _centred_forward(net, mask, feats, known, centre, std)[:3]
 
 
 @torch.no_grad()
 def predict_features(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str = "window",
                      std=None) -> tuple[torch.Tensor, torch.Tensor]:
     """Masked input -> network -> ``(prediction, interpolation)``, both ``(B, T, J, 7)`` in the input's frame;
-    known values are returned bit-exactly."""
-    pred, interp, shifted = masked_forward(net, mask, feats, known, centre, std)
-    if centre == "known":
-        d = feats - shifted
-        pred = torch.where(known[..., None], feats, pred + d)
-        interp = torch.where(known[..., None], feats, interp + d)
+    known values are returned bit-exactly; unknown input values are never read (they may be NaN)."""
+    pred, interp, _, shift = _centred_forward(net, mask, feats, known, centre, std)
+    if shift is not None:
+        pred = torch.where(known[..., None], feats, pred + shift)
+        interp = torch.where(known[..., None], feats, interp + shift)
     return pred, interp
 
 
