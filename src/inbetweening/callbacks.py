@@ -54,3 +54,29 @@ class SkeletonFigure(L.Callback):
             exp = getattr(logger, "experiment", None)
             if hasattr(exp, "add_figure"):
                 exp.add_figure("val/skeleton", fig, global_step=trainer.global_step)
+
+
+class NonFiniteError(RuntimeError):
+    """Training produced a NaN/inf loss or gradient; the message names the step, the quantity and the last
+    good checkpoint."""
+
+
+class NonFiniteGuard(L.Callback):
+    """Stop training at the first non-finite training loss or gradient, before the optimiser step applies it,
+    so every checkpoint written so far holds finite weights.  Raises :class:`NonFiniteError`."""
+
+    def _fail(self, trainer: L.Trainer, what: str) -> None:
+        ckpt = getattr(trainer.checkpoint_callback, "last_model_path", "") or None
+        where = f"last good checkpoint: {ckpt}" if ckpt else "no checkpoint was written yet"
+        raise NonFiniteError(f"step {trainer.global_step}: {what}; training stopped ({where}); "
+                             "lower optim.lr or check the data")
+
+    def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
+        loss = outputs.get("loss") if isinstance(outputs, dict) else outputs
+        if isinstance(loss, torch.Tensor) and not bool(torch.isfinite(loss).all()):
+            self._fail(trainer, f"training loss is {float(loss)}")
+
+    def on_before_optimizer_step(self, trainer, pl_module, optimizer) -> None:
+        for name, p in pl_module.named_parameters():
+            if p.grad is not None and not bool(torch.isfinite(p.grad).all()):
+                self._fail(trainer, f"gradient of {name} is not finite")

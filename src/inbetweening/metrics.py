@@ -36,7 +36,8 @@ class BenchmarkMetric(Metric):
     def compute(self) -> dict[str, float]:
         out: dict[str, float] = {}
         for n in self.lengths:
-            if not getattr(self, f"gt_root_{n}"):
+            state = getattr(self, f"gt_root_{n}")  # a list of batches, or one tensor after a DDP sync
+            if (len(state) if isinstance(state, list) else state.numel()) == 0:
                 continue
             arrays = [dim_zero_cat(getattr(self, f"{k}_{n}")).cpu().numpy() for k in ("gt_root", "gt_q", "pred_root", "pred_q")]
             out.update(score(*arrays, self.skeleton, self.mean, self.std, n))

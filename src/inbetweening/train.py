@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -16,7 +17,9 @@ from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from . import benchmark as B
+from .atomic import write_text
 from .bvh import BVHError
+from .callbacks import NonFiniteError, NonFiniteGuard
 from .checkpoint import CheckpointError, load_module, read_checkpoint
 from .config import ConfigError, validate
 from .datamodule import InbetweenDataModule
@@ -67,13 +70,20 @@ def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
     lgs = [instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else []
     if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
+    if not any(isinstance(c, NonFiniteGuard) for c in cbs):
+        cbs.append(NonFiniteGuard())  # always on: a NaN/inf loss or gradient stops the run at that step
     return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False)
 
 
 def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metrics: dict) -> dict:
+    """Write ``benchmark.json`` (strict JSON, atomically); a non-finite metric is an error, never a number."""
     res = {"dataset": dataset, "model": model, "n_windows": int(n_windows),
            "metrics": {k: float(v) for k, v in metrics.items()}}
-    path.write_text(json.dumps(res, indent=2))
+    bad = [k for k, v in res["metrics"].items() if not math.isfinite(v)]
+    if bad:
+        raise NonFiniteError(f"benchmark: {', '.join(bad)} not finite ({res['metrics'][bad[0]]}); "
+                             f"{path} was not written")
+    write_text(path, json.dumps(res, indent=2, allow_nan=False))
     return res
 
 
@@ -194,5 +204,8 @@ def run_cli(job: Callable[[DictConfig], dict], cfg: DictConfig) -> float | None:
     except (ConfigError, DatasetError, BVHError, CheckpointError) as e:
         print(f"error: {e}", file=sys.stderr)
         sys.exit(2)
+    except NonFiniteError as e:  # diverged training or non-finite results: say where, keep what was good
+        print(f"error: {e}", file=sys.stderr)
+        sys.exit(3)
     key = cfg.get("optimized_metric")
     return metrics.get(key) if key and metrics else None
