@@ -21,6 +21,69 @@ def _get(cfg, key: str, default=None):
     return node
 
 
+POSITIVE_INT_KEYS = tuple(f"model.{k}" for k in (
+    "d_model", "depth", "heads", "ffn_dim", "max_frames", "hidden_dim", "res_blocks", "lstm_hidden", "lstm_layers",
+    "spatial_dim", "spatial_depth", "spatial_heads", "temporal_depth", "base_channels", "levels", "norm_groups",
+)) + tuple(f"data.{k}" for k in (
+    "batch_size", "eval_batch_size", "train_window", "train_offset", "max_train_windows", "max_eval_windows",
+    "max_val_windows",
+))
+
+
+def _check_model_keys(cfg, name: str) -> None:
+    """Every ``model.*`` key must be a constructor argument of the chosen model (baselines accept any)."""
+    import inspect
+
+    from .models import MODELS
+
+    params = inspect.signature(MODELS[name].__init__).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        return
+    allowed = set(params) - {"self", "num_joints", "adjacency"} | {"name"}
+    for k in _get(cfg, "model") or {}:
+        if k not in allowed:
+            raise ConfigError(f"model.{k}: not a setting of model {name!r} (perhaps set by an experiment= for another "
+                              f"model); its settings are {sorted(allowed - {'name'})}")
+
+
+def _check_data(cfg, mask) -> None:
+    """Numeric ranges of the data settings and what the windows need from the model."""
+    nw = _get(cfg, "data.num_workers")
+    if nw is not None and (not isinstance(nw, int) or nw < 0):
+        raise ConfigError(f"data.num_workers: must be an integer >= 0, got {nw!r}")
+    vf = _get(cfg, "data.val_fraction")
+    if vf is not None and not 0.0 <= float(vf) < 1.0:
+        raise ConfigError(f"data.val_fraction: must be in [0, 1), got {vf}")
+    for key in ("data.val_lengths", "data.test_lengths"):
+        for n in _get(cfg, key) or []:
+            if not isinstance(n, int) or not 1 <= n <= 45:
+                raise ConfigError(f"{key}: lengths must be integers in 1..45 (65-frame benchmark windows), got {n!r}")
+    name = _get(cfg, "data.name")
+    syn = _get(cfg, "data.synthetic")
+    if name == "synthetic":
+        if _get(cfg, "data.path") is not None:
+            raise ConfigError(f"data.path: data=synthetic generates its clips and reads no path (got "
+                              f"{_get(cfg, 'data.path')!r}); remove it, or choose data=lafan1 or data=bandai_namco")
+        syn = syn or {}
+        clips, lo, hi = syn.get("num_clips", 40), syn.get("min_frames", 240), syn.get("max_frames", 360)
+        if not isinstance(clips, int) or clips < 5:
+            raise ConfigError(f"data.synthetic.num_clips: need at least 5 clips (clip i is subject i % 5 + 1 and "
+                              f"subject5 is the test split), got {clips!r}")
+        if not isinstance(lo, int) or not isinstance(hi, int) or not 66 <= lo <= hi:
+            raise ConfigError(f"data.synthetic.min_frames/max_frames: need 66 <= min <= max (a 65-frame test window "
+                              f"plus one), got {lo!r}..{hi!r}")
+    max_frames = _get(cfg, "model.max_frames")
+    if max_frames is not None:
+        lengths = [int(_get(cfg, "data.transition_max", 30))]
+        lengths += [int(n) for k in ("data.val_lengths", "data.test_lengths") for n in (_get(cfg, k) or [])]
+        need = N_PAST + max(lengths) + 1
+        if mask == "joints":
+            need = max(need, int(_get(cfg, "data.train_window", 50)), 65)
+        if need > int(max_frames):
+            raise ConfigError(f"model.max_frames: {max_frames} is shorter than the {need}-frame windows this "
+                              f"configuration feeds the network ({N_PAST} context + longest transition + target)")
+
+
 def validate(cfg: DictConfig) -> None:
     """Raise :class:`ConfigError` naming the first invalid key."""
     mask = _get(cfg, "mask.name")
@@ -31,9 +94,15 @@ def validate(cfg: DictConfig) -> None:
     name = _get(cfg, "model.name")
     if name not in MODELS:
         raise ConfigError(f"model.name: unknown model {name!r}; choose one of {sorted(MODELS)}")
-    depth = _get(cfg, "model.depth")
-    if depth is not None and int(depth) < 1:
-        raise ConfigError(f"model.depth: must be >= 1, got {depth}")
+    _check_model_keys(cfg, name)
+    for key in POSITIVE_INT_KEYS:
+        v = _get(cfg, key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 1):
+            raise ConfigError(f"{key}: must be an integer >= 1, got {v!r}")
+    hops = _get(cfg, "model.hops")
+    if hops is not None and (not isinstance(hops, int) or hops < 0):
+        raise ConfigError(f"model.hops: must be an integer >= 0, got {hops!r}")
+    _check_data(cfg, mask)
     heads, d_model = _get(cfg, "model.heads"), _get(cfg, "model.d_model")
     if heads is not None and d_model is not None and (int(heads) < 1 or int(d_model) % int(heads)):
         raise ConfigError(f"model.heads: {heads} must divide model.d_model={d_model}")
@@ -55,18 +124,12 @@ def validate(cfg: DictConfig) -> None:
             raise ConfigError(
                 f"data.transition_max: {hi} + {N_PAST} context + 1 target exceeds data.train_window={window}"
             )
-        max_frames = _get(cfg, "model.max_frames")
-        if max_frames is not None and window > int(max_frames) and mask == "joints":
-            raise ConfigError(f"model.max_frames={max_frames} is shorter than data.train_window={window}")
     centre = _get(cfg, "centre", "known")
     if centre not in ("known", "window"):
         raise ConfigError(f"centre: must be 'known' or 'window', got {centre!r}")
     per = _get(cfg, "data.transition_per", "batch")
     if per not in ("batch", "sample"):
         raise ConfigError(f"data.transition_per: must be 'batch' or 'sample', got {per!r}")
-    bs = _get(cfg, "data.batch_size")
-    if bs is not None and int(bs) < 1:
-        raise ConfigError(f"data.batch_size: must be >= 1, got {bs}")
     for k, v in (_get(cfg, "loss") or {}).items():
         if k not in LOSS_TERMS:
             raise ConfigError(f"loss.{k}: unknown loss term; known: {list(LOSS_TERMS)}")

@@ -251,7 +251,8 @@ def resolve_path(name: str, path: str | os.PathLike | None, download: bool = Fal
             "(or the folder of extracted .bvh files) as data.path=... or $LAFAN1_PATH",
             "bandai_namco": "pass the Bandai-Namco-Research-Motiondataset zip or its data/ folder as data.path=...",
         }.get(name, "")
-        raise DatasetError(f"{name}: {p} does not exist; {hint}")
+        where = "" if p.is_absolute() else f" (relative to the working directory {Path.cwd()})"
+        raise DatasetError(f"{name}: {p} does not exist{where}; {hint}")
     return p
 
 
