@@ -163,7 +163,15 @@ class InbetweenDataModule(L.LightningDataModule):
                           persistent_workers=h.num_workers > 0)
 
     def _eval_loader(self, ds: Dataset) -> DataLoader:
-        return DataLoader(ds, batch_size=self.hparams.eval_batch_size, shuffle=False,
+        sampler = None
+        if torch.distributed.is_available() and torch.distributed.is_initialized() and \
+                torch.distributed.get_world_size() > 1:
+            # each window scored exactly once across the processes (no padding duplicates): the metrics, synced
+            # by torchmetrics, equal a single process's on the same windows
+            from lightning.pytorch.overrides.distributed import UnrepeatedDistributedSampler
+
+            sampler = UnrepeatedDistributedSampler(ds, shuffle=False)
+        return DataLoader(ds, batch_size=self.hparams.eval_batch_size, shuffle=False, sampler=sampler,
                           num_workers=self.hparams.num_workers)
 
     def val_dataloader(self) -> DataLoader:

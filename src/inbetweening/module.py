@@ -98,6 +98,10 @@ class InbetweenModule(L.LightningModule):
         return build_model(name, num_joints=skeleton.num_joints, adjacency=skeleton.adjacency(hops).tolist(), **cfg)
 
     @property
+    def _distributed(self) -> bool:
+        return self._trainer is not None and self.trainer.world_size > 1
+
+    @property
     def trainable(self) -> bool:
         return bool(getattr(self.net, "trainable", True)) and any(p.requires_grad for p in self.net.parameters())
 
@@ -141,7 +145,8 @@ class InbetweenModule(L.LightningModule):
             pr_gq, pr_gp = fk(pr_q, self.skeleton.local_positions(pr_root), self.skeleton.parents)
             gt_gq, gt_gp = fk(q[:, :t], self.skeleton.local_positions(root[:, :t]), self.skeleton.parents)
             joint.update(pr_gp, gt_gp, pr_gq, gt_gq, unknown)
-        self.log(f"{stage}/loss", torch.stack(losses).mean(), prog_bar=True, batch_size=root.shape[0])
+        self.log(f"{stage}/loss", torch.stack(losses).mean(), prog_bar=True, batch_size=root.shape[0],
+                 sync_dist=self._distributed)
 
     def _recovery_step(self, batch: dict, batch_idx: int, metric: PerJointError) -> None:
         """Mocap recovery: random joints missing over random gaps of the whole window (seeded per batch)."""
@@ -183,7 +188,7 @@ class InbetweenModule(L.LightningModule):
         for i, name in enumerate(self.skeleton.names):
             logs[f"{stage}_joint_pos/{name}"] = float(per_joint["pos"][i])
             logs[f"{stage}_joint_rot/{name}"] = float(per_joint["rot"][i])
-        self.log_dict(logs, sync_dist=False)
+        self.log_dict(logs, sync_dist=self._distributed)  # values are already synced: identical on every rank
         return {k: v for k, v in res.items()}
 
     def _log_recovery(self, metric: PerJointError, stage: str) -> dict[str, float]:
@@ -194,7 +199,7 @@ class InbetweenModule(L.LightningModule):
         logs = {f"{stage}/recovery_rmse": float(res["rmse"])}
         for i, name in enumerate(self.skeleton.names):
             logs[f"{stage}_recovery_pos/{name}"] = float(res["pos"][i])
-        self.log_dict(logs)
+        self.log_dict(logs, sync_dist=self._distributed)
         return {"recovery_rmse": logs[f"{stage}/recovery_rmse"]}
 
     def on_validation_epoch_end(self) -> None:

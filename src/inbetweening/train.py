@@ -133,6 +133,8 @@ def train(cfg: DictConfig) -> dict[str, float]:
         test_trainer.test(module, datamodule=dm, verbose=False)
         metrics = dict(module.test_results)
         name = cfg.model.name
+        if not test_trainer.is_global_zero:  # DDP: metrics are synced; rank 0 alone writes and prints
+            return metrics
         write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics)
         print(f"\nTest benchmark ({dm.data.name}, {len(dm.test_set)} windows, checkpoint: {best or 'final weights'})")
         print(B.format_table(with_baselines(name, metrics, dm, cfg.data.test_lengths), cfg.data.test_lengths))
@@ -191,6 +193,8 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
         trainer.test(module, datamodule=dm, verbose=False)
         metrics, dataset, n = dict(module.test_results), dm.data.name, len(dm.test_set)
         name = module.hparams.model["name"]
+        if not trainer.is_global_zero:  # DDP: metrics are synced; rank 0 alone writes and prints
+            return metrics
     write_benchmark(out / "benchmark.json", dataset, name, n, metrics)
     print(f"\nBenchmark: {dataset}, {n} test windows -> {out / 'benchmark.json'}")
     print(B.format_table({name: metrics}, cfg.data.test_lengths))
