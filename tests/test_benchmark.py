@@ -159,6 +159,126 @@ def test_npss_four_frames_real_part_and_power_weighting():
     assert not np.allclose(mag**2, power(g1))  # the real part and the magnitude differ here
 
 
+def test_npss_several_windows_odd_length_hand_dft():
+    """B=2 windows, T=5 frames (odd: no Nyquist bin), D=2: every (window, dimension) pair is weighted by its own
+    ground-truth power, over windows as well as dimensions (not a mean of per-window averages)."""
+    t = np.arange(5)
+
+    def power(x):  # the real part of the DFT only, written out: P_k = (sum_t x_t cos(2 pi k t / T))^2
+        return np.array([np.sum(x * np.cos(2 * np.pi * k * t / 5)) ** 2 for k in range(5)])
+
+    gt = np.array([[[1.0, 0.5], [2.0, -1.0], [0.0, 2.0], [-1.0, 1.0], [3.0, 0.0]],
+                   [[4.0, 0.2], [4.0, 0.1], [5.0, 0.3], [3.0, 0.0], [4.0, 0.4]]])
+    pred = np.array([[[0.0, 0.5], [1.0, 1.0], [3.0, 1.0], [1.0, 0.0], [0.0, 1.0]],
+                     [[4.0, 0.0], [3.0, 0.4], [4.0, 0.1], [4.0, 0.3], [5.0, 0.2]]])
+    emds, weights = [], []
+    for b in range(2):
+        for d in range(2):
+            pg, pp = power(gt[b, :, d]), power(pred[b, :, d])
+            emds.append(np.abs(np.cumsum(pp / pp.sum()) - np.cumsum(pg / pg.sum())).sum())
+            weights.append(pg.sum())
+    emds, weights = np.array(emds), np.array(weights)
+    want = float((emds * weights).sum() / weights.sum())
+    assert B.npss(gt, pred) == pytest.approx(want, rel=1e-12)
+    # the case separates the usual slips: unweighted, per-window then averaged, magnitude instead of real part
+    assert abs(want - emds.mean()) > 0.01
+    per_window = np.mean([(emds[2 * b : 2 * b + 2] * weights[2 * b : 2 * b + 2]).sum() / weights[2 * b : 2 * b + 2].sum()
+                          for b in range(2)])
+    assert abs(want - per_window) > 0.01
+    assert not np.allclose(np.abs(np.fft.fft(gt, axis=1)) ** 2, np.stack([[power(gt[b, :, d]) for d in range(2)]
+                                                                          for b in range(2)]).transpose(0, 2, 1))
+
+
+# ------------------------------------------------------------------ the whole benchmark, step by step
+def _hand_qmul(a, b):
+    """Hamilton product, written out component by component."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
+
+
+def _hand_rotmat(q):
+    """3x3 rotation matrix of a unit quaternion (w, x, y, z).  ``(..., 4) -> (..., 3, 3)``."""
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def _hand_fk(root, q, parents, offsets):
+    """Global quaternions and positions: root from the data, every other joint from its parent and offset."""
+    gq, gp = np.empty_like(q), np.empty(q.shape[:-1] + (3,))
+    gq[..., 0, :], gp[..., 0, :] = q[..., 0, :], root
+    for j in range(1, len(parents)):
+        p = parents[j]
+        gq[..., j, :] = _hand_qmul(gq[..., p, :], q[..., j, :])
+        gp[..., j, :] = gp[..., p, :] + np.einsum("...ab,b->...a", _hand_rotmat(gq[..., p, :]), offsets[j])
+    return gq, gp
+
+
+def test_whole_benchmark_step_by_step_on_a_three_joint_skeleton():
+    """evaluate_transitions == a literal, independent transcription of the protocol (own FK, own DFT) to 1e-9:
+    the predictor sees n_past context frames and the target at n_past + n; frames n_past .. n_past+n-1 are scored;
+    L2P z-scores every coordinate with its own mean/std and takes the per-frame norm over all joints."""
+    parents = (-1, 0, 1)
+    offsets = np.array([[0.0, 0.0, 0.0], [0.0, 2.0, 0.5], [1.0, 0.0, -0.5]])
+    sk = Skeleton(("root", "mid", "tip"), parents, offsets)
+    rng = np.random.default_rng(11)
+    w, frames, n_past = 3, 17, 3
+    X = np.broadcast_to(offsets, (w, frames, 3, 3)).copy()
+    X[:, :, 0] = np.cumsum(rng.normal(size=(w, frames, 3)), axis=1)
+    Q = rng.normal(size=(w, frames, 3, 4))
+    Q /= np.linalg.norm(Q, axis=-1, keepdims=True)
+    mean = rng.normal(size=9) * 3.0  # per coordinate, all different
+    std = rng.uniform(0.5, 3.0, size=9)
+    bench = B.BenchmarkSet(X.copy(), Q.copy(), sk, mean, std)
+
+    def rule(ctx_root, target_root, last_q, target_q, n):
+        """A predictor that uses every context frame and the target keyframe."""
+        a = (np.arange(1, n + 1) / (n + 1))[None, :, None]
+        r = ctx_root.mean(axis=1)[:, None] + a * (target_root - ctx_root.mean(axis=1))[:, None] + np.array([0.3, -0.2, 0.1])
+        qq = (1 - a[..., None]) * last_q[:, None] + a[..., None] * target_q[:, None] + 0.2
+        return r, qq / np.linalg.norm(qq, axis=-1, keepdims=True)
+
+    def predictor(root, q, n):
+        assert root.shape == (w, n_past + n + 1, 3) and q.shape == (w, n_past + n + 1, 3, 4)
+        assert np.isnan(root[:, n_past : n_past + n]).all() and np.isnan(q[:, n_past : n_past + n]).all()
+        assert np.isfinite(root[:, :n_past]).all() and np.isfinite(root[:, n_past + n]).all()
+        return rule(root[:, :n_past], root[:, n_past + n], q[:, n_past - 1], q[:, n_past + n], n)
+
+    got = B.evaluate_transitions(bench, predictor, lengths=(4, 2), n_past=n_past)
+    assert set(got) == {f"{m}@{n}" for m in ("l2q", "l2p", "npss") for n in (4, 2)}
+
+    for n in (4, 2):
+        # the predictor's output, computed straight from the raw windows
+        pr_root, pr_q = rule(X[:, :n_past, 0], X[:, n_past + n, 0], Q[:, n_past - 1], Q[:, n_past + n], n)
+        gt_root, gt_q = X[:, n_past : n_past + n, 0], Q[:, n_past : n_past + n]
+        pgq, pgp = _hand_fk(pr_root, pr_q, parents, offsets)
+        ggq, ggp = _hand_fk(gt_root, gt_q, parents, offsets)
+        l2q_frames = [[np.sqrt(np.sum((pgq[b, f] - ggq[b, f]) ** 2)) for f in range(n)] for b in range(w)]
+        zp = (pgp.reshape(w, n, 9) - mean) / std
+        zg = (ggp.reshape(w, n, 9) - mean) / std
+        l2p_frames = [[np.sqrt(np.sum((zp[b, f] - zg[b, f]) ** 2)) for f in range(n)] for b in range(w)]
+        t = np.arange(n)
+        num = den = 0.0
+        for b in range(w):
+            for d in range(12):  # 3 joints x 4 quaternion components
+                g, p = ggq[b, :, d // 4, d % 4], pgq[b, :, d // 4, d % 4]
+                pg = np.array([np.sum(g * np.cos(2 * np.pi * k * t / n)) ** 2 for k in range(n)])
+                pp = np.array([np.sum(p * np.cos(2 * np.pi * k * t / n)) ** 2 for k in range(n)])
+                emd = np.abs(np.cumsum(pp / pp.sum()) - np.cumsum(pg / pg.sum())).sum()
+                num, den = num + emd * pg.sum(), den + pg.sum()
+        want = {f"l2q@{n}": np.mean(l2q_frames), f"l2p@{n}": np.mean(l2p_frames), f"npss@{n}": num / den}
+        for k, v in want.items():
+            assert got[k] == pytest.approx(v, rel=1e-9, abs=1e-9), k
+        assert min(want.values()) > 1e-3  # none of the three is trivially zero here
+    np.testing.assert_array_equal(bench.X, X)  # the benchmark's windows are not modified
+    np.testing.assert_array_equal(bench.Q, Q)
+
+
 # ------------------------------------------------------------------ baselines
 def test_zero_velocity_and_interpolation_hand_values():
     n_past, n = 3, 4

@@ -36,6 +36,35 @@ def test_per_joint_error_hand_values_masked_entries_only():
     assert float(m.compute()["rmse"]) == 0.0
 
 
+def test_per_joint_error_pools_squares_over_entries_and_joints():
+    """Several masked entries of the same joint in ONE update: RMSE squares each distance before summing and pools
+    every masked entry of every joint (not the mean distance, not the mean of per-joint RMSEs)."""
+    pred_gp = torch.zeros(2, 2, 2, 3, dtype=torch.float64)
+    gt_gp = torch.full_like(pred_gp, 1.5)  # an offset common to both: only differences count
+    pred_gp += 1.5
+    pred_gp[0, 0, 0, 0] += 3.0  # joint 0: distance 3
+    pred_gp[1, 1, 0, 2] -= 4.0  # joint 0: distance 4
+    pred_gp[0, 1, 1] += torch.tensor([12.0, 0.0, 0.0])  # joint 1: distance 12
+    pred_gp[1, 0, 1] += 100.0  # joint 1, not masked
+    ident = torch.tensor([1.0, 0.0, 0.0, 0.0], dtype=torch.float64)
+    gt_gq = ident.expand(2, 2, 2, 4).clone()
+    pred_gq = gt_gq.clone()
+    c, s_ = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    pred_gq[0, 0, 0] = torch.tensor([c, 0.0, s_, 0.0])  # 60 degrees about y
+    pred_gq[1, 1, 0] = torch.tensor([0.0, 1.0, 0.0, 0.0])  # 180 degrees about x
+    pred_gq[0, 1, 1] = torch.tensor([S2, 0.0, 0.0, -S2])  # 90 degrees about -z
+    pred_gq[1, 0, 1] = torch.tensor([0.0, 0.0, 0.0, 1.0])  # not masked
+    mask = torch.zeros(2, 2, 2, dtype=torch.bool)
+    mask[0, 0, 0] = mask[1, 1, 0] = mask[0, 1, 1] = True
+    m = PerJointError(2)
+    m.update(pred_gp, gt_gp, pred_gq, gt_gq, mask)
+    out = m.compute()
+    np.testing.assert_allclose(out["pos"].numpy(), [3.5, 12.0], rtol=1e-12)
+    np.testing.assert_allclose(out["rot"].numpy(), [(60.0 + 180.0) / 2, 90.0], rtol=1e-9)
+    # sqrt((9 + 16 + 144) / 3); the mean distance would be 19 / 3, the mean of per-joint RMSEs sqrt(78.25)
+    assert float(out["rmse"]) == pytest.approx(np.sqrt(169.0 / 3.0), rel=1e-12)
+
+
 def test_benchmark_metric_accumulates_like_one_score_call():
     sk = Skeleton(("r", "c"), (-1, 0), np.array([[0.0, 0, 0], [0.0, 1.0, 0]]))
     rng = np.random.default_rng(0)
@@ -55,3 +84,31 @@ def test_benchmark_metric_accumulates_like_one_score_call():
     want = B.score(cat[2], cat[3], cat[0], cat[1], sk, mean, std, 5)
     for k, v in want.items():
         assert res[k] == pytest.approx(v, rel=1e-12)
+
+
+def test_recovery_rmse_of_a_zero_velocity_model_hand_derived(monkeypatch):
+    """The mocap-recovery score end to end: every joint moves at 5 cm/frame (root velocity (3, 0, 4), no
+    rotation); zero-velocity holds each missing joint at its last known position, so the k-th missing frame of a
+    gap is 5k cm off.  Missing: joint 1 at frames 2-4 (5, 10, 15), joint 2 at frames 6-7 (5, 10)."""
+    import inbetweening.module as module_mod
+    from inbetweening.module import InbetweenModule
+
+    sk = Skeleton(("r", "a", "b"), (-1, 0, 1), np.array([[0.0, 0, 0], [0.0, 10.0, 0], [5.0, 0.0, 0]]))
+    known = torch.ones(1, 9, 3, dtype=torch.bool)
+    known[0, 2:5, 1] = False
+    known[0, 6:8, 2] = False
+    monkeypatch.setattr(module_mod, "joints_known", lambda *a, **k: known.clone())
+    module = InbetweenModule(model={"name": "zero_velocity"}, skeleton=sk.to_dict(),
+                             pos_mean=np.linspace(-3, 3, 9).tolist(), pos_std=np.linspace(0.5, 4, 9).tolist(),
+                             mask="joints")
+    monkeypatch.setattr(module, "log_dict", lambda *a, **k: None)  # no trainer to log to
+    root = torch.arange(9, dtype=torch.float64)[None, :, None] * torch.tensor([3.0, 0.0, 4.0], dtype=torch.float64)
+    q = torch.zeros(1, 9, 3, 4, dtype=torch.float64)
+    q[..., 0] = 1.0
+    module._recovery_step({"root": root, "q": q}, 0, module.test_recovery)
+    out = module.test_recovery.compute()
+    np.testing.assert_allclose(out["pos"].numpy(), [0.0, 10.0, 7.5], rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(out["rot"].numpy(), [0.0, 0.0, 0.0], atol=1e-3)
+    logged = module._log_recovery(module.test_recovery, "test")
+    # sqrt((25 + 100 + 225 + 25 + 100) / 5) = sqrt(95); the mean distance would be 9
+    assert logged == {"recovery_rmse": pytest.approx(np.sqrt(95.0), rel=1e-5)}

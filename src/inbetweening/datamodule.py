@@ -15,7 +15,7 @@ from __future__ import annotations
 import lightning as L
 import numpy as np
 import torch
-from torch.utils.data import DataLoader, Dataset
+from torch.utils.data import DataLoader, Dataset, Sampler
 
 from . import benchmark as B
 from .datasets import MotionData, load_dataset
@@ -24,14 +24,78 @@ from .masks import joints_known, transition_known
 
 
 class _Index(Dataset):
+    """Items are whatever the batch sampler asks for: ``(epoch, batch number, window index)`` tuples."""
+
     def __init__(self, n: int):
         self.n = n
 
     def __len__(self) -> int:
         return self.n
 
-    def __getitem__(self, i: int) -> int:
+    def __getitem__(self, i):
         return i
+
+
+def _mix(*ints: int) -> int:
+    """A 63-bit seed from several integers (stable across runs and processes)."""
+    h = 1469598103934665603
+    for v in ints:
+        h = ((h ^ (int(v) & 0xFFFFFFFFFFFFFFFF)) * 1099511628211) & 0x7FFFFFFFFFFFFFFF
+    return h
+
+
+class EpochPermutation(Sampler[int]):
+    """The training windows in an order that is a pure function of ``(seed, epoch)``; under DDP each process
+    takes its share (``rank::world``, equal counts).  Lightning calls :meth:`set_epoch` at each epoch start."""
+
+    def __init__(self, n: int, seed: int, rank: int = 0, world: int = 1):
+        self.n, self.seed, self.rank, self.world, self.epoch = n, int(seed), rank, world, 0
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = int(epoch)
+
+    def __iter__(self):
+        g = torch.Generator().manual_seed(_mix(self.seed, self.epoch))
+        order = torch.randperm(self.n, generator=g)
+        per = self.n // self.world
+        return iter(order[self.rank * per : (self.rank + 1) * per].tolist() if self.world > 1 else order.tolist())
+
+    def __len__(self) -> int:
+        return self.n // self.world
+
+
+class ResumableBatchSampler:
+    """Batches of :class:`EpochPermutation`, each item tagged ``(epoch, batch number, index)`` so the collate
+    draws its random numbers from a generator seeded by them; ``skip`` batches are left out of the next epoch
+    iterated (a mid-epoch resume)."""
+
+    def __init__(self, sampler: EpochPermutation, batch_size: int):
+        self.sampler, self.batch_size, self.skip = sampler, int(batch_size), 0
+
+    def __iter__(self):
+        idx = list(self.sampler)
+        skip, self.skip = self.skip, 0
+        for b in range(skip, len(self)):
+            yield [(self.sampler.epoch, b, i) for i in idx[b * self.batch_size : (b + 1) * self.batch_size]]
+
+    def __len__(self) -> int:
+        return -(-len(self.sampler) // self.batch_size)
+
+
+class ResumableLoader(DataLoader):
+    """A training DataLoader whose position is saved in Lightning checkpoints (``state_dict``): after a resume
+    mid-epoch, the epoch continues with the batch after the last one trained, in the same order."""
+
+    def __init__(self, *args, progress=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._progress = progress  # () -> batches trained so far in the current epoch
+
+    def state_dict(self) -> dict:
+        return {"epoch": int(self.batch_sampler.sampler.epoch), "batches": int(self._progress() if self._progress else 0)}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.batch_sampler.sampler.set_epoch(int(state["epoch"]))
+        self.batch_sampler.skip = int(state["batches"])
 
 
 class _Windows(Dataset):
@@ -47,11 +111,12 @@ class _Windows(Dataset):
 
 
 def split_train_val(clips: list, val_fraction: float) -> tuple[list, list]:
-    """Deterministic hold-out: every k-th clip (sorted by name) goes to validation."""
+    """Deterministic hold-out: every k-th clip (sorted by name) goes to validation, ``k ~ 1 / val_fraction``;
+    at least one clip whenever there are two or more (small datasets never validate on training clips)."""
     if val_fraction <= 0:
         return clips, []
     order = sorted(range(len(clips)), key=lambda i: clips[i].name)
-    k = max(2, round(1 / val_fraction))
+    k = max(2, min(round(1 / val_fraction), len(clips)))
     val_idx = set(order[k - 1 :: k])
     return [c for i, c in enumerate(clips) if i not in val_idx], [c for i, c in enumerate(clips) if i in val_idx]
 
@@ -80,6 +145,7 @@ class InbetweenDataModule(L.LightningDataModule):
         max_train_windows: int | None = None,
         max_eval_windows: int | None = None,
         max_val_windows: int | None = None,
+        seed: int = 0,
     ):
         super().__init__()
         self.save_hyperparameters(logger=False)  # the module logs the resolved data conventions
@@ -132,20 +198,27 @@ class InbetweenDataModule(L.LightningDataModule):
                 "train_window": int(self.hparams.train_window)}
 
     # ------------------------------------------------------------------ batches
-    def collate_train(self, idx: list[int]) -> dict:
+    def collate_train(self, items: list) -> dict:
+        """``items``: window indices, or ``(epoch, batch number, index)`` tuples from the training sampler, whose
+        first two seed this batch's random draws (transition lengths, joint masks): resumable, reproducible."""
         h = self.hparams
+        if items and isinstance(items[0], (tuple, list)):
+            gen = torch.Generator().manual_seed(_mix(h.seed, items[0][0], items[0][1], 7))
+            idx = [i for _, _, i in items]
+        else:
+            gen, idx = None, list(items)
         gt = self.train_feats[torch.as_tensor(idx)]
         b, w, j, _ = gt.shape
         if h.mask == "joints":
             jm = dict(h.joint_mask or {})
             known = joints_known(b, w, j, int(jm.get("gap_min", 10)), int(jm.get("gap_max", 200)),
-                                 float(jm.get("frac_min", 0.1)), float(jm.get("frac_max", 0.3)))
+                                 float(jm.get("frac_min", 0.1)), float(jm.get("frac_max", 0.3)), generator=gen)
             return {"gt": gt, "known": known, "loss_mask": ~known}
         lo, hi = int(h.transition_min), int(h.transition_max)
         if h.transition_per == "sample":
-            n = torch.randint(lo, hi + 1, (b,))
+            n = torch.randint(lo, hi + 1, (b,), generator=gen)
         else:
-            n = torch.randint(lo, hi + 1, (1,)).expand(b)
+            n = torch.randint(lo, hi + 1, (1,), generator=gen).expand(b)
         t = h.n_past + int(n.max()) + 1
         gt = gt[:, :t].clone()
         target = h.n_past + n
@@ -158,9 +231,24 @@ class InbetweenDataModule(L.LightningDataModule):
 
     def train_dataloader(self) -> DataLoader:
         h = self.hparams
-        return DataLoader(_Index(len(self.train_feats)), batch_size=h.batch_size, shuffle=True, drop_last=False,
-                          collate_fn=self.collate_train, num_workers=h.num_workers,
-                          persistent_workers=h.num_workers > 0)
+        rank, world = 0, 1
+        if torch.distributed.is_available() and torch.distributed.is_initialized():
+            rank, world = torch.distributed.get_rank(), torch.distributed.get_world_size()
+        sampler = EpochPermutation(len(self.train_feats), h.seed, rank, world)
+        return ResumableLoader(_Index(len(self.train_feats)), batch_sampler=ResumableBatchSampler(sampler, h.batch_size),
+                               collate_fn=self.collate_train, num_workers=h.num_workers,
+                               persistent_workers=h.num_workers > 0, progress=self._epoch_progress)
+
+    def steps_per_epoch(self, world_size: int = 1) -> int:
+        """Training batches per epoch and process (the length of :meth:`train_dataloader`)."""
+        return -(-(len(self.train_feats) // world_size) // int(self.hparams.batch_size))
+
+    def _epoch_progress(self) -> int:
+        """Training batches completed in the current epoch (what a checkpoint written now has trained)."""
+        trainer = getattr(self, "trainer", None)
+        if trainer is None:
+            return 0
+        return int(trainer.fit_loop.epoch_loop.batch_progress.current.processed)
 
     def _eval_loader(self, ds: Dataset) -> DataLoader:
         sampler = None

@@ -211,6 +211,24 @@ class InbetweenModule(L.LightningModule):
         self.test_results.update(self._log_recovery(self.test_recovery, "test"))
 
     # ------------------------------------------------------------------ optimisation
+    def _total_steps(self) -> int:
+        """Optimiser steps of the whole run, as ``Trainer.estimated_stepping_batches`` counts them, but without
+        building the training loader early: that would happen before a resumed run restores the loader's
+        position, and the resumed epoch would restart from its first batch."""
+        if self._trainer is None:
+            return 1
+        t = self.trainer
+        dm = t.datamodule
+        per_epoch = getattr(dm, "steps_per_epoch", None)
+        if per_epoch is None or t.limit_train_batches != 1.0:
+            return max(int(t.estimated_stepping_batches), 1)
+        steps = -(-per_epoch(t.world_size) // t.accumulate_grad_batches) * max(t.max_epochs or 1, 1)
+        if t.max_epochs == -1:
+            steps = t.max_steps
+        elif t.max_steps != -1:
+            steps = min(steps, t.max_steps)
+        return max(int(steps), 1)
+
     def configure_optimizers(self):
         cfg = self.optim_cfg
         params = [p for p in self.parameters() if p.requires_grad]
@@ -229,7 +247,7 @@ class InbetweenModule(L.LightningModule):
         sched = cfg.get("scheduler", "cosine")
         if sched in (None, "none", "constant") and not cfg.get("warmup_steps"):
             return opt
-        total = max(int(self.trainer.estimated_stepping_batches), 1) if self._trainer is not None else 1
+        total = self._total_steps()
         warmup = int(cfg.get("warmup_steps", 0))
         floor = float(cfg.get("min_lr_ratio", 0.0))
 

@@ -14,12 +14,13 @@ from pathlib import Path
 
 import lightning as L
 from hydra.utils import instantiate
+from lightning.pytorch.utilities.exceptions import SIGTERMException
 from omegaconf import DictConfig, OmegaConf
 
 from . import benchmark as B
 from .atomic import write_text
 from .bvh import BVHError
-from .callbacks import NonFiniteError, NonFiniteGuard
+from .callbacks import AtomicCheckpointIO, InterruptCheckpoint, NonFiniteError, NonFiniteGuard, ResumeState
 from .checkpoint import CheckpointError, load_module, read_checkpoint
 from .config import ConfigError, validate
 from .datamodule import InbetweenDataModule
@@ -47,7 +48,7 @@ def make_datamodule(cfg: DictConfig) -> InbetweenDataModule:
         train_window=d.get("train_window", B.TRAIN_WINDOW), train_offset=d.get("train_offset", B.TRAIN_OFFSET),
         mask=cfg.mask.name, joint_mask=OmegaConf.to_container(cfg.mask, resolve=True),
         max_train_windows=d.get("max_train_windows"), max_eval_windows=d.get("max_eval_windows"),
-        max_val_windows=d.get("max_val_windows"),
+        max_val_windows=d.get("max_val_windows"), seed=int(cfg.seed),
     )
 
 
@@ -70,9 +71,22 @@ def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
     lgs = [instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else []
     if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
-    if not any(isinstance(c, NonFiniteGuard) for c in cbs):
-        cbs.append(NonFiniteGuard())  # always on: a NaN/inf loss or gradient stops the run at that step
-    return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False)
+    if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
+        cbs += [NonFiniteGuard(), ResumeState(),
+                InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]
+    return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False, plugins=[AtomicCheckpointIO()])
+
+
+def resume_command(cfg: DictConfig) -> str:
+    """The command line of this run (when launched through Hydra), for the printed resume hint."""
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        overrides = [o for o in HydraConfig.get().overrides.task if not o.startswith("ckpt_path=")]
+        out = Path(cfg.paths.output_dir)
+        return " ".join(["python", f"{cfg.get('task_name', 'train')}.py", *overrides, f"hydra.run.dir={out}"])
+    except ValueError:  # not launched by Hydra (compose API, tests)
+        return "python train.py <same overrides>"
 
 
 def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metrics: dict) -> dict:
@@ -121,7 +135,12 @@ def train(cfg: DictConfig) -> dict[str, float]:
         check_checkpoint(ckpt_path)
     best = None
     if module.trainable and cfg.trainer.get("max_steps", -1) != 0:
-        trainer.fit(module, datamodule=dm, ckpt_path=ckpt_path)
+        try:
+            trainer.fit(module, datamodule=dm, ckpt_path=ckpt_path, weights_only=True)
+        except SIGTERMException:  # (a SystemExit) the checkpoint and the resume hint were written
+            raise SystemExit(143) from None
+        except SystemExit:  # Lightning exits after a graceful Ctrl-C; the checkpoint and hint were written
+            raise SystemExit(130) from None
         best = getattr(trainer.checkpoint_callback, "best_model_path", None) or None
         if trainer.interrupted:
             log.warning("training interrupted; resume with ckpt_path=%s", out / "checkpoints" / "last.ckpt")

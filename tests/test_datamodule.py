@@ -1,0 +1,140 @@
+"""The training data path: train/validation split, transition sampling (per batch / per sample), masks, and
+batches that are a pure function of (seed, epoch, batch number) so a resumed run sees the same data."""
+from __future__ import annotations
+
+import random
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import torch
+
+from conftest import TINY, compose_cfg
+from inbetweening import benchmark as B
+from inbetweening.datamodule import split_train_val
+from inbetweening.inference import window_features
+from inbetweening.train import make_datamodule
+
+DATA = [o for o in TINY if o.startswith("data.")]
+
+
+def _dm(tmp_path, cache_dir, *extra):
+    cfg = compose_cfg("train", [*DATA, *extra], tmp_path, cache_dir)
+    dm = make_datamodule(cfg)
+    dm.setup("fit")
+    return dm
+
+
+def _batches(dm, epoch: int) -> list[dict]:
+    loader = dm.train_dataloader()
+    loader.batch_sampler.sampler.set_epoch(epoch)  # what Lightning does at each epoch start
+    return list(loader)
+
+
+def _same_batches(a: list[dict], b: list[dict]) -> bool:
+    return len(a) == len(b) and all(x.keys() == y.keys() and all(torch.equal(x[k], y[k]) for k in x)
+                                    for x, y in zip(a, b))
+
+
+# ------------------------------------------------------------------------------------------ train/val split
+def test_split_train_val_is_a_disjoint_deterministic_partition():
+    clips = [SimpleNamespace(name=f"clip{i:03d}_subject{i % 4 + 1}") for i in range(50)]
+    train, val = split_train_val(clips, 0.1)
+    names_t, names_v = {c.name for c in train}, {c.name for c in val}
+    assert not names_t & names_v
+    assert names_t | names_v == {c.name for c in clips}
+    assert len(train) + len(val) == len(clips)  # no clip twice
+    assert len(val) == 5  # about val_fraction of the clips
+    shuffled = clips[:]
+    random.Random(3).shuffle(shuffled)  # the split depends on the clip names, not on the listing order
+    train2, val2 = split_train_val(shuffled, 0.1)
+    assert {c.name for c in val2} == names_v and {c.name for c in train2} == names_t
+    assert len(split_train_val(clips, 0.25)[1]) in (12, 13)
+    assert split_train_val(clips, 0.0) == (clips, [])
+    few = clips[:8]  # fewer clips than 1 / val_fraction: still one held out, never validation on training clips
+    assert [len(part) for part in split_train_val(few, 0.1)] == [7, 1]
+
+
+def test_validation_windows_come_only_from_validation_clips(tmp_path, cache_dir):
+    dm = _dm(tmp_path, cache_dir, "data.max_eval_windows=null")  # 8 training clips, val_fraction 0.1
+    data, sk, axis = dm.data, dm.data.skeleton, dm.data.forward_axis
+    train_clips, val_clips = split_train_val(data.train, dm.hparams.val_fraction)
+    assert len(val_clips) == 1 and len(train_clips) == len(data.train) - 1
+    vX, vQ = B.prepare_windows(val_clips, sk, B.TEST_WINDOW, B.TEST_OFFSET, axis)
+    assert torch.equal(dm.val_set.q, torch.from_numpy(vQ))
+    assert torch.equal(dm.val_set.root, torch.from_numpy(vX[:, :, 0]))
+    # and no validation window is one of the training clips' windows
+    tX, tQ = B.prepare_windows(train_clips, sk, B.TEST_WINDOW, B.TEST_OFFSET, axis)
+    for q in dm.val_set.q.numpy():
+        assert not np.any(np.all(np.abs(tQ - q) < 1e-9, axis=(1, 2, 3)))
+    # the training windows are the training clips' 50-frame windows, nothing from the validation clips
+    X, Q = B.prepare_windows(train_clips, sk, dm.hparams.train_window, dm.hparams.train_offset, axis)
+    assert torch.equal(dm.train_feats, window_features(X[:, :, 0], Q, sk, data.pos_mean, data.pos_std))
+
+
+# ------------------------------------------------------------------------------------------ transitions
+def test_transition_per_sample(tmp_path, cache_dir):
+    dm = _dm(tmp_path, cache_dir, "data.transition_per=sample", "data.transition_min=5", "data.transition_max=30")
+    n_past, lo, hi = dm.hparams.n_past, 5, 30
+    idx = list(range(len(dm.train_feats)))
+    batch = dm.collate_train([(0, 0, i) for i in idx])
+    gt, known, loss_mask, n = batch["gt"], batch["known"], batch["loss_mask"], batch["n_trans"]
+    b, t, j, _ = gt.shape
+    assert b == len(idx) and n.shape == (b,)
+    assert int(n.min()) >= lo and int(n.max()) <= hi
+    assert len(set(n.tolist())) > 5  # lengths vary within the batch
+    assert t == n_past + int(n.max()) + 1
+    src = dm.train_feats[torch.as_tensor(idx)]
+    for i in range(b):
+        target = n_past + int(n[i])
+        frame_known = torch.tensor([f < n_past or f >= target for f in range(t)])
+        assert torch.equal(known[i], frame_known[:, None].expand(t, j)), i
+        assert torch.equal(gt[i, : target + 1], src[i, : target + 1]), i  # the sample's own frames up to its target
+        assert torch.equal(gt[i, target:], gt[i, target : target + 1].expand(t - target, j, 7)), i  # then the target
+        assert not loss_mask[i, target:].any() and not loss_mask[i, :n_past].any(), i
+        assert loss_mask[i, n_past:target].all(), i
+    assert torch.equal(loss_mask, ~known)
+
+
+def test_transition_per_batch_gives_one_length_per_batch(tmp_path, cache_dir):
+    dm = _dm(tmp_path, cache_dir, "data.transition_per=batch", "data.transition_min=5", "data.transition_max=30")
+    n_past = dm.hparams.n_past
+    lengths = []
+    for epoch in range(4):
+        for batch in _batches(dm, epoch):
+            n = batch["n_trans"]
+            assert len(set(n.tolist())) == 1
+            t = batch["gt"].shape[1]
+            assert t == n_past + int(n[0]) + 1  # context, transition, target: nothing after it
+            assert torch.equal(batch["loss_mask"], ~batch["known"])
+            assert batch["known"][:, :n_past].all() and batch["known"][:, -1].all()
+            assert not batch["known"][:, n_past:-1].any()
+            lengths.append(int(n[0]))
+    assert min(lengths) >= 5 and max(lengths) <= 30
+    assert len(set(lengths)) > 3  # but it varies from batch to batch
+
+
+# ------------------------------------------------------------------------------------------ reproducible batches
+@pytest.mark.parametrize("extra", [["data.transition_per=batch"], ["data.transition_per=sample"],
+                                   ["mask=joints", "mask.gap_min=5", "mask.gap_max=40"]])
+def test_batches_are_a_function_of_seed_and_epoch(extra, tmp_path, cache_dir):
+    """Not of the global RNG: what a checkpoint does not hold cannot change the data of a resumed epoch."""
+    dm = _dm(tmp_path, cache_dir, *extra)
+    torch.manual_seed(0)
+    e1 = _batches(dm, 1)
+    torch.manual_seed(123)
+    torch.rand(1000)
+    assert _same_batches(_batches(dm, 1), e1)
+    assert _same_batches(_batches(_dm(tmp_path, cache_dir, *extra), 1), e1)  # a new process: a new data module
+    assert not _same_batches(_batches(dm, 2), e1)  # another epoch: another order and other draws
+    assert not _same_batches(_batches(_dm(tmp_path, cache_dir, *extra, "seed=7"), 1), e1)  # another seed
+    # the same windows each epoch, once each
+    idx = [i for batch in dm.train_dataloader().batch_sampler for _, _, i in batch]
+    assert sorted(idx) == list(range(len(dm.train_feats)))
+
+
+def test_batches_with_worker_processes_equal_in_process_batches(tmp_path, cache_dir):
+    extra = ["data.transition_per=sample"]
+    want = _batches(_dm(tmp_path, cache_dir, *extra), 1)
+    got = _batches(_dm(tmp_path, cache_dir, *extra, "data.num_workers=1"), 1)
+    assert _same_batches(got, want)
