@@ -1,5 +1,8 @@
 """One path from (root, local quaternions) windows to predicted transitions, shared by validation,
-``eval.py``, the benchmark and the animator tools, so every number comes from the same code."""
+``eval.py``, the benchmark and the animator tools, so every number comes from the same code.
+
+The centring mode has no default anywhere: every caller passes the checkpoint's own (``known`` for new runs,
+``window`` for checkpoints made before the option), so no caller silently gets the leaky mode."""
 from __future__ import annotations
 
 import numpy as np
@@ -53,15 +56,15 @@ def _centred_forward(net, mask: str, feats: torch.Tensor, known: torch.Tensor, c
     return net(x, known, interp), interp, feats, shift
 
 
-def masked_forward(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str = "window", std=None):
+def masked_forward(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str, std):
     """Mask -> (optional known-frame centring) -> network, with gradients.  Returns ``(pred, interp, target)``
     where ``target`` is ``feats`` in the frame the prediction lives in (for the loss)."""
     return _centred_forward(net, mask, feats, known, centre, std)[:3]
 
 
 @torch.no_grad()
-def predict_features(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str = "window",
-                     std=None) -> tuple[torch.Tensor, torch.Tensor]:
+def predict_features(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str,
+                     std) -> tuple[torch.Tensor, torch.Tensor]:
     """Masked input -> network -> ``(prediction, interpolation)``, both ``(B, T, J, 7)`` in the input's frame;
     known values are returned bit-exactly; unknown input values are never read (they may be NaN)."""
     pred, interp, _, shift = _centred_forward(net, mask, feats, known, centre, std)
@@ -72,8 +75,8 @@ def predict_features(net, mask: str, feats: torch.Tensor, known: torch.Tensor, c
 
 
 def predict_transitions(
-    net, mask: str, root, local_q, n: int, skeleton: Skeleton, mean, std, n_past: int = 10,
-    device=None, batch_size: int = 256, centre: str = "window",
+    net, mask: str, root, local_q, n: int, skeleton: Skeleton, mean, std, centre: str, n_past: int = 10,
+    device=None, batch_size: int = 256,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The benchmark's predictor contract for a network.
 
