@@ -62,6 +62,12 @@ def test_known_centre_shift_hand_derived_per_joint_std():
     np.testing.assert_allclose(shift[0, 0, :, 0].numpy(), dx / s[:, 0], rtol=1e-12)
     np.testing.assert_allclose(shift[0, 0, :, 2].numpy(), dz / s[:, 2], rtol=1e-12)
     assert (shift[..., [1, 3, 4, 5, 6]] == 0).all()
+    # per-joint masks (mocap recovery): the ROOT's known frames decide; a single known frame is its own mean
+    per_joint = torch.zeros(1, 4, 4, dtype=torch.bool)
+    per_joint[0, 3, 0] = True  # root known at frame 3 only
+    per_joint[0, :, 1] = True  # joint 1 known everywhere
+    one = known_centre_shift(feats, per_joint, STD)
+    np.testing.assert_allclose(one[0, 0, 0, [0, 2]].numpy(), [5.0, 8.0], rtol=1e-12)
 
 
 @pytest.mark.parametrize("mask", ["lerp", "zero"])

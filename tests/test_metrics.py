@@ -112,3 +112,45 @@ def test_recovery_rmse_of_a_zero_velocity_model_hand_derived(monkeypatch):
     logged = module._log_recovery(module.test_recovery, "test")
     # sqrt((25 + 100 + 225 + 25 + 100) / 5) = sqrt(95); the mean distance would be 9
     assert logged == {"recovery_rmse": pytest.approx(np.sqrt(95.0), rel=1e-5)}
+
+
+def test_per_joint_error_nonzero_truth_single_counts_and_process_merge():
+    """Errors against a non-zero truth, a joint and a whole metric with one masked entry, and two metrics merged
+    the way DDP syncs them (states reduced by sum) equal one metric fed everything."""
+    gt_gp = torch.tensor([[[[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]]], dtype=torch.float64)  # (1, 1, 2, 3)
+    pred_gp = gt_gp + torch.tensor([[[[0.0, 0.0, 2.0], [0.0, 0.0, 0.0]]]], dtype=torch.float64)
+    q = torch.tensor([1.0, 0.0, 0.0, 0.0], dtype=torch.float64).expand(1, 1, 2, 4)
+    mask = torch.tensor([[[True, False]]])
+    m = PerJointError(2)
+    m.update(pred_gp, gt_gp, q, q, mask)
+    out = m.compute()
+    np.testing.assert_allclose(out["pos"].numpy(), [2.0, 0.0])  # one entry: divided by 1
+    assert float(out["rmse"]) == pytest.approx(2.0)
+    a, b, both = PerJointError(2), PerJointError(2), PerJointError(2)
+    mask2 = torch.tensor([[[True, True]]])
+    a.update(pred_gp, gt_gp, q, q, mask)
+    b.update(pred_gp * 2, gt_gp, q, q, mask2)
+    both.update(pred_gp, gt_gp, q, q, mask)
+    both.update(pred_gp * 2, gt_gp, q, q, mask2)
+    a.merge_state(b)
+    for k, v in both.compute().items():
+        np.testing.assert_allclose(a.compute()[k].numpy(), v.numpy(), rtol=1e-12)
+
+
+def test_benchmark_metric_merges_like_ddp_gathering():
+    sk = Skeleton(("r", "c"), (-1, 0), np.array([[0.0, 0, 0], [0.0, 1.0, 0]]))
+    rng = np.random.default_rng(1)
+
+    def batch(b):
+        q = rng.normal(size=(b, 5, 2, 4))
+        return torch.from_numpy(rng.normal(size=(b, 5, 3))), torch.from_numpy(q / np.linalg.norm(q, axis=-1, keepdims=True))
+
+    mean, std = np.zeros(6), np.ones(6)
+    a, b, both = (BenchmarkMetric(sk, mean, std, lengths=(5,)) for _ in range(3))
+    parts = [(batch(2), batch(2)), (batch(3), batch(3))]
+    for metric, (p, g) in ((a, parts[0]), (b, parts[1])):
+        metric.update(5, *p, *g)
+    for p, g in parts:
+        both.update(5, *p, *g)
+    a.merge_state(b)
+    assert a.compute() == pytest.approx(both.compute(), rel=1e-12)
