@@ -47,11 +47,55 @@ def test_metadata_describes_the_inputs(exported):
     assert props["inputs"] == graph_inputs and graph_inputs[:2] == ["x", "known"]
 
 
+def _ort_vs_torch(path, module, batch: int, gap: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Run the .onnx file with ONNX Runtime on inputs built here (not by the exporter's helpers) and the torch
+    network on the same inputs.  Returns ``(onnx output, torch output)``."""
+    from inbetweening.masks import apply_mask
+
+    g = torch.Generator().manual_seed(seed)
+    j, n_past = module.skeleton.num_joints, module.n_past
+    t = n_past + gap + 1
+    quat = torch.randn(batch, t, j, 4, generator=g)
+    feats = torch.cat([torch.randn(batch, t, j, 3, generator=g), quat / quat.norm(dim=-1, keepdim=True)], -1)
+    known = torch.zeros(batch, t, j, dtype=torch.bool)
+    known[:, :n_past] = True
+    known[:, n_past + gap] = True
+    x, interp = apply_mask(module.mask_name, feats, known)
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    names = [i.name for i in session.get_inputs()]
+    assert names[:2] == ["x", "known"] and set(names) <= {"x", "known", "interp"}
+    feeds = {"x": x.numpy(), "known": known.numpy(), "interp": interp.numpy()}
+    (got,) = session.run(None, {k: feeds[k] for k in names})
+    with torch.no_grad():
+        ref = module.net.eval()(x, known, interp).numpy()
+    return got, ref
+
+
 def test_export_prints_check(tiny_checkpoint, tmp_path, capsys):
     assert export.run(["--ckpt_path", str(tiny_checkpoint), "--output", str(tmp_path / "m.onnx")]) == 0
     out = capsys.readouterr().out
     diff = float(out.rsplit("max abs diff", 1)[1])
     assert diff <= 1e-4
+    # the printed number is the exporter's own claim: check the written file independently of check_onnx
+    module = load_module(str(tiny_checkpoint))
+    for batch, gap in ((2, 6), (1, 25)):
+        got, ref = _ort_vs_torch(tmp_path / "m.onnx", module, batch, gap, seed=10 + gap)
+        assert got.shape == ref.shape == (batch, module.n_past + gap + 1, module.skeleton.num_joints, 7)
+        np.testing.assert_allclose(got, ref, atol=1e-4, rtol=0)
+
+
+def test_check_onnx_reports_a_real_difference(exported, tiny_checkpoint):
+    """check_onnx must measure: against a network whose weights changed after the export it reports a large
+    difference (and the independent comparison above can tell the two graphs apart too)."""
+    path, module = exported
+    assert export.check_onnx(module, path) <= 1e-4
+    changed = load_module(str(tiny_checkpoint))  # a fresh copy: the fixture's module stays untouched
+    with torch.no_grad():
+        for p in changed.net.parameters():
+            p.add_(0.5)
+    got, ref = _ort_vs_torch(path, changed, 2, 6, seed=3)
+    assert np.abs(got - ref).max() > 1e-2
+    assert export.check_onnx(changed, path) > 1e-2
 
 
 @pytest.mark.parametrize(

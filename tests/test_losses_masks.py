@@ -125,3 +125,49 @@ def test_unknown_loss_term_raises():
 def test_foot_joints_found_by_name():
     idx = L.foot_joint_indices(SK)
     assert [SK.names[i] for i in idx] == ["LeftFoot", "LeftToe", "RightFoot", "RightToe"]
+
+
+def _all_terms_nonzero_case():
+    """Prediction/truth where every loss term is non-zero: feet still in the first frames (contact), then moving."""
+    from inbetweening import features as F
+
+    rng = np.random.default_rng(7)
+    steps = rng.normal(size=(2, 12, 3)) * 3
+    steps[:, :6] = 0.0  # frames 0-5: the whole body stands still, so the feet are in contact
+    root = torch.from_numpy(np.cumsum(steps, 1))
+    q = qnormalize(torch.from_numpy(rng.normal(size=(2, 12, 22, 4))) * 0.1 + torch.tensor([1.0, 0, 0, 0]))
+    q[:, :6] = q[:, :1]
+    gt = F.encode(root, q, SK, MEAN, STD)
+    pred = gt.clone()
+    g = torch.Generator().manual_seed(1)
+    pred[:, 2:9, :, :3] += torch.randn(2, 7, 22, 3, generator=g, dtype=torch.float64)
+    pred[:, 2:9, :, 3:] = qnormalize(pred[:, 2:9, :, 3:] + 0.3 * torch.randn(2, 7, 22, 4, generator=g, dtype=torch.float64))
+    mask = torch.zeros(2, 12, 22, dtype=torch.bool)
+    mask[:, 2:9] = True
+    return pred, gt, mask
+
+
+def test_loss_weights_scale_each_term_and_zero_removes_it():
+    pred, gt, mask = _all_terms_nonzero_case()
+    alone = {}
+    for term in L.LOSS_TERMS:
+        weights = {"l1": 0.0, term: 1.0} if term != "l1" else {"l1": 1.0}
+        total, terms = L.total_loss(pred, gt, mask, weights, SK, MEAN, STD)
+        alone[term] = float(total)
+        assert alone[term] > 1e-3, term  # every term is active in this case
+        assert float(terms[term]) == pytest.approx(alone[term], rel=1e-12)
+        for w in (0.25, 3.0):  # weight w on a term alone: w times the term
+            scaled, _ = L.total_loss(pred, gt, mask, {**weights, term: w}, SK, MEAN, STD)
+            assert float(scaled) == pytest.approx(w * alone[term], rel=1e-12), (term, w)
+    # l1 by hand: mean absolute feature difference over the masked entries (7 features each)
+    sel = mask[..., None].expand_as(pred)
+    assert alone["l1"] == pytest.approx(float((pred - gt).abs()[sel].mean()), rel=1e-12)
+    # all terms together: the weighted sum; a weight of 0 removes exactly that term
+    w = {"l1": 0.5, "fk_pos": 2.0, "quat": 3.0, "bone": 0.7, "smooth": 1.5, "foot": 4.0}
+    total, terms = L.total_loss(pred, gt, mask, w, SK, MEAN, STD)
+    assert float(total) == pytest.approx(sum(w[k] * alone[k] for k in w), rel=1e-12)
+    for term in L.LOSS_TERMS:
+        total0, terms0 = L.total_loss(pred, gt, mask, {**w, term: 0.0}, SK, MEAN, STD)
+        assert float(total0) == pytest.approx(sum(w[k] * alone[k] for k in w if k != term), rel=1e-12), term
+        if term != "l1":  # disabled terms are not even computed (l1 is always logged)
+            assert term not in terms0

@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from conftest import sinusoid_batch
+from inbetweening.masks import apply_mask
 from inbetweening.models import MODELS, Interpolation, ZeroVelocity, build_model
 from inbetweening.skeleton import Skeleton
 
@@ -188,10 +189,45 @@ def test_zero_velocity_joint_never_known_gets_unit_quaternion():
     assert torch.allclose(out[0, :, 2, 3:], torch.tensor([1.0, 0.0, 0.0, 0.0]).expand(6, 4))
 
 
-def test_interpolation_requires_interp():
+def _yaw_q(theta):
+    """Rotation by ``theta`` about y: ``[cos(theta/2), 0, sin(theta/2), 0]``."""
+    theta = torch.as_tensor(theta, dtype=torch.float64)
+    z = torch.zeros_like(theta)
+    return torch.stack([torch.cos(theta / 2), z, torch.sin(theta / 2), z], -1)
+
+
+def test_interpolation_model_is_lerp_and_slerp_in_closed_form():
+    """Known frames 0, 1 and 6 (and joint 2 also at frame 4): the model's output in the gap is the hand-computed
+    lerp of positions and, for rotations about one axis, slerp = linear interpolation of the angle."""
+    t = 7
+    g = torch.Generator().manual_seed(5)
+    pos = torch.randn(1, t, J, 3, generator=g, dtype=torch.float64) * 10
+    theta = torch.rand(1, t, J, generator=g, dtype=torch.float64) * 3.0  # frame 0 (and unknown frames): anything
+    jj = torch.arange(J, dtype=torch.float64)
+    theta[0, 1] = 0.3 * jj - 0.8
+    theta[0, 6] = theta[0, 1] + (1.0 + 0.3 * jj) * (-1.0) ** jj  # 0.3 < |difference| < pi: slerp proper, short arc
+    theta[0, 4, 2] = theta[0, 1, 2] - 0.9
+    x = torch.cat([pos, _yaw_q(theta)], -1)
+    known = torch.zeros(1, t, J, dtype=torch.bool)
+    known[:, [0, 1, 6]] = True
+    known[0, 4, 2] = True  # a per-joint island inside the gap
+    want = x.clone()
+    for j in range(J):
+        keys = [1, 4, 6] if j == 2 else [1, 6]
+        for a, b in zip(keys[:-1], keys[1:]):
+            for f in range(a + 1, b):
+                w = (f - a) / (b - a)
+                want[0, f, j, :3] = pos[0, a, j] + w * (pos[0, b, j] - pos[0, a, j])
+                want[0, f, j, 3:] = _yaw_q(theta[0, a, j] + w * (theta[0, b, j] - theta[0, a, j]))
+    x_in = x.clone()
+    x_in[~known] = float("nan")  # unknown values are never read
     model = Interpolation(num_joints=J, adjacency=adjacency())
-    x, known, interp = make_batch()
-    assert torch.equal(model(x, known, interp), model.finalize(interp, x, known))
+    for mask in ("lerp", "zero"):  # with the zero mask the model's input holds zeros: the result must come from interp
+        shown, interp = apply_mask(mask, x_in, known)
+        out = model(shown, known, interp)
+        np.testing.assert_allclose(out[..., :3].numpy(), want[..., :3].numpy(), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(out[..., 3:].numpy(), want[..., 3:].numpy(), rtol=0, atol=1e-7)  # 1e-8 eps of qnormalize
+        assert torch.equal(out[known], x[known])
     with pytest.raises(ValueError, match="interp"):
         model(x, known)
 

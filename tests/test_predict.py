@@ -215,19 +215,36 @@ def test_cli_end_to_end_with_render(tiny_checkpoint, tmp_path):
     assert "25 frames (3 keyframes, 22 generated" in r.stdout
     out = read_bvh(tmp_path / "out" / "filled.bvh")
     assert out.num_frames == 25
+    assert np.array_equal(out.motion[[0, 12, 24]], read_bvh(tmp_path / "clip.bvh").motion[[0, 12, 24]])
     with Image.open(tmp_path / "out" / "filled.gif") as im:
         assert im.format == "GIF" and im.n_frames == 25
 
 
+PRINT_ATOL = 0.5e-6 + 1e-9  # BVH values are written with 6 decimals
+
+
 def test_cli_in_process_forms(tiny_checkpoint, tmp_path, monkeypatch, capsys):
     write_bvh(_clip(60), tmp_path / "clip.bvh")
+    clip = read_bvh(tmp_path / "clip.bvh")  # the input as the CLI reads it
     monkeypatch.chdir(tmp_path)
     assert predict.run(["--ckpt_path", str(tiny_checkpoint), "--input", "clip.bvh", "--gap", "2",
                         "--output", "b.bvh"]) == 0
-    assert read_bvh(tmp_path / "b.bvh").num_frames == 60 + 59 * 2
+    b = read_bvh(tmp_path / "b.bvh")
+    assert b.num_frames == 60 + 59 * 2
+    # content: every input row is a keyframe row (every 3rd output frame), the rest is what fill() generates
+    assert np.array_equal(b.motion[::3], clip.motion)
+    want_b = Inbetweener.from_checkpoint(tiny_checkpoint).fill(clip, gap=2).motion
+    np.testing.assert_allclose(b.motion, want_b, atol=PRINT_ATOL, rtol=0)
     assert predict.run([f"ckpt={tiny_checkpoint}", "input=clip.bvh", "keyframes=0,40", "output=a.bvh",
                         "--no-segment", "--max-gap", "45"]) == 0
-    assert read_bvh(tmp_path / "a.bvh").num_frames == 41
+    a = read_bvh(tmp_path / "a.bvh")
+    assert a.num_frames == 41
+    assert np.array_equal(a.motion[[0, 40]], clip.motion[[0, 40]])
+    # the options reach the model: one 39-frame gap, not split (max_gap 45, no segmentation)
+    want_a = Inbetweener.from_checkpoint(tiny_checkpoint, max_gap=45, segment=False).fill(clip, keyframes=[0, 40])
+    np.testing.assert_allclose(a.motion, want_a.motion, atol=PRINT_ATOL, rtol=0)
+    assert not np.allclose(a.motion[1:40], Inbetweener.from_checkpoint(tiny_checkpoint).fill(
+        clip, keyframes=[0, 40]).motion[1:40], atol=1e-3)  # the default (segmented) result differs
     assert predict.run(["--help"]) == 0
     usage = capsys.readouterr().out
     assert "keyframes=[0,30,75]" in usage and "gap=30" in usage and "Long gaps" in usage

@@ -1,7 +1,9 @@
 """Tests for the headless skeleton renderer (:mod:`inbetweening.render`)."""
 from __future__ import annotations
 
+import subprocess
 import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -105,11 +107,25 @@ def test_torch_input(tmp_path):
     assert np.array_equal(arr, ref)
 
 
-def test_does_not_import_pyplot(seqs):
-    had = "matplotlib.pyplot" in sys.modules
-    draw_sequences(seqs, PARENTS, frames=[0])
-    if not had:
-        assert "matplotlib.pyplot" not in sys.modules
+def test_does_not_import_pyplot(tmp_path):
+    """In a fresh interpreter (in this one, lightning has usually imported pyplot already): importing and using the
+    renderer never imports pyplot, so the global matplotlib backend is left alone."""
+    code = textwrap.dedent(f"""
+        import sys
+        import numpy as np
+        from inbetweening.render import draw_sequences, figure_to_array, render_gif, render_png
+        assert "matplotlib.pyplot" not in sys.modules, "imported by the module"
+        seq = np.cumsum(np.ones((3, 8, 3)), axis=0)
+        parents = {PARENTS!r}
+        figure_to_array(draw_sequences({{"a": seq}}, parents, panel_size=1))
+        render_png({{"a": seq}}, parents, {str(tmp_path / "a.png")!r}, dpi=20)
+        render_gif({{"a": seq}}, parents, {str(tmp_path / "a.gif")!r}, dpi=20)
+        assert "matplotlib.pyplot" not in sys.modules, "imported while drawing"
+        print("no pyplot")
+    """)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "no pyplot"
 
 
 @pytest.mark.parametrize(
