@@ -31,6 +31,12 @@ def _batches(dm, epoch: int) -> list[dict]:
     return list(loader)
 
 
+def _order(dm, epoch: int) -> list[int]:
+    loader = dm.train_dataloader()
+    loader.batch_sampler.sampler.set_epoch(epoch)
+    return [i for items in loader.batch_sampler for *_, i in items]
+
+
 def _same_batches(a: list[dict], b: list[dict]) -> bool:
     return len(a) == len(b) and all(x.keys() == y.keys() and all(torch.equal(x[k], y[k]) for k in x)
                                     for x, y in zip(a, b))
@@ -94,6 +100,9 @@ def test_transition_per_sample(tmp_path, cache_dir):
         assert not loss_mask[i, target:].any() and not loss_mask[i, :n_past].any(), i
         assert loss_mask[i, n_past:target].all(), i
     assert torch.equal(loss_mask, ~known)
+    # over many batches the lengths cover exactly min..max, both ends included
+    drawn = torch.cat([dm.collate_train([(0, k, i) for i in idx])["n_trans"] for k in range(30)])
+    assert set(drawn.tolist()) == set(range(lo, hi + 1))
 
 
 def test_transition_per_batch_gives_one_length_per_batch(tmp_path, cache_dir):
@@ -126,8 +135,17 @@ def test_batches_are_a_function_of_seed_and_epoch(extra, tmp_path, cache_dir):
     torch.rand(1000)
     assert _same_batches(_batches(dm, 1), e1)
     assert _same_batches(_batches(_dm(tmp_path, cache_dir, *extra), 1), e1)  # a new process: a new data module
-    assert not _same_batches(_batches(dm, 2), e1)  # another epoch: another order and other draws
-    assert not _same_batches(_batches(_dm(tmp_path, cache_dir, *extra, "seed=7"), 1), e1)  # another seed
+    seven = _dm(tmp_path, cache_dir, *extra, "seed=7")
+    assert not _same_batches(_batches(dm, 2), e1)
+    assert not _same_batches(_batches(seven, 1), e1)
+    # each of order and draws depends on both the epoch and the seed
+    assert _order(dm, 1) != _order(dm, 2) and _order(dm, 1) != _order(seven, 1)
+
+    def draws(module, epoch):  # the same windows in the same batches, tagged with another seed or epoch
+        return [module.collate_train([(epoch, k, i) for i in range(8)]) for k in range(6)]
+
+    assert _same_batches(draws(dm, 1), draws(dm, 1))
+    assert not _same_batches(draws(dm, 1), draws(dm, 2)) and not _same_batches(draws(dm, 1), draws(seven, 1))
     # the same windows each epoch, once each
     idx = [i for batch in dm.train_dataloader().batch_sampler for _, _, i in batch]
     assert sorted(idx) == list(range(len(dm.train_feats)))
@@ -136,5 +154,11 @@ def test_batches_are_a_function_of_seed_and_epoch(extra, tmp_path, cache_dir):
 def test_batches_with_worker_processes_equal_in_process_batches(tmp_path, cache_dir):
     extra = ["data.transition_per=sample"]
     want = _batches(_dm(tmp_path, cache_dir, *extra), 1)
-    got = _batches(_dm(tmp_path, cache_dir, *extra, "data.num_workers=1"), 1)
-    assert _same_batches(got, want)
+    workers = _dm(tmp_path, cache_dir, *extra, "data.num_workers=1")
+    assert _same_batches(_batches(workers, 1), want)
+    # Lightning's order: the epoch's iterator is created, then set_epoch is called, then batches are drawn (a
+    # worker process must not have prefetched batches of the previous epoch's order by then)
+    loader = workers.train_dataloader()
+    it = iter(loader)
+    loader.batch_sampler.sampler.set_epoch(1)
+    assert _same_batches(list(it), want)

@@ -113,13 +113,16 @@ def _same_state(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
 
 
-def test_resume_at_an_epoch_boundary_equals_the_uninterrupted_run(tmp_path, cache_dir):
+@pytest.mark.parametrize("data", [["data.transition_per=sample"],
+                                  ["data.num_workers=1", "mask=joints", "mask.gap_min=5", "mask.gap_max=40"]],
+                         ids=["per_sample", "workers_joints"])
+def test_resume_at_an_epoch_boundary_equals_the_uninterrupted_run(data, tmp_path, cache_dir):
     """Train 2 epochs at once, or 1 epoch then resume from its last.ckpt for the 2nd: bit-identical weights (data
-    order, transition lengths, dropout, optimiser and LR schedule all carried over).  Dropout is on and the LR
-    is still warming up, so any state the resume loses or re-draws shows in the weights."""
+    order, transition lengths / joint masks, dropout, optimiser and LR schedule all carried over).  Dropout is on
+    and the LR is still warming up, so any state the resume loses or re-draws shows in the weights."""
     over = [o for o in TINY if "max_steps" not in o and "max_epochs" not in o] + [
         "callbacks=default", "callbacks.progress_bar=null", "callbacks.skeleton_figure=null", "logger=none",
-        "run_test=false", "+trainer.enable_progress_bar=false", "data.transition_per=sample"]
+        "run_test=false", "+trainer.enable_progress_bar=false", *data]
     run_train(tmp_path, cache_dir, over + ["trainer.max_epochs=2"], "full")
     full = tmp_path / "full" / "checkpoints" / "last.ckpt"
     run_train(tmp_path, cache_dir, over + ["trainer.max_epochs=1"], "resumed")

@@ -73,13 +73,28 @@ class ResumableBatchSampler:
         self.sampler, self.batch_size, self.skip = sampler, int(batch_size), 0
 
     def __iter__(self):
-        idx = list(self.sampler)
+        epoch, idx = self.sampler.epoch, list(self.sampler)
         skip, self.skip = self.skip, 0
         for b in range(skip, len(self)):
-            yield [(self.sampler.epoch, b, i) for i in idx[b * self.batch_size : (b + 1) * self.batch_size]]
+            yield [(epoch, b, i) for i in idx[b * self.batch_size : (b + 1) * self.batch_size]]
 
     def __len__(self) -> int:
         return -(-len(self.sampler) // self.batch_size)
+
+
+class _LazyIterator:
+    """An iterator that makes the real one (``make()``) at its first ``next()``."""
+
+    def __init__(self, make):
+        self._make, self._it = make, None
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        if self._it is None:
+            self._it = self._make()
+        return next(self._it)
 
 
 class ResumableLoader(DataLoader):
@@ -89,6 +104,12 @@ class ResumableLoader(DataLoader):
     def __init__(self, *args, progress=None, **kwargs):
         super().__init__(*args, **kwargs)
         self._progress = progress  # () -> batches trained so far in the current epoch
+
+    def __iter__(self):
+        # Lightning creates the epoch's iterator before it calls ``set_epoch``; with worker processes that iterator
+        # starts prefetching batches at once, i.e. from the previous epoch's order (the first epoch after a resume).
+        # So the real iterator is made at the first ``next()``, once the sampler knows its epoch.
+        return _LazyIterator(super().__iter__)
 
     def state_dict(self) -> dict:
         return {"epoch": int(self.batch_sampler.sampler.epoch), "batches": int(self._progress() if self._progress else 0)}
@@ -237,7 +258,8 @@ class InbetweenDataModule(L.LightningDataModule):
         sampler = EpochPermutation(len(self.train_feats), h.seed, rank, world)
         return ResumableLoader(_Index(len(self.train_feats)), batch_sampler=ResumableBatchSampler(sampler, h.batch_size),
                                collate_fn=self.collate_train, num_workers=h.num_workers,
-                               persistent_workers=h.num_workers > 0, progress=self._epoch_progress)
+                               persistent_workers=h.num_workers > 0, progress=self._epoch_progress,
+                               generator=self._loader_generator(1))
 
     def steps_per_epoch(self, world_size: int = 1) -> int:
         """Training batches per epoch and process (the length of :meth:`train_dataloader`)."""
@@ -260,7 +282,12 @@ class InbetweenDataModule(L.LightningDataModule):
 
             sampler = UnrepeatedDistributedSampler(ds, shuffle=False)
         return DataLoader(ds, batch_size=self.hparams.eval_batch_size, shuffle=False, sampler=sampler,
-                          num_workers=self.hparams.num_workers)
+                          num_workers=self.hparams.num_workers, generator=self._loader_generator(2))
+
+    def _loader_generator(self, stream: int) -> torch.Generator:
+        """A loader's own generator: creating its iterator (a seed draw, each epoch) never touches the global torch
+        RNG, whose state -- the dropout masks -- a checkpoint saves and a resume restores."""
+        return torch.Generator().manual_seed(_mix(self.hparams.seed, stream, 11))
 
     def val_dataloader(self) -> DataLoader:
         return self._eval_loader(self.val_set)
