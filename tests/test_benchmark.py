@@ -372,3 +372,8 @@ def test_format_table():
     table = B.format_table({"m": {"l2q@5": 0.12345, "l2p@5": 1.0, "npss@5": 0.001234}}, lengths=(5,))
     assert table.splitlines() == ["| model | L2Q@5 | L2P@5 | NPSS@5 |", "|---|---:|---:|---:|",
                                   "| m | 0.123 | 1.000 | 0.0012 |"]
+
+
+def test_format_table_missing_metric():
+    table = B.format_table({"m": {"l2p@5": 2.0}}, lengths=(5,))
+    assert table.splitlines()[-1] == "| m |  | 2.000 |  |"

@@ -18,8 +18,8 @@ def window_features(root, local_q, skeleton: Skeleton, mean, std, dtype=torch.fl
 
     FK runs in float64; the result is cast to ``dtype``.  NaN frames stay NaN (masks never read them).
     """
-    r = torch.as_tensor(np.asarray(root) if not isinstance(root, torch.Tensor) else root).double()
-    q = torch.as_tensor(np.asarray(local_q) if not isinstance(local_q, torch.Tensor) else local_q).double()
+    r = torch.as_tensor(root).double()
+    q = torch.as_tensor(local_q).double()
     return F.encode(r, q, skeleton, mean, std).to(dtype=dtype, device=device)
 
 
