@@ -44,6 +44,13 @@ def _mix(*ints: int) -> int:
     return h
 
 
+def _rank_world() -> tuple[int, int]:
+    """``(rank, world size)`` of the running process group, ``(0, 1)`` outside distributed runs."""
+    if torch.distributed.is_available() and torch.distributed.is_initialized():
+        return torch.distributed.get_rank(), torch.distributed.get_world_size()
+    return 0, 1
+
+
 class EpochPermutation(Sampler[int]):
     """The training windows in an order that is a pure function of ``(seed, epoch)``; under DDP each process
     takes its share (``rank::world``, equal counts).  Lightning calls :meth:`set_epoch` at each epoch start."""
@@ -252,10 +259,7 @@ class InbetweenDataModule(L.LightningDataModule):
 
     def train_dataloader(self) -> DataLoader:
         h = self.hparams
-        rank, world = 0, 1
-        if torch.distributed.is_available() and torch.distributed.is_initialized():
-            rank, world = torch.distributed.get_rank(), torch.distributed.get_world_size()
-        sampler = EpochPermutation(len(self.train_feats), h.seed, rank, world)
+        sampler = EpochPermutation(len(self.train_feats), h.seed, *_rank_world())
         return ResumableLoader(_Index(len(self.train_feats)), batch_sampler=ResumableBatchSampler(sampler, h.batch_size),
                                collate_fn=self.collate_train, num_workers=h.num_workers,
                                persistent_workers=h.num_workers > 0, progress=self._epoch_progress,
@@ -274,8 +278,7 @@ class InbetweenDataModule(L.LightningDataModule):
 
     def _eval_loader(self, ds: Dataset) -> DataLoader:
         sampler = None
-        if torch.distributed.is_available() and torch.distributed.is_initialized() and \
-                torch.distributed.get_world_size() > 1:
+        if _rank_world()[1] > 1:
             # each window scored exactly once across the processes (no padding duplicates): the metrics, synced
             # by torchmetrics, equal a single process's on the same windows
             from lightning.pytorch.overrides.distributed import UnrepeatedDistributedSampler

@@ -142,8 +142,6 @@ def train(cfg: DictConfig) -> dict[str, float]:
         except SystemExit:  # Lightning exits after a graceful Ctrl-C; the checkpoint and hint were written
             raise SystemExit(130) from None
         best = getattr(trainer.checkpoint_callback, "best_model_path", None) or None
-        if trainer.interrupted:
-            log.warning("training interrupted; resume with ckpt_path=%s", out / "checkpoints" / "last.ckpt")
     metrics: dict[str, float] = {}
     if cfg.get("run_test", True):
         test_trainer = make_trainer(cfg, callbacks=False, loggers=False)
