@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 try:
-    from inbetweening.bvh import BVH, iter_bvh_sources, parse_bvh, read_bvh_many
+    from inbetweening.data.bvh import BVH, iter_bvh_sources, parse_bvh, read_bvh_many
 except ImportError:  # a checkout without `pip install -e .`
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
-    from inbetweening.bvh import BVH, iter_bvh_sources, parse_bvh, read_bvh_many
+    from inbetweening.data.bvh import BVH, iter_bvh_sources, parse_bvh, read_bvh_many
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = REPO.parent / "shared" / "datasets" / "bandai-namco-2.zip"

@@ -13,7 +13,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from inbetweening.datasets import load_dataset
+from inbetweening.data.datasets import load_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -28,11 +28,11 @@ import numpy as np
 import torch
 from omegaconf import OmegaConf
 
-from inbetweening.export import export_onnx, random_window
-from inbetweening.inbetweener import Inbetweener
-from inbetweening.module import InbetweenModule
-from inbetweening.skeleton import Skeleton
-from inbetweening.synthetic import NAMES, OFFSETS, PARENTS, generate_clip
+from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.tools.export import export_onnx, random_window
+from inbetweening.tools.inbetweener import Inbetweener
+from inbetweening.training.module import InbetweenModule
 
 ROOT = Path(__file__).resolve().parents[1]
 SECTION = "## Inference latency"

@@ -6,7 +6,7 @@
 supply; nothing from it is copied here.  Its ``lafan1`` package is imported from that path only, and its
 own functions are called.  ``--data`` is a flat folder of LAFAN-format ``<name>_subjectN.bvh`` files (the
 official reader lists only the top level and splits the name on its single ``_``).  Without ``--data``,
-the project's synthetic dataset (:func:`inbetweening.synthetic.generate_dataset`) is written to a
+the project's synthetic dataset (:func:`inbetweening.data.synthetic.generate_dataset`) is written to a
 temporary folder and used.
 
 Both sides run the LAFAN1 protocol (subject1-4 train, windows 50/20, subject5 test, windows 65/40,
@@ -15,7 +15,7 @@ root forward = local +Y, which the official ``utils.rotate_at_frame`` hard-codes
 * official: the call sequence of its top-level script ``evaluate.py``:
   ``extract.get_train_stats`` -> ``extract.get_lafan1_set(..., window=65, offset=40)`` ->
   ``benchmarks.benchmark_interpolation``;
-* project: ``inbetweening.datasets.load_dataset("lafan1", path=DIR, use_cache=False)`` (whose
+* project: ``inbetweening.data.datasets.load_dataset("lafan1", path=DIR, use_cache=False)`` (whose
   ``prepare`` calls ``benchmark.prepare_windows`` and ``benchmark.position_stats``), then
   ``benchmark.evaluate_transitions`` with ``benchmark.zero_velocity`` and ``benchmark.interpolation``.
 
@@ -38,9 +38,9 @@ from pathlib import Path
 
 import numpy as np
 
-from inbetweening import benchmark as B
-from inbetweening.datasets import load_dataset
-from inbetweening.synthetic import generate_dataset
+from inbetweening.data.datasets import load_dataset
+from inbetweening.data.synthetic import generate_dataset
+from inbetweening.evaluation import benchmark as B
 
 TRAIN_ACTORS = ["subject1", "subject2", "subject3", "subject4"]  # as in the official evaluate.py
 TEST_ACTORS = ["subject5"]

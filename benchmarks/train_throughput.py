@@ -41,7 +41,7 @@ from hydra.core.global_hydra import GlobalHydra
 from omegaconf import open_dict
 from torch.utils.flop_counter import FlopCounterMode
 
-from inbetweening.train import make_datamodule, make_module
+from inbetweening.training.train import make_datamodule, make_module
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF_DIR = str(ROOT / "conf")

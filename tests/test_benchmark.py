@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening import benchmark as B
-from inbetweening.skeleton import Skeleton, fk
+from inbetweening.evaluation import benchmark as B
+from inbetweening.geometry.skeleton import Skeleton, fk
 
 NAMES = ("root", "spine", "head", "leg")
 PARENTS = (-1, 0, 1, 0)

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from inbetweening import bvh as bvh_module
-from inbetweening.bvh import (
+from inbetweening.data import bvh as bvh_module
+from inbetweening.data.bvh import (
     BVH,
     BVHError,
     format_bvh,
@@ -19,8 +19,8 @@ from inbetweening.bvh import (
     read_bvh_many,
     write_bvh,
 )
-from inbetweening.quaternion import euler_to_quat_np
-from inbetweening.skeleton import Skeleton
+from inbetweening.geometry.quaternion import euler_to_quat_np
+from inbetweening.geometry.skeleton import Skeleton
 
 BN_ZIP = Path(__file__).resolve().parents[1].parent / "shared" / "datasets" / "bandai-namco-2.zip"
 

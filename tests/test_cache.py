@@ -7,8 +7,8 @@ import stat
 import numpy as np
 import pytest
 
-from inbetweening.cache import CacheCorrupt, checksum, load_entry, save_entry
-from inbetweening.datasets import load_dataset
+from inbetweening.data.cache import CacheCorrupt, checksum, load_entry, save_entry
+from inbetweening.data.datasets import load_dataset
 
 SYNTH = {"num_clips": 8, "min_frames": 120, "max_frames": 140}
 

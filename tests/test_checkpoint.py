@@ -51,8 +51,8 @@ def test_predict_and_eval_refuse_payload_in_a_subprocess(tmp_path):
     path, marker = _malicious_checkpoint(tmp_path)
     import numpy as np
 
-    from inbetweening.bvh import write_bvh
-    from inbetweening.synthetic import generate_clip, make_bvh
+    from inbetweening.data.bvh import write_bvh
+    from inbetweening.data.synthetic import generate_clip, make_bvh
 
     bvh = tmp_path / "in.bvh"
     q, r = generate_clip(np.random.default_rng(0), 40)

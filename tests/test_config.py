@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from conftest import CONF_DIR, compose_cfg
-from inbetweening.config import ConfigError, validate
-from inbetweening.datasets import DatasetError, resolve_path
+from inbetweening.data.datasets import DatasetError, resolve_path
+from inbetweening.training.config import ConfigError, validate
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = sorted(p.stem for p in (Path(CONF_DIR) / "experiment").glob("*.yaml"))

@@ -10,9 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening import benchmark as B
-from inbetweening.bvh import BVH, parse_bvh, write_bvh
-from inbetweening.datasets import (
+from inbetweening.data.bvh import BVH, parse_bvh, write_bvh
+from inbetweening.data.datasets import (
     DatasetError,
     bandai_namco_split,
     fold_static_root,
@@ -21,9 +20,10 @@ from inbetweening.datasets import (
     resolve_path,
     verify_lafan1,
 )
-from inbetweening.quaternion import euler_to_quat_np, qrot, quat_to_euler_np
-from inbetweening.skeleton import Skeleton
-from inbetweening.synthetic import generate_clip, make_bvh
+from inbetweening.data.synthetic import generate_clip, make_bvh
+from inbetweening.evaluation import benchmark as B
+from inbetweening.geometry.quaternion import euler_to_quat_np, qrot, quat_to_euler_np
+from inbetweening.geometry.skeleton import Skeleton
 
 SHARED_BN2 = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "bandai-namco-2.zip"
 
@@ -59,7 +59,7 @@ def write_bn_zip(path: Path, takes=range(1, 13), frames: int = 130) -> Path:
     with zipfile.ZipFile(path, "w") as z:
         for t in takes:
             bvh = bn_bvh(rng, frames)
-            from inbetweening.bvh import format_bvh
+            from inbetweening.data.bvh import format_bvh
 
             z.writestr(f"Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk_normal_{t:03d}.bvh", format_bvh(bvh))
     return path
@@ -243,7 +243,7 @@ def test_lafan1_missing_path_offline_says_where_to_put_it(tmp_path, monkeypatch)
 
 def test_bandai_namco_fold_root_preserves_animation_and_split(tmp_path):
     rng = np.random.default_rng(3)
-    bvh = parse_bvh(__import__("inbetweening.bvh", fromlist=["format_bvh"]).format_bvh(bn_bvh(rng, 40)), "x.bvh")
+    bvh = parse_bvh(__import__("inbetweening.data.bvh", fromlist=["format_bvh"]).format_bvh(bn_bvh(rng, 40)), "x.bvh")
     clip, sk = fold_static_root(bvh, "x")
     assert sk.names[0] == "Hips" and sk.num_joints == bvh.num_joints - 1
     _, full = bvh.skeleton().fk(bvh.local_rotations(), bvh.channel_positions())

@@ -10,10 +10,10 @@ import pytest
 import torch
 
 from conftest import TINY, compose_cfg
-from inbetweening import benchmark as B
-from inbetweening.datamodule import split_train_val
-from inbetweening.inference import window_features
-from inbetweening.train import make_datamodule
+from inbetweening.evaluation import benchmark as B
+from inbetweening.predictor.inference import window_features
+from inbetweening.training.datamodule import split_train_val
+from inbetweening.training.train import make_datamodule
 
 DATA = [o for o in TINY if o.startswith("data.")]
 

@@ -13,13 +13,13 @@ import pytest
 import torch
 
 from conftest import TINY, compose_cfg
-from inbetweening import benchmark as B
-from inbetweening.bvh import read_bvh, write_bvh
 from inbetweening.checkpoint import CheckpointError, load_module
-from inbetweening.datasets import load_dataset
-from inbetweening.inference import predict_transitions
-from inbetweening.synthetic import generate_dataset
-from inbetweening.train import evaluate, train
+from inbetweening.data.bvh import read_bvh, write_bvh
+from inbetweening.data.datasets import load_dataset
+from inbetweening.data.synthetic import generate_dataset
+from inbetweening.evaluation import benchmark as B
+from inbetweening.predictor.inference import predict_transitions
+from inbetweening.training.train import evaluate, train
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = [o for o in TINY if o.startswith("data.")]

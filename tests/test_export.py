@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening import export
-from inbetweening.train import load_module
+from inbetweening.tools import export
+from inbetweening.training.train import load_module
 
 ort = pytest.importorskip("onnxruntime")
 onnx = pytest.importorskip("onnx")
@@ -50,7 +50,7 @@ def test_metadata_describes_the_inputs(exported):
 def _ort_vs_torch(path, module, batch: int, gap: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Run the .onnx file with ONNX Runtime on inputs built here (not by the exporter's helpers) and the torch
     network on the same inputs.  Returns ``(onnx output, torch output)``."""
-    from inbetweening.masks import apply_mask
+    from inbetweening.predictor.masks import apply_mask
 
     g = torch.Generator().manual_seed(seed)
     j, n_past = module.skeleton.num_joints, module.n_past
@@ -120,7 +120,7 @@ def test_inference_only_checkpoint_loads_alone(tiny_checkpoint, tmp_path):
     import subprocess
     import sys
 
-    from inbetweening.module import InbetweenModule
+    from inbetweening.training.module import InbetweenModule
 
     out = tmp_path / "model.ckpt"
     r = subprocess.run([sys.executable, "-m", "inbetweening.export", f"ckpt_path={tiny_checkpoint}", "format=ckpt",

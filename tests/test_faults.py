@@ -10,8 +10,8 @@ import pytest
 import torch
 
 from conftest import TINY, compose_cfg
-from inbetweening.callbacks import NonFiniteError
-from inbetweening.train import train, write_benchmark
+from inbetweening.training.callbacks import NonFiniteError
+from inbetweening.training.train import train, write_benchmark
 
 ROOT = Path(__file__).resolve().parents[1]
 DIVERGE = [o for o in TINY if "max_steps" not in o] + [

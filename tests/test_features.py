@@ -2,8 +2,8 @@
 import numpy as np
 import torch
 
-from inbetweening import features as F
-from inbetweening.skeleton import Skeleton
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.predictor import features as F
 
 S2 = np.sqrt(0.5)
 SK = Skeleton(("root", "arm"), (-1, 0), np.array([[0.0, 0, 0], [2.0, 0, 0]]))

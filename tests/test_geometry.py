@@ -4,8 +4,8 @@ import pytest
 import roma
 import torch
 
-from inbetweening import quaternion as Q
-from inbetweening.skeleton import Skeleton, fk, ik
+from inbetweening.geometry import quaternion as Q
+from inbetweening.geometry.skeleton import Skeleton, fk, ik
 
 ORDERS = ["xyz", "xzy", "yxz", "yzx", "zxy", "zyx"]
 

@@ -6,9 +6,9 @@ import torch
 import torch.nn.functional as F
 
 from conftest import sinusoid_batch
+from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.models import MODELS, GraphTransformer, build_model
 from inbetweening.models.blocks import MultiHeadAttention, Norm
-from inbetweening.skeleton import Skeleton
 
 PARENTS = [-1, 0, 1, 2, 1, 4]  # small tree: 0-1-2-3 and 1-4-5
 J = len(PARENTS)

@@ -5,12 +5,18 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening import benchmark as B
-from inbetweening.features import global_positions
-from inbetweening.inference import known_centre_shift, masked_forward, predict_features, predict_transitions, window_features
-from inbetweening.masks import transition_known
+from inbetweening.evaluation import benchmark as B
+from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.models import build_model
-from inbetweening.skeleton import Skeleton
+from inbetweening.predictor.features import global_positions
+from inbetweening.predictor.inference import (
+    known_centre_shift,
+    masked_forward,
+    predict_features,
+    predict_transitions,
+    window_features,
+)
+from inbetweening.predictor.masks import transition_known
 
 NAMES = ("root", "spine", "head", "leg")
 PARENTS = (-1, 0, 1, 0)

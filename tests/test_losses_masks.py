@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening import losses as L
-from inbetweening.masks import apply_mask, joints_known, lerp_fill, transition_known, zero_fill
-from inbetweening.quaternion import qnormalize, slerp_np
-from inbetweening.skeleton import Skeleton
-from inbetweening.synthetic import NAMES, OFFSETS, PARENTS
+from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS
+from inbetweening.geometry.quaternion import qnormalize, slerp_np
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.predictor.masks import apply_mask, joints_known, lerp_fill, transition_known, zero_fill
+from inbetweening.training import losses as L
 
 SK = Skeleton(NAMES, PARENTS, OFFSETS)
 MEAN, STD = np.zeros(66), np.ones(66)
@@ -81,7 +81,7 @@ def test_l1_only_counts_masked_entries():
 
 @pytest.mark.parametrize("term", ["fk_pos", "quat", "bone", "smooth", "foot"])
 def test_each_term_is_zero_on_truth_and_positive_when_wrong(term):
-    from inbetweening import features as F
+    from inbetweening.predictor import features as F
 
     rng = np.random.default_rng(0)
     root = torch.from_numpy(np.cumsum(rng.normal(size=(2, 12, 3)), 1) * 3)
@@ -129,7 +129,7 @@ def test_foot_joints_found_by_name():
 
 def _all_terms_nonzero_case():
     """Prediction/truth where every loss term is non-zero: feet still in the first frames (contact), then moving."""
-    from inbetweening import features as F
+    from inbetweening.predictor import features as F
 
     rng = np.random.default_rng(7)
     steps = rng.normal(size=(2, 12, 3)) * 3

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening.masks import MASK_NAMES, MASKS, apply_mask, joints_known, lerp_fill, transition_known, zero_fill
+from inbetweening.predictor.masks import MASK_NAMES, MASKS, apply_mask, joints_known, lerp_fill, transition_known, zero_fill
 
 
 def about_y(rad):

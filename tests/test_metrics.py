@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening import benchmark as B
-from inbetweening.metrics import BenchmarkMetric, PerJointError
-from inbetweening.skeleton import Skeleton
+from inbetweening.evaluation import benchmark as B
+from inbetweening.evaluation.metrics import BenchmarkMetric, PerJointError
+from inbetweening.geometry.skeleton import Skeleton
 
 S2 = np.sqrt(0.5)
 
@@ -90,8 +90,8 @@ def test_recovery_rmse_of_a_zero_velocity_model_hand_derived(monkeypatch):
     """The mocap-recovery score end to end: every joint moves at 5 cm/frame (root velocity (3, 0, 4), no
     rotation); zero-velocity holds each missing joint at its last known position, so the k-th missing frame of a
     gap is 5k cm off.  Missing: joint 1 at frames 2-4 (5, 10, 15), joint 2 at frames 6-7 (5, 10)."""
-    import inbetweening.module as module_mod
-    from inbetweening.module import InbetweenModule
+    import inbetweening.training.module as module_mod
+    from inbetweening.training.module import InbetweenModule
 
     sk = Skeleton(("r", "a", "b"), (-1, 0, 1), np.array([[0.0, 0, 0], [0.0, 10.0, 0], [5.0, 0.0, 0]]))
     known = torch.ones(1, 9, 3, dtype=torch.bool)

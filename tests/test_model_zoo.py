@@ -9,9 +9,9 @@ import pytest
 import torch
 
 from conftest import sinusoid_batch
-from inbetweening.masks import apply_mask
+from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.models import MODELS, Interpolation, ZeroVelocity, build_model
-from inbetweening.skeleton import Skeleton
+from inbetweening.predictor.masks import apply_mask
 
 PARENTS = [-1, 0, 1, 2, 1, 4]  # small tree: 0-1-2-3 and 1-4-5
 J = len(PARENTS)

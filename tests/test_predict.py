@@ -9,14 +9,15 @@ import sys
 import numpy as np
 import pytest
 
-from inbetweening import Inbetweener, predict
-from inbetweening.bvh import BVH, format_bvh, parse_bvh, read_bvh, write_bvh
-from inbetweening.datasets import fold_static_root
-from inbetweening.inbetweener import InbetweenError, interpolate_arrays
-from inbetweening.module import InbetweenModule
-from inbetweening.quaternion import qinv, qmul, qrot
-from inbetweening.synthetic import generate_clip, make_bvh
-from inbetweening.train import CheckpointError
+from inbetweening import Inbetweener
+from inbetweening.data.bvh import BVH, format_bvh, parse_bvh, read_bvh, write_bvh
+from inbetweening.data.datasets import fold_static_root
+from inbetweening.data.synthetic import generate_clip, make_bvh
+from inbetweening.geometry.quaternion import qinv, qmul, qrot
+from inbetweening.tools import predict
+from inbetweening.tools.inbetweener import InbetweenError, interpolate_arrays
+from inbetweening.training.module import InbetweenModule
+from inbetweening.training.train import CheckpointError
 
 
 def _clip(frames: int = 120, seed: int = 0) -> BVH:

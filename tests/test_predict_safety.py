@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from inbetweening import export, predict
-from inbetweening.bvh import read_bvh, write_bvh
-from inbetweening.synthetic import generate_clip, make_bvh
+from inbetweening.data.bvh import read_bvh, write_bvh
+from inbetweening.data.synthetic import generate_clip, make_bvh
+from inbetweening.tools import export, predict
 
 
 @pytest.fixture

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening import quaternion as Q
+from inbetweening.geometry import quaternion as Q
 
 
 def unit(v):

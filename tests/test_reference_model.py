@@ -10,10 +10,10 @@ import pytest
 import torch
 
 from inbetweening import Inbetweener
-from inbetweening.bvh import iter_bvh_sources, parse_bvh
-from inbetweening.datasets import bandai_namco_split, fold_static_root
-from inbetweening.inbetweener import interpolate_arrays
-from inbetweening.module import InbetweenModule
+from inbetweening.data.bvh import iter_bvh_sources, parse_bvh
+from inbetweening.data.datasets import bandai_namco_split, fold_static_root
+from inbetweening.tools.inbetweener import interpolate_arrays
+from inbetweening.training.module import InbetweenModule
 
 ROOT = Path(__file__).resolve().parents[1]
 CKPT = ROOT / "models" / "bn2_reference" / "model.ckpt"

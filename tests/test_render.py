@@ -1,4 +1,4 @@
-"""Tests for the headless skeleton renderer (:mod:`inbetweening.render`)."""
+"""Tests for the headless skeleton renderer (:mod:`inbetweening.tools.render`)."""
 from __future__ import annotations
 
 import subprocess
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from inbetweening.render import draw_sequences, figure_to_array, render_gif, render_png
+from inbetweening.tools.render import draw_sequences, figure_to_array, render_gif, render_png
 
 PARENTS = [-1, 0, 1, 2, 0, 4, 0, 6]  # root, a 3-bone chain, two 2-bone limbs
 OFFSETS = np.array(
@@ -113,7 +113,7 @@ def test_does_not_import_pyplot(tmp_path):
     code = textwrap.dedent(f"""
         import sys
         import numpy as np
-        from inbetweening.render import draw_sequences, figure_to_array, render_gif, render_png
+        from inbetweening.tools.render import draw_sequences, figure_to_array, render_gif, render_png
         assert "matplotlib.pyplot" not in sys.modules, "imported by the module"
         seq = np.cumsum(np.ones((3, 8, 3)), axis=0)
         parents = {PARENTS!r}

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening.skeleton import Skeleton, fk, ik
+from inbetweening.geometry.skeleton import Skeleton, fk, ik
 
 S2 = np.sqrt(0.5)
 # 90 degrees about +z, wxyz

@@ -12,15 +12,15 @@ import pytest
 import torch
 
 from conftest import TINY, compose_cfg
-from inbetweening import benchmark as B
-from inbetweening import features as F
-from inbetweening.collect import collect
-from inbetweening.collect import main as collect_main
-from inbetweening.config import ConfigError, validate
-from inbetweening.inference import predict_transitions
-from inbetweening.masks import apply_mask, transition_known
-from inbetweening.module import InbetweenModule
-from inbetweening.train import CheckpointError, load_module, make_datamodule, make_module, train
+from inbetweening.evaluation import benchmark as B
+from inbetweening.evaluation.collect import collect
+from inbetweening.evaluation.collect import main as collect_main
+from inbetweening.predictor import features as F
+from inbetweening.predictor.inference import predict_transitions
+from inbetweening.predictor.masks import apply_mask, transition_known
+from inbetweening.training.config import ConfigError, validate
+from inbetweening.training.module import InbetweenModule
+from inbetweening.training.train import CheckpointError, load_module, make_datamodule, make_module, train
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL_TINY = {
@@ -61,7 +61,7 @@ def test_fast_dev_run_every_model(model, tmp_path, cache_dir):
 def test_reported_test_metrics_equal_the_checkpoint_scored_by_the_numpy_benchmark(model, tmp_path, cache_dir):
     """What ``train()`` returns and writes to benchmark.json is the trained checkpoint's score, recomputed here by
     another path: the checkpoint loaded on its own, predictions through ``predict_transitions`` and the numpy
-    benchmark (:func:`~inbetweening.benchmark.evaluate_transitions`) on the same test windows."""
+    benchmark (:func:`~inbetweening.evaluation.benchmark.evaluate_transitions`) on the same test windows."""
     over = [o for o in BASE if "max_steps" not in o and not o.startswith("callbacks")] + [
         f"model={model}", *MODEL_TINY[model], "callbacks=default", "callbacks.progress_bar=null",
         "callbacks.skeleton_figure=null", "optim.lr=1e-2", "optim.warmup_steps=0"]  # trained well away from init
@@ -95,7 +95,7 @@ def test_reported_test_metrics_equal_the_checkpoint_scored_by_the_numpy_benchmar
 def test_interpolation_model_matches_numpy_baseline(tmp_path, cache_dir):
     """The torch Interpolation model through the Lightning test loop scores like the numpy reference baseline."""
     torch_metrics, cfg = run_train(tmp_path, cache_dir, BASE + ["model=interpolation"])
-    from inbetweening.train import evaluate
+    from inbetweening.training.train import evaluate
 
     ecfg = compose_cfg("eval", ["model=interpolation", "data.synthetic.num_clips=10", "data.synthetic.min_frames=120",
                                 "data.synthetic.max_frames=160"], tmp_path / "eval", cache_dir)
@@ -327,9 +327,9 @@ def test_ablation_name_launches_multirun(tmp_path, cache_dir):
 def test_known_centring_removes_the_window_centring_leak(centre, equivariant):
     """Shifting a whole window in XZ (what a different whole-window centre does) shifts a centre=known model's
     prediction by exactly that much; a centre=window model sees the absolute position and changes its answer."""
-    from inbetweening.inference import predict_features
-    from inbetweening.skeleton import Skeleton
-    from inbetweening.synthetic import NAMES, OFFSETS, PARENTS
+    from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS
+    from inbetweening.geometry.skeleton import Skeleton
+    from inbetweening.predictor.inference import predict_features
 
     torch.manual_seed(0)
     sk = Skeleton(NAMES, PARENTS, OFFSETS)
@@ -357,7 +357,7 @@ def test_ddp_trainer_config_builds_a_ddp_trainer(tmp_path, cache_dir):
     from hydra.utils import instantiate
     from lightning.pytorch.strategies import DDPStrategy
 
-    from inbetweening.train import make_trainer
+    from inbetweening.training.train import make_trainer
 
     cfg = compose_cfg("train", ["trainer=ddp", "trainer.accelerator=cpu", "trainer.devices=2", "logger=none"],
                       tmp_path, cache_dir)

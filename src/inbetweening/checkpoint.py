@@ -70,8 +70,8 @@ def read_checkpoint(path: str | Path, raw: bytes | None = None) -> dict:
 
 
 def load_module(path: str | Path):
-    """The :class:`~inbetweening.module.InbetweenModule` of a checkpoint, on the CPU, in eval mode."""
-    from .module import InbetweenModule
+    """The :class:`~inbetweening.training.module.InbetweenModule` of a checkpoint, on the CPU, in eval mode."""
+    from inbetweening.training.module import InbetweenModule
 
     raw = _read_bytes(path)
     read_checkpoint(path, raw)

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import torch
 
-from .quaternion import qnormalize
+from inbetweening.geometry.quaternion import qnormalize
 
 __all__ = ["FEATURES", "POS", "QUAT", "decode", "encode", "global_positions", "qnormalize"]
-from .skeleton import Skeleton, fk
+from inbetweening.geometry.skeleton import Skeleton, fk
 
 FEATURES = 7
 POS = slice(0, 3)

@@ -1,4 +1,4 @@
-"""LightningDataModule: masked in-betweening windows from any dataset of :mod:`inbetweening.datasets`.
+"""LightningDataModule: masked in-betweening windows from any dataset of :mod:`inbetweening.data.datasets`.
 
 Training windows (50 frames every 20, normalised as in the benchmark) are encoded once into one
 in-memory ``(N, W, J, 7)`` tensor; a batch is a gather from it, so there is no per-item file I/O.
@@ -17,10 +17,10 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset, Sampler
 
-from . import benchmark as B
-from .datasets import MotionData, load_dataset
-from .inference import window_features
-from .masks import joints_known, transition_known
+from inbetweening.data.datasets import MotionData, load_dataset
+from inbetweening.evaluation import benchmark as B
+from inbetweening.predictor.inference import window_features
+from inbetweening.predictor.masks import joints_known, transition_known
 
 
 class _Index(Dataset):
@@ -209,7 +209,7 @@ class InbetweenDataModule(L.LightningDataModule):
         self.test_set = _Windows(data.test_X[:lim], data.test_Q[:lim])
 
     def test_benchmark_set(self) -> B.BenchmarkSet:
-        """The (possibly capped) test windows as a :class:`~inbetweening.benchmark.BenchmarkSet`."""
+        """The (possibly capped) test windows as a :class:`~inbetweening.evaluation.benchmark.BenchmarkSet`."""
         d = self.data
         n = len(self.test_set)
         return B.BenchmarkSet(d.test_X[:n], d.test_Q[:n], d.skeleton, d.pos_mean, d.pos_std)

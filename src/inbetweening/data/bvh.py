@@ -13,7 +13,7 @@ vectorised path only *detects* a problem; a slow line-by-line pass then finds th
 
 Conventions: ``names``/``parents``/``offsets`` list joints in file order (End Sites are not joints);
 ``motion`` is ``(F, C)`` with the raw channel values in file order; rotations are returned as ``wxyz``
-quaternions built from each joint's own Euler channel order (see :mod:`inbetweening.quaternion`).
+quaternions built from each joint's own Euler channel order (see :mod:`inbetweening.geometry.quaternion`).
 """
 
 from __future__ import annotations
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .quaternion import euler_to_quat_np, quat_to_euler_np, remove_discontinuities
-from .skeleton import Skeleton
+from inbetweening.geometry.quaternion import euler_to_quat_np, quat_to_euler_np, remove_discontinuities
+from inbetweening.geometry.skeleton import Skeleton
 
 __all__ = [
     "BVH",
@@ -751,7 +751,7 @@ def write_bvh(bvh: BVH, path_or_file, precision: int = 6) -> None:
     """Write :func:`format_bvh` text to a path or to an open text/binary file object."""
     text = format_bvh(bvh, precision)
     if isinstance(path_or_file, (str, os.PathLike)):
-        from .atomic import write_text
+        from inbetweening.atomic import write_text
 
         write_text(path_or_file, text)  # atomic: an interrupted write never leaves half a file
         return

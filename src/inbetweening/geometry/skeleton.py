@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from .quaternion import Array, qinv, qmul, qrot
+from inbetweening.geometry.quaternion import Array, qinv, qmul, qrot
 
 
 def _cat_joints(parts: list) -> Array:

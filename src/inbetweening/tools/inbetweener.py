@@ -41,13 +41,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from . import features as F
-from .bvh import BVH, BVHError, read_bvh
-from .datasets import DatasetError, fold_static_root
-from .inference import predict_features, window_features
-from .masks import transition_known
-from .quaternion import qinv, qmul, qnormalize, qrot, remove_discontinuities, slerp_np
-from .skeleton import Skeleton, fk
+from inbetweening.data.bvh import BVH, BVHError, read_bvh
+from inbetweening.data.datasets import DatasetError, fold_static_root
+from inbetweening.geometry.quaternion import qinv, qmul, qnormalize, qrot, remove_discontinuities, slerp_np
+from inbetweening.geometry.skeleton import Skeleton, fk
+from inbetweening.predictor import features as F
+from inbetweening.predictor.inference import predict_features, window_features
+from inbetweening.predictor.masks import transition_known
 
 __all__ = ["FillResult", "InbetweenError", "Inbetweener"]
 
@@ -140,7 +140,7 @@ class Inbetweener:
     """A trained in-betweening model wrapped for keyframe filling (see the module docstring).
 
     Args:
-        module: a trained :class:`~inbetweening.module.InbetweenModule` (moved to ``eval`` mode).
+        module: a trained :class:`~inbetweening.training.module.InbetweenModule` (moved to ``eval`` mode).
         max_gap: longest transition generated in one window; default ``trained_gap``.  May be raised up to
             ``max_frames - n_past - 1`` of the network (beyond what it was trained on: quality not guaranteed).
         segment: split longer gaps (``True``, default) or raise :class:`InbetweenError`.
@@ -175,7 +175,7 @@ class Inbetweener:
         ``kw`` go to the constructor (``max_gap``, ``segment``); ``trained_gap`` defaults to the data module's
         ``transition_max`` recorded in the checkpoint.
         """
-        from .checkpoint import load_module, read_checkpoint
+        from inbetweening.checkpoint import load_module, read_checkpoint
 
         ckpt = read_checkpoint(str(path))
         dm = ckpt.get("datamodule_hyper_parameters") or {}
@@ -287,7 +287,7 @@ class Inbetweener:
     # ------------------------------------------------------------------ BVH level
     def fill(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
              max_gap: int | None = None, segment: bool | None = None) -> BVH:
-        """In-between a BVH clip; returns a new :class:`~inbetweening.bvh.BVH` (write it with ``write_bvh``).
+        """In-between a BVH clip; returns a new :class:`~inbetweening.data.bvh.BVH` (write it with ``write_bvh``).
 
         Give exactly one of:
 

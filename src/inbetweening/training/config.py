@@ -3,9 +3,9 @@ from __future__ import annotations
 
 from omegaconf import DictConfig
 
-from .benchmark import N_PAST
-from .losses import LOSS_TERMS
-from .masks import MASK_NAMES
+from inbetweening.evaluation.benchmark import N_PAST
+from inbetweening.predictor.masks import MASK_NAMES
+from inbetweening.training.losses import LOSS_TERMS
 
 
 class ConfigError(ValueError):
@@ -34,7 +34,7 @@ def _check_model_keys(cfg, name: str) -> None:
     """Every ``model.*`` key must be a constructor argument of the chosen model (baselines accept any)."""
     import inspect
 
-    from .models import MODELS
+    from inbetweening.models import MODELS
 
     params = inspect.signature(MODELS[name].__init__).parameters
     if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
@@ -89,7 +89,7 @@ def validate(cfg: DictConfig) -> None:
     mask = _get(cfg, "mask.name")
     if mask not in MASK_NAMES:
         raise ConfigError(f"mask.name: unknown mask {mask!r}; choose one of {list(MASK_NAMES)}")
-    from .models import MODELS
+    from inbetweening.models import MODELS
 
     name = _get(cfg, "model.name")
     if name not in MODELS:

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .quaternion import Array, qbetween, qinv, qmul, qnormalize, qrot, slerp_np
-from .skeleton import Skeleton, fk, ik
+from inbetweening.geometry.quaternion import Array, qbetween, qinv, qmul, qnormalize, qrot, slerp_np
+from inbetweening.geometry.skeleton import Skeleton, fk, ik
 
 N_PAST = 10
 N_FUTURE = 10

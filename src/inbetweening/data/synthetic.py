@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .bvh import BVH, write_bvh
-from .quaternion import euler_to_quat_np, qmul, quat_to_euler_np
+from inbetweening.data.bvh import BVH, write_bvh
+from inbetweening.geometry.quaternion import euler_to_quat_np, qmul, quat_to_euler_np
 
 NAMES = (
     "Hips", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToe", "RightUpLeg", "RightLeg", "RightFoot", "RightToe",

@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import torch
 
-from .quaternion import slerp_torch
+from inbetweening.geometry.quaternion import slerp_torch
 
 MASK_NAMES = ("zero", "lerp", "joints")
 

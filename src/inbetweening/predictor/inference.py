@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from . import features as F
-from .masks import apply_mask, transition_known
-from .skeleton import Skeleton
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.predictor import features as F
+from inbetweening.predictor.masks import apply_mask, transition_known
 
 
 def window_features(root, local_q, skeleton: Skeleton, mean, std, dtype=torch.float32, device=None) -> torch.Tensor:

@@ -7,11 +7,11 @@ import torch
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.plugins.io import TorchCheckpointIO
 
-from . import features as F
-from .inference import predict_features
-from .masks import transition_known
-from .render import draw_sequences
-from .skeleton import fk
+from inbetweening.geometry.skeleton import fk
+from inbetweening.predictor import features as F
+from inbetweening.predictor.inference import predict_features
+from inbetweening.predictor.masks import transition_known
+from inbetweening.tools.render import draw_sequences
 
 
 class SkeletonFigure(L.Callback):
@@ -114,7 +114,7 @@ class ResumeState(L.Callback):
     """Saves the global RNG states (torch, numpy, python) in every checkpoint and restores them on resume, so a
     resumed run draws the same dropout masks as an uninterrupted one.  (Data order and the sampled transition
     lengths are pure functions of the seed, epoch and batch, and the training loader's position is saved by
-    Lightning through its ``state_dict``: see :mod:`inbetweening.datamodule`.)"""
+    Lightning through its ``state_dict``: see :mod:`inbetweening.training.datamodule`.)"""
 
     def __init__(self):
         self._restore = None
@@ -163,7 +163,7 @@ class AtomicCheckpointIO(TorchCheckpointIO):
     ``os.replace``d, so a kill during a write never leaves a truncated ``last.ckpt`` (nor temp files elsewhere)."""
 
     def save_checkpoint(self, checkpoint: dict, path, storage_options=None) -> None:
-        from .atomic import atomic_path
+        from inbetweening.atomic import atomic_path
 
         with atomic_path(path) as tmp:
             torch.save(checkpoint, tmp)

@@ -1,4 +1,4 @@
-"""torchmetrics wrappers: the benchmark (L2Q/L2P/NPSS, scored by :func:`inbetweening.benchmark.score`,
+"""torchmetrics wrappers: the benchmark (L2Q/L2P/NPSS, scored by :func:`inbetweening.evaluation.benchmark.score`,
 the same function ``eval.py`` uses) and per-joint position / rotation errors."""
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import torch
 from torchmetrics import Metric
 from torchmetrics.utilities import dim_zero_cat
 
-from .benchmark import score
-from .quaternion import qangle
-from .skeleton import Skeleton
+from inbetweening.evaluation.benchmark import score
+from inbetweening.geometry.quaternion import qangle
+from inbetweening.geometry.skeleton import Skeleton
 
 
 class BenchmarkMetric(Metric):

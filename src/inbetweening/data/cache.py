@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import write_text
+from inbetweening.atomic import write_text
 
 SMALL = ("pos_mean", "pos_std", "offsets")  # loaded into memory; the rest is memory-mapped
 

@@ -17,15 +17,15 @@ from hydra.utils import instantiate
 from lightning.pytorch.utilities.exceptions import SIGTERMException
 from omegaconf import DictConfig, OmegaConf
 
-from . import benchmark as B
-from .atomic import write_text
-from .bvh import BVHError
-from .callbacks import AtomicCheckpointIO, InterruptCheckpoint, NonFiniteError, NonFiniteGuard, ResumeState
-from .checkpoint import CheckpointError, load_module, read_checkpoint
-from .config import ConfigError, validate
-from .datamodule import InbetweenDataModule
-from .datasets import DatasetError
-from .module import InbetweenModule
+from inbetweening.atomic import write_text
+from inbetweening.checkpoint import CheckpointError, load_module, read_checkpoint
+from inbetweening.data.bvh import BVHError
+from inbetweening.data.datasets import DatasetError
+from inbetweening.evaluation import benchmark as B
+from inbetweening.training.callbacks import AtomicCheckpointIO, InterruptCheckpoint, NonFiniteError, NonFiniteGuard, ResumeState
+from inbetweening.training.config import ConfigError, validate
+from inbetweening.training.datamodule import InbetweenDataModule
+from inbetweening.training.module import InbetweenModule
 
 log = logging.getLogger("inbetweening")
 

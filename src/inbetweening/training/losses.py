@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import torch
 
-from . import features as F
-from .skeleton import Skeleton, fk
+from inbetweening.geometry.skeleton import Skeleton, fk
+from inbetweening.predictor import features as F
 
 LOSS_TERMS = ("l1", "fk_pos", "quat", "bone", "smooth", "foot")
 

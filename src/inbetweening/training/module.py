@@ -13,14 +13,14 @@ import lightning as L
 import numpy as np
 import torch
 
-from . import features as F
-from .benchmark import N_PAST
-from .inference import CENTRES, masked_forward, predict_features
-from .losses import total_loss
-from .masks import MASK_NAMES, joints_known, transition_known
-from .metrics import BenchmarkMetric, PerJointError
-from .models import MODELS, build_model
-from .skeleton import Skeleton, fk
+from inbetweening.evaluation.benchmark import N_PAST
+from inbetweening.evaluation.metrics import BenchmarkMetric, PerJointError
+from inbetweening.geometry.skeleton import Skeleton, fk
+from inbetweening.models import MODELS, build_model
+from inbetweening.predictor import features as F
+from inbetweening.predictor.inference import CENTRES, masked_forward, predict_features
+from inbetweening.predictor.masks import MASK_NAMES, joints_known, transition_known
+from inbetweening.training.losses import total_loss
 
 
 class InbetweenModule(L.LightningModule):
@@ -31,7 +31,7 @@ class InbetweenModule(L.LightningModule):
         skeleton: ``Skeleton.to_dict()`` of the training data.
         pos_mean, pos_std: training statistics of global positions, ``J*3`` floats each.
         mask: ``zero`` | ``lerp`` | ``joints`` (what the network sees in place of unknown values).
-        loss: weights of the loss terms (see :mod:`inbetweening.losses`).
+        loss: weights of the loss terms (see :mod:`inbetweening.training.losses`).
         optim: optimiser config (``name`` adam|adamw|sgd, ``lr``, ``weight_decay``, ``warmup_steps``, ...).
         val_lengths, test_lengths: transition lengths scored by the benchmark metrics.
         dataset: name of the training dataset (recorded in ``benchmark.json``).

@@ -1,0 +1,1 @@
+"""Evaluation: the LAFAN1 benchmark protocol, torchmetrics metrics, result collection."""

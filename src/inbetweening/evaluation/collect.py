@@ -1,0 +1,103 @@
+"""Collect every run's ``benchmark.json`` of a sweep into one table (markdown + CSV).
+
+    python -m inbetweening.collect <sweep dir> [--sort l2p@15] [--out results]
+
+One row per configuration: the run's Hydra overrides (``.hydra/overrides.yaml``) name it, rows are
+sorted by the chosen metric (ascending), and ``<out>.md`` / ``<out>.csv`` are written into the
+sweep directory (or ``--out`` path).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+
+import yaml
+
+METRIC_ORDER = ("l2q", "l2p", "npss")
+IGNORED = ("hydra.", "paths.", "seed=", "ckpt_path=", "trainer.max_steps=", "trainer.max_epochs=", "ablation=")
+
+
+def run_label(run_dir: Path) -> str:
+    """The run's overrides (minus bookkeeping ones), e.g. ``mask=zero model.depth=6``."""
+    f = run_dir / ".hydra" / "overrides.yaml"
+    if f.exists():
+        items = [o for o in (yaml.safe_load(f.read_text()) or []) if not o.startswith(IGNORED)]
+        if items:
+            return " ".join(items)
+    return run_dir.name
+
+
+def collect(sweep_dir: str | Path, sort: str = "l2p@15") -> list[dict]:
+    """Rows ``{"run", "config", "dataset", "model", "n_windows", <metrics>...}`` sorted by ``sort``."""
+    root = Path(sweep_dir)
+    if not root.exists():
+        raise FileNotFoundError(f"{root} does not exist")
+    rows = []
+    for f in sorted(root.rglob("benchmark.json")):
+        res = json.loads(f.read_text())
+        run = f.parent
+        rows.append({"run": str(run.relative_to(root)) if run != root else ".", "config": run_label(run),
+                     "dataset": res.get("dataset"), "model": res.get("model"), "n_windows": res.get("n_windows"),
+                     **res.get("metrics", {})})
+    if not rows:
+        raise FileNotFoundError(f"no benchmark.json under {root}")
+    # overrides shared by every run say nothing about a row: drop them from the labels
+    common = set.intersection(*(set(r["config"].split()) for r in rows)) if len(rows) > 1 else set()
+    for r in rows:
+        r["config"] = " ".join(o for o in r["config"].split() if o not in common) or "(shared settings)"
+    rows.sort(key=lambda r: (r.get(sort) is None, r.get(sort, 0.0)))
+    return rows
+
+
+def metric_columns(rows: list[dict]) -> list[str]:
+    keys = {k for r in rows for k in r if "@" in k or k == "recovery_rmse"}
+    def order(k: str):
+        m, _, n = k.partition("@")
+        return (METRIC_ORDER.index(m) if m in METRIC_ORDER else 9, int(n) if n.isdigit() else 0)
+
+    return sorted(keys, key=order)
+
+
+def to_markdown(rows: list[dict]) -> str:
+    cols = metric_columns(rows)
+    head = "| config | model | " + " | ".join(c.upper() for c in cols) + " |"
+    lines = [head, "|---|---|" + "---:|" * len(cols)]
+    for r in rows:
+        cells = [("" if r.get(c) is None else f"{r[c]:.4f}" if c.startswith("npss") else f"{r[c]:.3f}") for c in cols]
+        lines.append(f"| {r['config']} | {r['model']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def write_csv(rows: list[dict], path: Path) -> None:
+    cols = ["config", "model", "dataset", "n_windows", *metric_columns(rows), "run"]
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("sweep_dir")
+    ap.add_argument("--sort", default="l2p@15", help="metric to sort by (ascending), default l2p@15")
+    ap.add_argument("--out", default=None, help="output path without extension (default <sweep_dir>/results)")
+    args = ap.parse_args(argv)
+    try:
+        rows = collect(args.sweep_dir, args.sort)
+    except FileNotFoundError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else Path(args.sweep_dir) / "results"
+    md = to_markdown(rows)
+    out.with_suffix(".md").write_text(md + "\n")
+    write_csv(rows, out.with_suffix(".csv"))
+    print(md)
+    print(f"\n{len(rows)} runs -> {out.with_suffix('.md')}, {out.with_suffix('.csv')}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

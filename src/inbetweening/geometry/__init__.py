@@ -1,0 +1,1 @@
+"""Geometry: quaternions (wxyz), skeletons, forward/inverse kinematics; numpy and torch alike."""

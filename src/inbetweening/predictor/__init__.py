@@ -1,0 +1,1 @@
+"""The path from windows to predictions: feature representation, masks, the predictor."""

@@ -1,0 +1,1 @@
+"""Animator tools: the Inbetweener API, predict, export, render."""

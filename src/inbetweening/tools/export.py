@@ -1,0 +1,225 @@
+"""Export a trained network for deployment (command line and :func:`export_onnx`).
+
+    python -m inbetweening.export ckpt_path=run/checkpoints/last.ckpt format=onnx output=model.onnx [opset=17]
+
+The exported graph is the network alone, ``net(x, known, interp) -> out``:
+
+* ``x``      float32 ``(B, T, J, 7)``: per joint z-scored global position (``(p - mean) / std``) + local
+  quaternion wxyz, with the unknown values already filled as the training mask did (``mask`` in the
+  metadata: ``lerp`` = linear positions / slerp quaternions between the nearest known frames, ``zero`` =
+  zeros; ``joints`` = ``lerp``);
+* ``known``  bool ``(B, T, J)``: True for given values (``n_past`` context frames, then the gap, then the target);
+* ``interp`` float32 ``(B, T, J, 7)``: the lerp/slerp interpolation (graphs that do not use it have no such input);
+* ``out``    float32 ``(B, T, J, 7)``: known values copied from ``x``, the others predicted.
+
+``B`` and ``T`` are dynamic (``T = n_past + gap + 1``, at most the network's ``max_frames``).  Windows must be
+normalised like the training windows (see :mod:`inbetweening.tools.inbetweener`).  Everything needed to prepare
+them is stored in the model's ``metadata_props``, one JSON value per key: ``skeleton_names``,
+``skeleton_parents``, ``skeleton_offsets``, ``pos_mean``, ``pos_std``, ``mask``, ``forward_axis``, ``n_past``,
+``fps``, ``train_window``, ``max_frames``, ``model``, ``dataset``, ``features``, ``inputs`` (the graph's input
+names).
+"""
+from __future__ import annotations
+
+import json
+import sys
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from inbetweening.tools._cli import UsageError, fail, parse_args, parse_bool
+
+FORMATS = ("onnx", "ckpt")
+
+USAGE = """\
+usage: python -m inbetweening.export ckpt_path=<model.ckpt> format=onnx|ckpt output=<file> [opset=17] [check=true]
+
+Export the network of a training checkpoint.  Options may be given as key=value or --key value.
+
+  ckpt_path=PATH   training checkpoint (.ckpt)                                       (required)
+  format=onnx      ONNX graph of the network                                         (default onnx)
+  format=ckpt      inference-only Lightning checkpoint: weights + hyper-parameters, no optimiser
+                   state (loads with InbetweenModule.load_from_checkpoint / Inbetweener)
+  output=PATH      file to write                                                     (required)
+  opset=N          ONNX opset version                                                (default 17)
+  check=BOOL       run the exported model with ONNX Runtime on a random window and
+                   print the largest difference to PyTorch                           (default true)
+  --force          allow output to be the input checkpoint itself (refused otherwise)
+
+The ONNX graph computes net(x, known, interp) with dynamic batch and frame axes; the skeleton, the
+normalisation statistics, the mask, the forward axis and n_past are stored as JSON in metadata_props.
+"""
+
+
+class ExportError(ValueError):
+    """The export could not be done (unknown format, missing package, failed check)."""
+
+
+def metadata(module, inputs: Sequence[str] = ("x", "known", "interp")) -> dict[str, str]:
+    """The ``metadata_props`` entries (JSON strings) describing how to prepare inputs for ``module``'s network.
+
+    ``inputs``: the graph's input names (``interp`` is absent when the network does not read it).
+    """
+    hp = module.hparams
+    sk = module.skeleton
+    meta = {
+        "format": "inbetweening-onnx/1",
+        "model": dict(hp["model"]),
+        "skeleton_names": list(sk.names),
+        "skeleton_parents": list(sk.parents),
+        "skeleton_offsets": sk.offsets.tolist(),
+        "pos_mean": np.asarray(module.mean, dtype=float).tolist(),
+        "pos_std": np.asarray(module.std, dtype=float).tolist(),
+        "mask": module.mask_name,
+        "forward_axis": list(module.forward_axis),
+        "n_past": int(module.n_past),
+        "fps": float(hp.get("fps", 30.0)),
+        "train_window": int(hp.get("train_window", 50)),
+        "max_frames": int(getattr(module.net, "max_frames", 0) or 0),
+        "dataset": str(hp.get("dataset", "")),
+        "features": "per joint [(p - pos_mean) / pos_std (xyz, global position), local quaternion wxyz]",
+        "inputs": list(inputs),
+    }
+    return {k: json.dumps(v) for k, v in meta.items()}
+
+
+def random_window(module, batch: int, gap: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Random masked inputs ``(x, known, interp)`` for ``batch`` windows with a ``gap``-frame transition."""
+    from inbetweening.predictor.masks import apply_mask, transition_known
+
+    g = torch.Generator().manual_seed(seed)
+    j = module.skeleton.num_joints
+    t = module.n_past + gap + 1
+    pos = torch.randn(batch, t, j, 3, generator=g)
+    quat = torch.randn(batch, t, j, 4, generator=g)
+    feats = torch.cat([pos, quat / quat.norm(dim=-1, keepdim=True)], dim=-1)
+    known = transition_known(batch, t, j, module.n_past, gap)
+    x, interp = apply_mask(module.mask_name, feats, known)
+    return x, known, interp
+
+
+def _run_ort(session, x, known, interp) -> np.ndarray:
+    feeds = {"x": x.numpy(), "known": known.numpy(), "interp": interp.numpy()}
+    names = {i.name for i in session.get_inputs()}
+    (out,) = session.run(None, {k: v for k, v in feeds.items() if k in names})
+    return out
+
+
+def export_onnx(module, path: str | Path, opset: int = 17, check: bool = True) -> dict:
+    """Export ``module.net`` to ONNX at ``path`` with metadata; optionally compare with ONNX Runtime.
+
+    Returns ``{"path", "inputs", "max_abs_diff"}`` (``max_abs_diff`` is None without ``check``).
+    """
+    try:
+        import onnx
+    except ImportError:
+        raise ExportError("format=onnx needs the onnx package: pip install 'inbetweening[export]'") from None
+    from inbetweening.atomic import atomic_path
+
+    net = module.net.eval().cpu()
+    path = Path(path)
+    example = random_window(module, 2, 15)
+    axes = {"x": {0: "batch", 1: "frames"}, "known": {0: "batch", 1: "frames"},
+            "interp": {0: "batch", 1: "frames"}, "out": {0: "batch", 1: "frames"}}
+    with atomic_path(path) as tmp:  # an interrupted export never leaves half a file under the final name
+        with warnings.catch_warnings(), torch.no_grad():
+            warnings.simplefilter("ignore")
+            torch.onnx.export(net, example, str(tmp), dynamo=False, opset_version=int(opset),
+                              input_names=["x", "known", "interp"], output_names=["out"], dynamic_axes=axes)
+        model = onnx.load(str(tmp))
+        inputs = [i.name for i in model.graph.input]
+        for k, v in metadata(module, inputs).items():
+            entry = model.metadata_props.add()
+            entry.key, entry.value = k, v
+        onnx.save(model, str(tmp))
+    info = {"path": str(path), "inputs": inputs, "max_abs_diff": None}
+    if check:
+        info["max_abs_diff"] = check_onnx(module, path)
+    return info
+
+
+def check_onnx(module, path: str | Path, batch: int = 3, gap: int = 7, seed: int = 1) -> float:
+    """Largest absolute difference between ONNX Runtime and PyTorch on a random window."""
+    try:
+        import onnxruntime as ort
+    except ImportError:
+        raise ExportError("checking the export needs onnxruntime: pip install 'inbetweening[export]'") from None
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    x, known, interp = random_window(module, batch, gap, seed)
+    got = _run_ort(session, x, known, interp)
+    with torch.no_grad():
+        ref = module.net.eval().cpu()(x, known, interp).numpy()
+    if got.shape != ref.shape:
+        raise ExportError(f"ONNX output shape {got.shape} differs from PyTorch's {ref.shape}")
+    return float(np.abs(got - ref).max())
+
+
+INFERENCE_KEYS = ("state_dict", "hyper_parameters", "pytorch-lightning_version", "epoch", "global_step")
+
+
+def export_checkpoint(src: str | Path, dst: str | Path) -> dict:
+    """Write an inference-only copy of a training checkpoint (no optimiser/scheduler/loop state).
+
+    The result still loads with ``InbetweenModule.load_from_checkpoint`` and ``Inbetweener.from_checkpoint``;
+    metric states are dropped from the state dict.  Returns ``{"path", "bytes"}``.
+    """
+    from inbetweening.checkpoint import read_checkpoint
+
+    ckpt = read_checkpoint(str(src))
+    slim = {k: ckpt[k] for k in INFERENCE_KEYS if k in ckpt}
+    slim["state_dict"] = {k: v for k, v in ckpt["state_dict"].items() if k.startswith("net.")}
+    from inbetweening.atomic import atomic_path
+
+    dst = Path(dst)
+    with atomic_path(dst) as tmp:
+        torch.save(slim, tmp)
+    return {"path": str(dst), "bytes": dst.stat().st_size}
+
+
+def run(argv: Sequence[str]) -> int:
+    try:
+        args = parse_args(argv, {"ckpt_path": str, "format": str, "output": str, "opset": int, "check": parse_bool,
+                                 "force": parse_bool},
+                          {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "out": "output", "o": "output"})
+    except UsageError as e:
+        fail(e)
+    if args is None:
+        print(USAGE)
+        return 0
+    missing = [k for k in ("ckpt_path", "output") if k not in args]
+    if missing:
+        fail(f"missing {', '.join(f'{k}=...' for k in missing)} (see --help)")
+    fmt = str(args.get("format", "onnx")).lower()
+    if fmt not in FORMATS:
+        fail(f"format: unknown export format {args['format']!r}; supported: {', '.join(FORMATS)}")
+    from inbetweening.atomic import same_file
+    from inbetweening.checkpoint import CheckpointError, load_module
+
+    if same_file(args["ckpt_path"], args["output"]) and not args.get("force", False):
+        fail(f"output: {args['output']} is the checkpoint being exported; writing it would destroy the input "
+             "(choose another output, or --force to overwrite)")
+
+    try:
+        if fmt == "ckpt":
+            info = export_checkpoint(args["ckpt_path"], args["output"])
+            print(f"wrote {info['path']} ({info['bytes'] / 1e6:.2f} MB, weights and hyper-parameters only)")
+            return 0
+        module = load_module(args["ckpt_path"])
+        info = export_onnx(module, args["output"], opset=args.get("opset", 17), check=args.get("check", True))
+    except (CheckpointError, ExportError, OSError) as e:
+        fail(e)
+    print(f"wrote {info['path']} (inputs: {', '.join(info['inputs'])}; dynamic axes: batch, frames)")
+    if info["max_abs_diff"] is not None:
+        print(f"onnxruntime vs PyTorch on a random window: max abs diff {info['max_abs_diff']:.3g}")
+    return 0
+
+
+def main() -> None:
+    sys.exit(run(sys.argv[1:]))
+
+
+if __name__ == "__main__":
+    main()

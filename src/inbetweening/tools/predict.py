@@ -1,0 +1,158 @@
+"""Fill the frames between keyframes of a BVH clip with a trained model (command line).
+
+Run ``python -m inbetweening.predict --help`` for the usage.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from inbetweening.tools._cli import UsageError, fail, parse_args, parse_bool, parse_int_list
+
+USAGE = """\
+usage: python -m inbetweening.predict ckpt_path=<model.ckpt> input=<clip.bvh> output=<out.bvh>
+                                      (keyframes=<list> | gap=<n>) [options]
+
+Fill the frames between keyframes with a trained in-betweening model and write a BVH file with the input's
+hierarchy and channel order (it opens in Blender, MotionBuilder, ...).  Every option can be given as
+key=value or as --key value.
+
+Two ways to say which frames are keyframes:
+
+  keyframes=[0,30,75]   (form A) keep these frames of the input clip (at least 2, increasing, any spacing;
+                        keyframes=0,30,75 works too) and generate every other frame between the first and
+                        the last one.  Frames before the first / after the last keyframe are dropped: the
+                        output has last - first + 1 frames and input frame k is output frame k - first.
+  gap=30                (form B) every frame of the input is a keyframe (a clip holding only the key poses);
+                        30 frames are generated between each consecutive pair, so K input frames give
+                        K + (K - 1) * 30 output frames.
+
+Keyframe rows are copied unchanged into the output.  Generated frames take non-root position channels (and
+a folded Bandai-Namco joint_Root) from the nearest keyframe.
+
+Long gaps: the model was trained on transitions of up to a fixed length (printed below as "max gap", from the
+checkpoint).  A longer gap is split into equal segments of at most max_gap frames; the poses at the split
+points are pseudo-keyframes interpolated between the two surrounding keyframes (root position linearly,
+joint rotations by slerp), then the segments are generated left to right, each one using the end of the
+previous one as its 10 context frames.  Your keyframes are never changed.  segment=false refuses such gaps.
+
+options:
+  ckpt_path=PATH        training checkpoint (.ckpt) of an in-betweening model            (required)
+  input=PATH            BVH clip with the same skeleton as the checkpoint's training data  (required)
+  output=PATH           BVH file to write                                                (required)
+  keyframes=LIST        form A, see above
+  gap=N                 form B, see above
+  max_gap=N             longest gap generated in one pass (default: the longest gap the model was trained on)
+  segment=true|false    split gaps longer than max_gap (default true; --no-segment = false)
+  render=PATH.gif       also write an animated GIF: the result next to plain linear interpolation of the
+                        same keyframes, keyframes drawn in red
+  render_dpi=N          GIF resolution (default 80)
+  device=cpu|cuda       where the model runs (default cpu)
+  --force               allow output (or render) to be the input file itself (refused otherwise)
+  -h, --help            show this help
+
+examples:
+  python -m inbetweening.predict ckpt_path=run/checkpoints/last.ckpt input=walk.bvh keyframes=[0,30,75] \\
+      output=walk_filled.bvh
+  python -m inbetweening.predict --ckpt_path run/last.ckpt --input keys.bvh --gap 30 --output out.bvh \\
+      --render out.gif
+"""
+
+OPTIONS = {
+    "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "gap": int, "max_gap": int,
+    "segment": parse_bool, "render": str, "render_dpi": int, "device": str, "force": parse_bool,
+}
+ALIASES = {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "in": "input", "out": "output", "o": "output",
+           "keys": "keyframes"}
+
+
+def render_comparison(result, path: str | Path, fps: float, dpi: int = 80) -> Path:
+    """GIF of a :class:`~inbetweening.tools.inbetweener.FillResult`: prediction | linear interpolation, keys in red."""
+    from inbetweening.tools.render import render_gif
+
+    skel = result.skeleton
+    ir, iq = result.interpolation()
+    _, lerp = _fk(ir, iq, skel)
+    highlight = np.zeros(result.num_frames, dtype=bool)
+    highlight[result.known_frames] = True
+    seqs = {"model": result.global_positions(), "linear interpolation": lerp}
+    return render_gif(seqs, skel.parents, path, fps=int(max(1, min(round(fps), 50))), highlight=highlight,
+                      dpi=dpi, title=Path(path).stem)
+
+
+def _fk(root, q, skel):
+    from inbetweening.geometry.skeleton import fk
+
+    return fk(q, skel.local_positions(root), skel.parents)
+
+
+def run(argv: Sequence[str]) -> int:
+    try:
+        args = parse_args(argv, OPTIONS, ALIASES)
+    except UsageError as e:
+        fail(e)
+    if args is None:
+        print(USAGE)
+        return 0
+    missing = [k for k in ("ckpt_path", "input", "output") if k not in args]
+    if missing:
+        fail(f"missing {', '.join(f'{k}=...' for k in missing)} (see --help)")
+    if ("keyframes" in args) == ("gap" in args):
+        fail("give exactly one of keyframes=[...] (frames of the input to keep) or gap=N (frames to generate "
+             "between consecutive input frames); see --help")
+
+    from inbetweening.checkpoint import CheckpointError
+    from inbetweening.data.bvh import BVHError, read_bvh, write_bvh
+    from inbetweening.tools.inbetweener import Inbetweener, InbetweenError
+
+    if not Path(args["input"]).is_file():
+        fail(f"input: {args['input']} does not exist")
+    from inbetweening.atomic import same_file
+
+    for key in ("output", "render"):
+        for src in ("input", "ckpt_path"):
+            if key in args and same_file(args[src], args[key]) and not args.get("force", False):
+                fail(f"{key}: {args[key]} is the {src} file; writing it would destroy the {src} "
+                     f"(choose another {key}, or --force to overwrite)")
+    device = args.get("device", "cpu")
+    import torch
+
+    if str(device).startswith("cuda") and not torch.cuda.is_available():
+        fail(f"device: {device} requested but CUDA is not available (use device=cpu)")
+    t0 = time.perf_counter()
+    try:
+        clip = read_bvh(args["input"])
+        kw = {k: args[k] for k in ("max_gap", "segment") if k in args}
+        ib = Inbetweener.from_checkpoint(args["ckpt_path"], device=device, **kw)
+        res = ib.fill_detailed(clip, keyframes=args.get("keyframes"), gap=args.get("gap"))
+        out = Path(args["output"])
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_bvh(res.bvh, out)
+    except (CheckpointError, InbetweenError, BVHError, OSError) as e:
+        fail(e)
+    n_gen = res.num_frames - len(res.known_frames)
+    msg = (f"wrote {out}: {res.num_frames} frames ({len(res.known_frames)} keyframes, {n_gen} generated; "
+           f"max gap {ib.max_gap}")
+    if res.pseudo_keyframes:
+        msg += f"; long gaps split at frames {res.pseudo_keyframes}"
+    print(msg + f") in {time.perf_counter() - t0:.1f} s")
+    if "render" in args:
+        try:
+            fps = 1.0 / res.bvh.frame_time if res.bvh.frame_time > 0 else ib.fps
+            gif = render_comparison(res, args["render"], fps, dpi=args.get("render_dpi", 80))
+        except (OSError, ValueError) as e:
+            fail(f"render: {e}")
+        print(f"wrote {gif}")
+    return 0
+
+
+def main() -> None:
+    sys.exit(run(sys.argv[1:]))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1 @@
+"""Training: Lightning module and data module, losses, callbacks, config checks, train/eval jobs."""
