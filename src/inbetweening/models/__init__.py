@@ -27,6 +27,17 @@ def build_model(name: str, **kwargs) -> InbetweenModel:
     return MODELS[name](**kwargs)
 
 
+def build_network(model_cfg: dict, skeleton) -> InbetweenModel:
+    """The network of a model config (``name`` + constructor values; ``hops`` builds a k-hop relation matrix)
+    for a :class:`~inbetweening.geometry.skeleton.Skeleton`; ValueError naming ``model.name`` if unknown."""
+    cfg = dict(model_cfg)
+    name = cfg.pop("name")
+    if name not in MODELS:
+        raise ValueError(f"model.name: unknown model {name!r}; choose one of {sorted(MODELS)}")
+    hops = int(cfg.get("hops", 1))
+    return build_model(name, num_joints=skeleton.num_joints, adjacency=skeleton.adjacency(hops).tolist(), **cfg)
+
+
 __all__ = [
     "MODELS",
     "FrameTransformer",
@@ -38,4 +49,5 @@ __all__ = [
     "UNet1D",
     "ZeroVelocity",
     "build_model",
+    "build_network",
 ]

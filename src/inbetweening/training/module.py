@@ -16,7 +16,7 @@ import torch
 from inbetweening.evaluation.benchmark import N_PAST
 from inbetweening.evaluation.metrics import BenchmarkMetric, PerJointError
 from inbetweening.geometry.skeleton import Skeleton, fk
-from inbetweening.models import MODELS, build_model
+from inbetweening.models import build_network
 from inbetweening.predictor import features as F
 from inbetweening.predictor.inference import CENTRES, masked_forward, predict_features
 from inbetweening.predictor.masks import MASK_NAMES, joints_known, transition_known
@@ -77,7 +77,7 @@ class InbetweenModule(L.LightningModule):
         if centre not in CENTRES:
             raise ValueError(f"centre must be one of {list(CENTRES)}, got {centre!r}")
         self.centre = centre
-        self.net = self.build_network(model, self.skeleton)
+        self.net = build_network(model, self.skeleton)
         j = self.skeleton.num_joints
         self.val_bench = BenchmarkMetric(self.skeleton, self.mean, self.std, val_lengths)
         self.test_bench = BenchmarkMetric(self.skeleton, self.mean, self.std, test_lengths)
@@ -87,15 +87,6 @@ class InbetweenModule(L.LightningModule):
         self.joint_mask = {k: v for k, v in (joint_mask or {}).items() if k != "name"}
         self.val_recovery = PerJointError(j)
         self.test_recovery = PerJointError(j)
-
-    @staticmethod
-    def build_network(model_cfg: dict, skeleton: Skeleton) -> torch.nn.Module:
-        cfg = dict(model_cfg)
-        name = cfg.pop("name")
-        if name not in MODELS:
-            raise ValueError(f"model.name: unknown model {name!r}; choose one of {sorted(MODELS)}")
-        hops = int(cfg.get("hops", 1))
-        return build_model(name, num_joints=skeleton.num_joints, adjacency=skeleton.adjacency(hops).tolist(), **cfg)
 
     @property
     def _distributed(self) -> bool:
