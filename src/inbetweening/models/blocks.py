@@ -113,9 +113,23 @@ class MultiHeadAttention(nn.Module):
         attn_mask: Tensor | None = None,
         key_padding_mask: Tensor | None = None,
     ) -> Tensor:
-        """``x (N, L, D) -> (N, L, D)``; masks as described in the class docstring."""
-        probs = self.dropout(self.attention_probs(x, prob_mask, attn_mask, key_padding_mask))
-        out = torch.matmul(probs, self._split(self.v_proj(x)))  # (N, H, L, head_dim)
+        """``x (N, L, D) -> (N, L, D)``; masks as described in the class docstring.
+
+        Without ``prob_mask`` (and with at most a boolean ``attn_mask``) this is PyTorch's fused
+        ``scaled_dot_product_attention``: the ``(N, heads, L, L)`` scores and probabilities are never kept for the
+        backward pass (a fraction of the memory, faster), and it exports to ONNX.  A ``prob_mask`` (the graph
+        multiplication with a non-binary ``M``), a key padding mask or a fully masked row takes the explicit path.
+        """
+        fused = prob_mask is None and key_padding_mask is None and (
+            attn_mask is None or (attn_mask.dtype == torch.bool and not bool(attn_mask.all(-1).any())))
+        if fused:
+            q, k, v = self._split(self.q_proj(x)), self._split(self.k_proj(x)), self._split(self.v_proj(x))
+            allowed = None if attn_mask is None else ~attn_mask  # SDPA's boolean convention: True = may attend
+            p = self.dropout.p if self.training else 0.0
+            out = nn.functional.scaled_dot_product_attention(q, k, v, attn_mask=allowed, dropout_p=p)
+        else:
+            probs = self.dropout(self.attention_probs(x, prob_mask, attn_mask, key_padding_mask))
+            out = torch.matmul(probs, self._split(self.v_proj(x)))  # (N, H, L, head_dim)
         out = out.transpose(1, 2).reshape(x.shape[0], -1, self.d_model)
         return self.out_proj(out)
 

@@ -95,6 +95,7 @@ class GraphTransformer(InbetweenModel):
         self.register_buffer("adjacency", adj)
         if graph == "multiply":  # softmax restricted to the neighbourhood: -inf (finite min) outside it
             self.register_buffer("graph_attn_mask", adj <= 0, persistent=False)
+        self.binary_graph = bool(((adj == 0) | (adj == 1)).all())
 
         # per-joint input projection (J separate Linear layers as one batched einsum)
         self.in_weight = nn.Parameter(torch.empty(num_joints, feature_dim, d_model))
@@ -152,7 +153,9 @@ class GraphTransformer(InbetweenModel):
 
     def _graph_masks(self) -> tuple[Tensor | None, Tensor | None]:
         if self.graph == "multiply":
-            return self.adjacency, self.graph_attn_mask
+            # binary M: the softmax over the neighbourhood is exactly 0 outside it and M is 1 inside, so the product
+            # changes nothing and the fused attention (no (N, H, J, J) tensors kept for backward) computes it
+            return (None if self.binary_graph else self.adjacency), self.graph_attn_mask
         if self.graph == "multiply_full":
             return self.adjacency, None
         return None, None
