@@ -81,7 +81,7 @@ def test_validation_windows_come_only_from_validation_clips(tmp_path, cache_dir)
 # ------------------------------------------------------------------------------------------ transitions
 def test_transition_per_sample(tmp_path, cache_dir):
     dm = _dm(tmp_path, cache_dir, "data.transition_per=sample", "data.transition_min=5", "data.transition_max=30")
-    n_past, lo, hi = dm.hparams.n_past, 5, 30
+    n_past, lo, hi = B.N_PAST, 5, 30
     idx = list(range(len(dm.train_feats)))
     batch = dm.collate_train([(0, 0, i) for i in idx])
     gt, known, loss_mask, n = batch["gt"], batch["known"], batch["loss_mask"], batch["n_trans"]
@@ -107,7 +107,7 @@ def test_transition_per_sample(tmp_path, cache_dir):
 
 def test_transition_per_batch_gives_one_length_per_batch(tmp_path, cache_dir):
     dm = _dm(tmp_path, cache_dir, "data.transition_per=batch", "data.transition_min=5", "data.transition_max=30")
-    n_past = dm.hparams.n_past
+    n_past = B.N_PAST
     lengths = []
     for epoch in range(4):
         for batch in _batches(dm, epoch):
