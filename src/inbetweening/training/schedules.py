@@ -52,7 +52,7 @@ def upgrade_optim(optim: dict | None) -> dict:
     ``min_lr_ratio``, with that code's defaults for missing keys) becomes the same optimiser and schedule."""
     if optim is None:
         optim = {"name": "adamw", "lr": 1e-3}  # what a module built without ``optim`` always trained with
-    if "optimizer" in optim:
+    if "optimizer" in optim or isinstance(optim.get("scheduler"), dict):
         return dict(optim)
     name = optim.get("name", "adamw")
     if name not in _OPTIMIZERS:
