@@ -2,17 +2,23 @@
 composed with every model."""
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+import torch
+from omegaconf import OmegaConf
 
 from conftest import CONF_DIR, compose_cfg
+from inbetweening.checkpoint import load_module
 from inbetweening.data.datasets import DatasetError, resolve_path
 from inbetweening.training.config import ConfigError, validate
+from inbetweening.training.schedules import SCHEDULE_TARGET, build_optimizers, lr_factor, upgrade_optim, warmup_decay
 
 ROOT = Path(__file__).resolve().parents[1]
+REFERENCE_CKPT = ROOT / "models" / "bn2_reference" / "model.ckpt"
 EXPERIMENTS = sorted(p.stem for p in (Path(CONF_DIR) / "experiment").glob("*.yaml"))
 MODELS = sorted(p.stem for p in (Path(CONF_DIR) / "model").glob("*.yaml"))
 
@@ -33,9 +39,20 @@ BAD = [
     (["data.synthetic.num_clips=3"], r"^data.synthetic.num_clips: need at least 5 clips"),
     (["data.synthetic.min_frames=30"], r"^data.synthetic.min_frames/max_frames: need 66 <= min <= max"),
     (["data.path=/nonexistent"], r"^data.path: data=synthetic generates its clips and reads no path"),
-    (["optim.lr=0"], r"^optim.lr: must be > 0"),
+    (["optim.optimizer.lr=0"], r"^optim.optimizer.lr: must be > 0"),
     (["centre=middle"], r"^centre: must be 'known' or 'window'"),
     (["mask.name=blur"], r"^mask.name: unknown mask 'blur'"),
+    (["+optim.lr=1e-3"], r"^optim.lr: not a setting of optim; set optim.optimizer.\* \(e.g. optim.optimizer.lr\)"),
+    (["optim=sgd", "+optim.optimizer.betas=[0.9,0.99]"], r"^optim.optimizer.betas: not an argument of torch.optim.SGD"),
+    (["optim.optimizer._target_=torch.nn.Linear"], r"^optim.optimizer._target_: torch.nn.Linear is not a torch optimiser"),
+    (["optim.optimizer._target_=torch.optim.Nope"], r"^optim.optimizer._target_: cannot import 'torch.optim.Nope'"),
+    (["optim.scheduler.decay=exponential"], r"^optim.scheduler.decay: must be one of \['cosine', 'linear', 'constant'\]"),
+    (["optim.scheduler.warmup_steps=-1"], r"^optim.scheduler.warmup_steps: must be an integer >= 0"),
+    (["optim.scheduler.min_lr_ratio=2"], r"^optim.scheduler.min_lr_ratio: must be in \[0, 1\]"),
+    (["~optim.scheduler.decay"], r"^optim.scheduler.decay: missing \(a required argument of "),
+    (["+data.foo=1"], r"^data.foo: not an argument of inbetweening.training.datamodule.InbetweenDataModule"),
+    (["+data.seed=1"], r"^data.seed: not an argument of .*InbetweenDataModule; its settings are \['batch_size'"),
+    (["~data.batch_size"], r"^data.batch_size: missing \(a required argument of "),
 ]
 
 
@@ -69,3 +86,145 @@ def test_cli_exits_2_with_one_line(overrides, match, tmp_path):
     assert r.returncode == 2, r.stderr[-1500:]
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), r.stderr
+
+
+def test_reference_experiment_composes_with_another_model(tmp_path):
+    cfg = compose_cfg("train", ["experiment=bn2_reference", "model=unet1d"], tmp_path, tmp_path)
+    validate(cfg)
+    assert cfg.model.name == "unet1d" and cfg.optim.scheduler.warmup_steps == 200 and cfg.optim.optimizer.lr == 1e-3
+
+
+# ------------------------------------------------------------------------------------------ optimiser and schedule
+OPTIMS = {"adamw": torch.optim.AdamW, "adam": torch.optim.Adam, "sgd": torch.optim.SGD}
+
+
+def _optimizers(optim: dict, total_steps: int = 20):
+    out = build_optimizers(optim, [torch.nn.Parameter(torch.zeros(3))], lambda: total_steps)
+    return (out["optimizer"], out["lr_scheduler"]["scheduler"]) if isinstance(out, dict) else (out, None)
+
+
+def _lrs(opt, sched, steps: int) -> list[float]:
+    lrs = []
+    for _ in range(steps):
+        lrs.append(opt.param_groups[0]["lr"])
+        opt.step()
+        sched.step()
+    return lrs
+
+
+def test_every_optim_yaml_is_listed():
+    assert sorted(p.stem for p in (Path(CONF_DIR) / "optim").glob("*.yaml")) == sorted(OPTIMS)
+
+
+@pytest.mark.parametrize("name", sorted(OPTIMS))
+def test_optim_yaml_instantiates_its_torch_optimiser_with_its_values(name, tmp_path):
+    cfg = compose_cfg("train", [f"optim={name}"], tmp_path, tmp_path)
+    validate(cfg)
+    optim = OmegaConf.to_container(cfg.optim, resolve=True)
+    opt, sched = _optimizers(optim)
+    assert type(opt) is OPTIMS[name]
+    given = {k: v for k, v in optim["optimizer"].items() if not k.startswith("_")}
+    assert given["lr"] > 0 and len(given) >= 2
+    group = opt.param_groups[0]
+    for k, v in given.items():
+        got = group["initial_lr"] if k == "lr" else group[k]  # (the schedule scales the current lr)
+        assert (tuple(got) if isinstance(got, (list, tuple)) else got) == (tuple(v) if isinstance(v, list) else v), k
+    assert isinstance(sched, torch.optim.lr_scheduler.LambdaLR)
+    s = optim["scheduler"]
+    assert s["_target_"] == SCHEDULE_TARGET and s["warmup_steps"] == 100 and s["decay"] == "cosine"
+    assert opt.param_groups[0]["lr"] == pytest.approx(given["lr"] / 100)  # warm-up starts at lr / warmup_steps
+
+
+def test_command_line_overrides_of_the_optimiser_compose(tmp_path):
+    over = ["optim=sgd", "optim.optimizer.lr=0.1", "optim.optimizer.momentum=0.5", "optim.scheduler.warmup_steps=0",
+            "optim.scheduler.decay=linear", "optim.scheduler.min_lr_ratio=0.2"]
+    cfg = compose_cfg("train", over, tmp_path, tmp_path)
+    validate(cfg)
+    opt, sched = _optimizers(OmegaConf.to_container(cfg.optim, resolve=True), total_steps=5)
+    assert type(opt) is torch.optim.SGD and opt.param_groups[0]["momentum"] == 0.5
+    assert _lrs(opt, sched, 7) == pytest.approx([0.1, 0.084, 0.068, 0.052, 0.036, 0.02, 0.02])
+    off = compose_cfg("train", ["optim.scheduler=null"], tmp_path, tmp_path)
+    validate(off)
+    opt, sched = _optimizers(OmegaConf.to_container(off.optim, resolve=True))
+    assert type(opt) is torch.optim.AdamW and sched is None  # a constant learning rate
+
+
+def _old_factor(cfg: dict, total: int):
+    """The schedule of ``InbetweenModule.configure_optimizers`` before the partials (the reference, verbatim)."""
+    sched = cfg.get("scheduler", "cosine")
+    warmup = int(cfg.get("warmup_steps", 0))
+    floor = float(cfg.get("min_lr_ratio", 0.0))
+
+    def factor(step: int) -> float:
+        if warmup and step < warmup:
+            return (step + 1) / warmup
+        if sched in (None, "none", "constant"):
+            return 1.0
+        progress = min(1.0, (step - warmup) / max(total - warmup, 1))
+        if sched == "linear":
+            return floor + (1 - floor) * (1 - progress)
+        return floor + (1 - floor) * 0.5 * (1 + math.cos(math.pi * progress))
+
+    return factor
+
+
+def test_warmup_decay_gives_the_exact_lr_sequence():
+    opt = torch.optim.SGD([torch.nn.Parameter(torch.zeros(1))], lr=2.0)
+    sched = warmup_decay(opt, total_steps=11, warmup_steps=4, decay="cosine", min_lr_ratio=0.1)
+    lrs = _lrs(opt, sched, 14)
+    assert lrs[:4] == [0.5, 1.0, 1.5, 2.0]  # linear warm-up: lr * (step + 1) / warmup
+    assert lrs[4] == 2.0  # the peak, then cosine down to the floor
+    assert lrs[7] == pytest.approx(2.0 * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * 3 / 7))), rel=1e-15)
+    assert all(a > b for a, b in zip(lrs[4:11], lrs[5:11]))
+    assert lrs[11:] == pytest.approx([0.2] * 3, rel=1e-15)  # the floor, held after the last step
+    # bit-identical to the schedule before the partials, for each decay and with / without warm-up
+    for decay, warmup, floor in [("cosine", 100, 0.05), ("linear", 3, 0.05), ("constant", 5, 0.0), ("cosine", 0, 0.0)]:
+        total = 137
+        old = _old_factor({"scheduler": decay, "warmup_steps": warmup, "min_lr_ratio": floor}, total)
+        want = [lr_factor(s, total, warmup, decay, floor) for s in range(total + 5)]
+        assert want == [old(s) for s in range(total + 5)], (decay, warmup, floor)
+
+
+OLD = {  # the optim groups of checkpoints made before the partials (conf/optim/*.yaml of that version)
+    "adamw": {"name": "adamw", "lr": 1e-3, "weight_decay": 1e-4, "betas": [0.9, 0.999], "warmup_steps": 100,
+              "scheduler": "cosine", "min_lr_ratio": 0.05},
+    "adam": {"name": "adam", "lr": 1e-3, "weight_decay": 0.0, "betas": [0.9, 0.999], "warmup_steps": 100,
+             "scheduler": "cosine", "min_lr_ratio": 0.05},
+    "sgd": {"name": "sgd", "lr": 1e-2, "momentum": 0.9, "nesterov": False, "weight_decay": 0.0, "warmup_steps": 100,
+            "scheduler": "cosine", "min_lr_ratio": 0.05},
+}
+
+
+@pytest.mark.parametrize("name", sorted(OLD))
+def test_old_optim_dicts_upgrade_to_the_same_optimiser_and_schedule(name, tmp_path):
+    new = OmegaConf.to_container(compose_cfg("train", [f"optim={name}"], tmp_path, tmp_path).optim, resolve=True)
+    assert upgrade_optim(OLD[name]) == new  # the old yaml is the new yaml
+    assert upgrade_optim(new) == new
+    a, b = _optimizers(OLD[name], 300), _optimizers(new, 300)
+    assert type(a[0]) is type(b[0]) is OPTIMS[name] and a[0].param_groups[0].keys() == b[0].param_groups[0].keys()
+    assert _lrs(*a, 300) == _lrs(*b, 300)
+
+
+def test_old_optim_dicts_keep_their_defaults_and_constant_schedules():
+    up = upgrade_optim({"name": "adamw", "lr": 2e-3, "scheduler": "linear", "warmup_steps": 5})
+    assert up["optimizer"] == {"_target_": "torch.optim.AdamW", "_partial_": True, "lr": 2e-3, "weight_decay": 0.0,
+                               "betas": [0.9, 0.999]}
+    assert up["scheduler"] == {"_target_": SCHEDULE_TARGET, "_partial_": True, "warmup_steps": 5, "decay": "linear",
+                               "min_lr_ratio": 0.0}
+    assert upgrade_optim({"name": "sgd", "scheduler": "constant"})["scheduler"] is None  # no warm-up: no schedule
+    assert upgrade_optim({"scheduler": "none", "warmup_steps": 3})["scheduler"]["decay"] == "constant"
+    assert upgrade_optim(None) == upgrade_optim({"name": "adamw", "lr": 1e-3})  # a module built without optim
+    with pytest.raises(ValueError, match="optim.name: unknown optimiser 'rmsprop'"):
+        upgrade_optim({"name": "rmsprop"})
+
+
+def test_old_checkpoint_loads_and_trains_with_the_upgraded_optimiser():
+    """models/bn2_reference/model.ckpt was saved with ``optim: {name: adamw, lr, ...}``."""
+    raw = torch.load(REFERENCE_CKPT, map_location="cpu", weights_only=True)
+    old = raw["hyper_parameters"]["optim"]
+    assert old["name"] == "adamw" and "optimizer" not in old
+    module = load_module(REFERENCE_CKPT)
+    assert module.hparams.optim == upgrade_optim(old) and module.hparams.optim["optimizer"]["lr"] == old["lr"]
+    assert module.hparams.optim["scheduler"]["warmup_steps"] == old["warmup_steps"] == 200
+    out = module.configure_optimizers()  # no trainer: one total step
+    assert type(out["optimizer"]) is torch.optim.AdamW and out["optimizer"].param_groups[0]["weight_decay"] == 1e-4

@@ -2,18 +2,21 @@
 batches that are a pure function of (seed, epoch, batch number) so a resumed run sees the same data."""
 from __future__ import annotations
 
+import inspect
 import random
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import torch
+from omegaconf import OmegaConf
 
-from conftest import TINY, compose_cfg
+from conftest import CONF_DIR, TINY, compose_cfg
 from inbetweening.evaluation import benchmark as B
 from inbetweening.predictor.inference import window_features
-from inbetweening.training.datamodule import split_train_val
-from inbetweening.training.train import make_datamodule
+from inbetweening.training.datamodule import InbetweenDataModule, split_train_val
+from inbetweening.training.train import make_datamodule, make_module
 
 DATA = [o for o in TINY if o.startswith("data.")]
 
@@ -40,6 +43,44 @@ def _order(dm, epoch: int) -> list[int]:
 def _same_batches(a: list[dict], b: list[dict]) -> bool:
     return len(a) == len(b) and all(x.keys() == y.keys() and all(torch.equal(x[k], y[k]) for k in x)
                                     for x, y in zip(a, b))
+
+
+# ------------------------------------------------------------------------------------------ built from the config
+FROM_OTHER_GROUPS = {"mask", "joint_mask", "seed"}  # what make_datamodule adds to cfg.data
+
+
+@pytest.mark.parametrize("data", sorted(p.stem for p in (Path(CONF_DIR) / "data").glob("*.yaml")))
+def test_data_yamls_hold_exactly_the_data_modules_arguments(data, tmp_path):
+    cfg = compose_cfg("train", [f"data={data}"], tmp_path, tmp_path)
+    assert cfg.data._target_ == "inbetweening.training.datamodule.InbetweenDataModule"
+    params = set(inspect.signature(InbetweenDataModule.__init__).parameters) - {"self"}
+    assert set(cfg.data) - {"_target_"} == params - FROM_OTHER_GROUPS
+
+
+def test_data_module_is_instantiated_from_the_config_unmapped(tmp_path, cache_dir):
+    """Every key of ``cfg.data`` reaches the constructor as it is (no setup: nothing is loaded)."""
+    over = ["data.eval_batch_size=7", "data.val_fraction=0.25", "data.test_lengths=[5,10]", "data.train_offset=13",
+            "data.max_val_windows=3", "data.transition_per=sample", "seed=5", "mask=joints", "mask.gap_min=4"]
+    cfg = compose_cfg("train", [*DATA, *over], tmp_path, cache_dir)
+    dm = make_datamodule(cfg)
+    assert type(dm) is InbetweenDataModule and dm.data is None
+    want = OmegaConf.to_container(cfg.data, resolve=True)
+    assert set(dm.hparams) == set(want) - {"_target_"} | FROM_OTHER_GROUPS
+    for k in set(want) - {"_target_"}:
+        assert dm.hparams[k] == want[k], k
+    assert dm.hparams.eval_batch_size == 7 and dm.hparams.test_lengths == [5, 10] and dm.hparams.train_offset == 13
+    assert isinstance(dm.hparams.test_lengths, list) and isinstance(dm.hparams.synthetic, dict)  # plain values
+    assert dm.hparams.seed == 5 and dm.hparams.mask == "joints" and dm.hparams.joint_mask["gap_min"] == 4
+
+
+def test_benchmark_lengths_reach_the_module_through_the_data_module(tmp_path, cache_dir):
+    over = ["data.val_lengths=[5,10]", "data.test_lengths=[7]"]
+    cfg = compose_cfg("train", [*TINY, *over], tmp_path, cache_dir)
+    dm = make_datamodule(cfg)
+    dm.setup("fit")
+    module = make_module(cfg, dm)
+    assert list(module.hparams.val_lengths) == [5, 10] and list(module.hparams.test_lengths) == [7]
+    assert list(module.val_bench.lengths) == [5, 10] and list(module.test_bench.lengths) == [7]
 
 
 # ------------------------------------------------------------------------------------------ train/val split
@@ -81,7 +122,7 @@ def test_validation_windows_come_only_from_validation_clips(tmp_path, cache_dir)
 # ------------------------------------------------------------------------------------------ transitions
 def test_transition_per_sample(tmp_path, cache_dir):
     dm = _dm(tmp_path, cache_dir, "data.transition_per=sample", "data.transition_min=5", "data.transition_max=30")
-    n_past, lo, hi = dm.hparams.n_past, 5, 30
+    n_past, lo, hi = B.N_PAST, 5, 30
     idx = list(range(len(dm.train_feats)))
     batch = dm.collate_train([(0, 0, i) for i in idx])
     gt, known, loss_mask, n = batch["gt"], batch["known"], batch["loss_mask"], batch["n_trans"]
@@ -107,7 +148,7 @@ def test_transition_per_sample(tmp_path, cache_dir):
 
 def test_transition_per_batch_gives_one_length_per_batch(tmp_path, cache_dir):
     dm = _dm(tmp_path, cache_dir, "data.transition_per=batch", "data.transition_min=5", "data.transition_max=30")
-    n_past = dm.hparams.n_past
+    n_past = B.N_PAST
     lengths = []
     for epoch in range(4):
         for batch in _batches(dm, epoch):

@@ -33,7 +33,7 @@ def trained(tmp_path_factory, cache_dir):
     out = tmp_path_factory.mktemp("eval_trained")
     over = [o for o in TINY if "max_steps" not in o] + [
         "callbacks=default", "callbacks.progress_bar=null", "callbacks.skeleton_figure=null", "logger=none",
-        "+trainer.enable_progress_bar=false", "optim.lr=1e-2", "optim.warmup_steps=0"]
+        "+trainer.enable_progress_bar=false", "optim.optimizer.lr=1e-2", "optim.scheduler.warmup_steps=0"]
     metrics = train(compose_cfg("train", over, out / "run", cache_dir))
     ckpts = sorted((out / "run" / "checkpoints").glob("epoch_*.ckpt"))
     assert len(ckpts) == 1  # one epoch, one validation: this is the checkpoint train() tested

@@ -15,7 +15,7 @@ from inbetweening.training.train import train, write_benchmark
 
 ROOT = Path(__file__).resolve().parents[1]
 DIVERGE = [o for o in TINY if "max_steps" not in o] + [
-    "optim.lr=1e12", "optim.weight_decay=0", "trainer.gradient_clip_val=null", "trainer.max_steps=30",
+    "optim.optimizer.lr=1e12", "optim.optimizer.weight_decay=0", "trainer.gradient_clip_val=null", "trainer.max_steps=30",
     "callbacks=default", "callbacks.progress_bar=null", "callbacks.skeleton_figure=null", "logger=none",
 ]
 

@@ -64,7 +64,8 @@ def test_reported_test_metrics_equal_the_checkpoint_scored_by_the_numpy_benchmar
     benchmark (:func:`~inbetweening.evaluation.benchmark.evaluate_transitions`) on the same test windows."""
     over = [o for o in BASE if "max_steps" not in o and not o.startswith("callbacks")] + [
         f"model={model}", *MODEL_TINY[model], "callbacks=default", "callbacks.progress_bar=null",
-        "callbacks.skeleton_figure=null", "optim.lr=1e-2", "optim.warmup_steps=0"]  # trained well away from init
+        "callbacks.skeleton_figure=null",
+        "optim.optimizer.lr=1e-2", "optim.scheduler.warmup_steps=0"]  # trained well away from init
     metrics, cfg = run_train(tmp_path, cache_dir, over)  # one epoch: validation, then the best checkpoint is tested
     ckpts = sorted((tmp_path / "run" / "checkpoints").glob("epoch_*.ckpt"))
     assert len(ckpts) == 1
@@ -200,7 +201,7 @@ def test_norms_train_loss_decreases(norm, tmp_path, cache_dir):
     "override,key",
     [("mask.name=bogus", "mask.name"), ("model.heads=3", "model.heads"), ("model.depth=0", "model.depth"),
      ("data.transition_min=20", "data.transition_min"), ("data.transition_max=60", "data.transition_max"),
-     ("+loss.l3=1", "loss.l3"), ("optim.lr=-1", "optim.lr")],
+     ("+loss.l3=1", "loss.l3"), ("optim.optimizer.lr=-1", "optim.optimizer.lr")],
 )
 def test_config_validation_names_the_key(override, key, tmp_path, cache_dir):
     extra = ["data.transition_max=10"] if override.startswith("data.transition_min") else []

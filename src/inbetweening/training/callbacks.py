@@ -72,7 +72,7 @@ class NonFiniteGuard(L.Callback):
         ckpt = last_checkpoint_path(trainer)
         where = f"last good checkpoint: {ckpt}" if ckpt else "no checkpoint was written yet"
         raise NonFiniteError(f"step {trainer.global_step}: {what}; training stopped ({where}); "
-                             "lower optim.lr or check the data")
+                             "lower optim.optimizer.lr or check the data")
 
     def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
         loss = outputs.get("loss") if isinstance(outputs, dict) else outputs

@@ -1,6 +1,8 @@
 """Configuration checks that run before any data is loaded: one clear line per problem."""
 from __future__ import annotations
 
+import inspect
+
 from omegaconf import DictConfig
 
 from inbetweening.evaluation.benchmark import N_PAST
@@ -46,8 +48,72 @@ def _check_model_keys(cfg, name: str) -> None:
                               f"model); its settings are {sorted(allowed - {'name'})}")
 
 
+def _resolve(cfg, key: str):
+    """The object ``<key>._target_`` names, found as ``hydra.utils.instantiate`` finds it (without its error log)."""
+    from hydra._internal.utils import _locate
+
+    target = _get(cfg, f"{key}._target_")
+    if target is None:
+        raise ConfigError(f"{key}._target_: missing")
+    try:
+        return _locate(str(target))
+    except Exception as e:  # noqa: BLE001 - whatever the import raised, the key is the message
+        raise ConfigError(f"{key}._target_: cannot import {target!r} ({type(e).__name__})") from None
+
+
+def _target_args(cfg, key: str, given_elsewhere: tuple[str, ...] = ()) -> None:
+    """``<key>._target_`` must import, every other key of ``<key>`` must be one of its arguments (not one of
+    ``given_elsewhere``, the arguments the code passes), and none of its required arguments may be missing."""
+    node, target = _get(cfg, key), _get(cfg, f"{key}._target_")
+    sig = inspect.signature(_resolve(cfg, key))
+    params = {k: p for k, p in sig.parameters.items() if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+    allowed = set(params) - set(given_elsewhere)
+    for k in node:
+        if k not in allowed and k not in ("_target_", "_partial_"):
+            raise ConfigError(f"{key}.{k}: not an argument of {target}; its settings are {sorted(allowed)}")
+    for k in sorted(allowed - set(node)):
+        if params[k].default is inspect.Parameter.empty:
+            raise ConfigError(f"{key}.{k}: missing (a required argument of {target})")
+
+
+def _check_optim(cfg) -> None:
+    """``optim.optimizer``: a torch optimiser partial, ``lr > 0``; ``optim.scheduler``: null or a schedule partial
+    (``warmup_steps >= 0``, ``decay``, ``min_lr_ratio`` in [0, 1])."""
+    import torch
+
+    from inbetweening.training.schedules import DECAYS
+
+    optim = _get(cfg, "optim")
+    if optim is None:
+        return
+    for k in optim:
+        if k not in ("optimizer", "scheduler"):
+            raise ConfigError(f"optim.{k}: not a setting of optim; set optim.optimizer.* (e.g. optim.optimizer.lr) "
+                              f"or optim.scheduler.* (e.g. optim.scheduler.warmup_steps)")
+    cls = _resolve(cfg, "optim.optimizer")
+    if not (isinstance(cls, type) and issubclass(cls, torch.optim.Optimizer)):
+        raise ConfigError(f"optim.optimizer._target_: {_get(cfg, 'optim.optimizer._target_')} is not a torch optimiser "
+                          "(a torch.optim.Optimizer)")
+    _target_args(cfg, "optim.optimizer", ("params",))
+    lr = _get(cfg, "optim.optimizer.lr")
+    if lr is not None and float(lr) <= 0:
+        raise ConfigError(f"optim.optimizer.lr: must be > 0, got {lr}")
+    if _get(cfg, "optim.scheduler") is None:
+        return
+    _target_args(cfg, "optim.scheduler", ("optimizer", "total_steps"))
+    decay, warmup, floor = (_get(cfg, f"optim.scheduler.{k}") for k in ("decay", "warmup_steps", "min_lr_ratio"))
+    if decay is not None and decay not in DECAYS:
+        raise ConfigError(f"optim.scheduler.decay: must be one of {list(DECAYS)}, got {decay!r}")
+    if warmup is not None and (isinstance(warmup, bool) or not isinstance(warmup, int) or warmup < 0):
+        raise ConfigError(f"optim.scheduler.warmup_steps: must be an integer >= 0, got {warmup!r}")
+    if floor is not None and not 0.0 <= float(floor) <= 1.0:
+        raise ConfigError(f"optim.scheduler.min_lr_ratio: must be in [0, 1], got {floor}")
+
+
 def _check_data(cfg, mask) -> None:
-    """Numeric ranges of the data settings and what the windows need from the model."""
+    """The data module's arguments, numeric ranges of the data settings and what the windows need from the model."""
+    if _get(cfg, "data") is not None:
+        _target_args(cfg, "data", ("mask", "joint_mask", "seed"))
     nw = _get(cfg, "data.num_workers")
     if nw is not None and (not isinstance(nw, int) or nw < 0):
         raise ConfigError(f"data.num_workers: must be an integer >= 0, got {nw!r}")
@@ -135,9 +201,4 @@ def validate(cfg: DictConfig) -> None:
             raise ConfigError(f"loss.{k}: unknown loss term; known: {list(LOSS_TERMS)}")
         if float(v) < 0:
             raise ConfigError(f"loss.{k}: weight must be >= 0, got {v}")
-    opt = _get(cfg, "optim.name")
-    if opt is not None and opt not in ("adam", "adamw", "sgd"):
-        raise ConfigError(f"optim.name: unknown optimiser {opt!r}; choose adam, adamw or sgd")
-    lr = _get(cfg, "optim.lr")
-    if lr is not None and float(lr) <= 0:
-        raise ConfigError(f"optim.lr: must be > 0, got {lr}")
+    _check_optim(cfg)

@@ -150,30 +150,52 @@ def split_train_val(clips: list, val_fraction: float) -> tuple[list, list]:
 
 
 class InbetweenDataModule(L.LightningDataModule):
+    """Built by ``hydra.utils.instantiate(cfg.data, mask=..., joint_mask=..., seed=...)``: ``conf/data/*.yaml``
+    hold exactly these arguments (the values live there, so none has a default here) except the last three,
+    which come from the ``mask`` group and the run's ``seed``.
+
+    Args:
+        name, path, cache_dir, forward_axis, synthetic, download: the dataset (see
+            :func:`inbetweening.data.datasets.load_dataset`).
+        batch_size, eval_batch_size, num_workers: loaders (``eval_batch_size``: validation and test).
+        val_fraction: share of the training clips held out for validation.
+        transition_min, transition_max, transition_per: transition lengths drawn for training batches
+            (per ``batch`` or per ``sample``).
+        train_window, train_offset: training windows (frames, stride).
+        val_lengths, test_lengths: transition lengths the validation and test benchmarks score (passed on to
+            the LightningModule by :meth:`model_kwargs`).
+        max_train_windows, max_eval_windows, max_val_windows: caps for quick runs (``None``: all windows;
+            ``max_eval_windows`` caps validation and test, ``max_val_windows`` validation only).
+        mask: ``zero`` | ``lerp`` | ``joints``; ``joint_mask``: the gap settings of ``mask=joints``.
+        seed: seeds the window order and the per-batch draws (a pure function of seed, epoch and batch).
+    """
+
     def __init__(
         self,
-        name: str = "synthetic",
-        path: str | None = None,
-        cache_dir: str | None = None,
-        forward_axis: list[float] | None = None,
-        synthetic: dict | None = None,
-        download: bool = False,
-        batch_size: int = 32,
-        eval_batch_size: int = 128,
-        num_workers: int = 0,
-        val_fraction: float = 0.1,
-        transition_min: int = 5,
-        transition_max: int = 30,
-        transition_per: str = "batch",
-        train_window: int = B.TRAIN_WINDOW,
-        train_offset: int = B.TRAIN_OFFSET,
-        n_past: int = B.N_PAST,
-        mask: str = "lerp",
-        joint_mask: dict | None = None,
-        max_train_windows: int | None = None,
-        max_eval_windows: int | None = None,
-        max_val_windows: int | None = None,
-        seed: int = 0,
+        *,
+        name: str,
+        path: str | None,
+        cache_dir: str | None,
+        forward_axis: list[float] | None,
+        synthetic: dict | None,
+        download: bool,
+        batch_size: int,
+        eval_batch_size: int,
+        num_workers: int,
+        val_fraction: float,
+        transition_min: int,
+        transition_max: int,
+        transition_per: str,
+        train_window: int,
+        train_offset: int,
+        val_lengths: list[int],
+        test_lengths: list[int],
+        max_train_windows: int | None,
+        max_eval_windows: int | None,
+        max_val_windows: int | None,
+        mask: str,
+        joint_mask: dict | None,
+        seed: int,
     ):
         super().__init__()
         self.save_hyperparameters(logger=False)  # the module logs the resolved data conventions
@@ -223,7 +245,8 @@ class InbetweenDataModule(L.LightningDataModule):
         d = self.data
         return {"skeleton": d.skeleton.to_dict(), "pos_mean": d.pos_mean.tolist(), "pos_std": d.pos_std.tolist(),
                 "dataset": d.name, "forward_axis": list(d.forward_axis), "fps": float(d.fps),
-                "train_window": int(self.hparams.train_window)}
+                "train_window": int(self.hparams.train_window), "val_lengths": list(self.hparams.val_lengths),
+                "test_lengths": list(self.hparams.test_lengths)}
 
     # ------------------------------------------------------------------ batches
     def collate_train(self, items: list) -> dict:
@@ -247,14 +270,14 @@ class InbetweenDataModule(L.LightningDataModule):
             n = torch.randint(lo, hi + 1, (b,), generator=gen)
         else:
             n = torch.randint(lo, hi + 1, (1,), generator=gen).expand(b)
-        t = h.n_past + int(n.max()) + 1
+        t = B.N_PAST + int(n.max()) + 1
         gt = gt[:, :t].clone()
-        target = h.n_past + n
+        target = B.N_PAST + n
         if h.transition_per == "sample":  # frames after each target repeat the target (known, not scored)
             tt = torch.arange(t)[None, :]
             src = torch.minimum(tt, target[:, None])
             gt = torch.gather(gt, 1, src[:, :, None, None].expand_as(gt))
-        known = transition_known(b, t, j, h.n_past, n)
+        known = transition_known(b, t, j, B.N_PAST, n)
         return {"gt": gt, "known": known, "loss_mask": ~known, "n_trans": n}
 
     def train_dataloader(self) -> DataLoader:

@@ -6,7 +6,6 @@ Everything in ``hparams`` is a plain value (dicts, lists, numbers, strings), so
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import lightning as L
@@ -21,6 +20,7 @@ from inbetweening.predictor import features as F
 from inbetweening.predictor.inference import CENTRES, masked_forward, predict_features
 from inbetweening.predictor.masks import MASK_NAMES, joints_known, transition_known
 from inbetweening.training.losses import total_loss
+from inbetweening.training.schedules import build_optimizers, upgrade_optim
 
 
 class InbetweenModule(L.LightningModule):
@@ -32,7 +32,8 @@ class InbetweenModule(L.LightningModule):
         pos_mean, pos_std: training statistics of global positions, ``J*3`` floats each.
         mask: ``zero`` | ``lerp`` | ``joints`` (what the network sees in place of unknown values).
         loss: weights of the loss terms (see :mod:`inbetweening.training.losses`).
-        optim: optimiser config (``name`` adam|adamw|sgd, ``lr``, ``weight_decay``, ``warmup_steps``, ...).
+        optim: ``optimizer`` and ``scheduler`` partials (``_target_`` dicts, see :mod:`inbetweening.training.schedules`;
+            the old form ``name`` adam|adamw|sgd, ``lr``, ``warmup_steps``, ... is upgraded).
         val_lengths, test_lengths: transition lengths scored by the benchmark metrics.
         dataset: name of the training dataset (recorded in ``benchmark.json``).
         forward_axis, fps, train_window: data conventions, kept so tools can prepare new windows alike.
@@ -71,7 +72,8 @@ class InbetweenModule(L.LightningModule):
         self.std = np.asarray(pos_std, dtype=np.float64)
         self.mask_name = mask
         self.loss_weights = dict(loss or {"l1": 1.0})
-        self.optim_cfg = dict(optim or {"name": "adamw", "lr": 1e-3})
+        self.optim_cfg = upgrade_optim(optim)  # checkpoints of the old form (optim.name, optim.lr, ...) still load
+        self.hparams["optim"] = self.optim_cfg
         self.n_past = n_past
         self.forward_axis = tuple(float(a) for a in forward_axis)
         if centre not in CENTRES:
@@ -221,36 +223,7 @@ class InbetweenModule(L.LightningModule):
         return max(int(steps), 1)
 
     def configure_optimizers(self):
-        cfg = self.optim_cfg
         params = [p for p in self.parameters() if p.requires_grad]
         if not params:  # non-trainable baselines: a dummy optimiser keeps Lightning happy
             params = [torch.nn.Parameter(torch.zeros(1))]
-        name, lr, wd = cfg.get("name", "adamw"), float(cfg.get("lr", 1e-3)), float(cfg.get("weight_decay", 0.0))
-        if name == "adamw":
-            opt = torch.optim.AdamW(params, lr=lr, weight_decay=wd, betas=tuple(cfg.get("betas", (0.9, 0.999))))
-        elif name == "adam":
-            opt = torch.optim.Adam(params, lr=lr, weight_decay=wd, betas=tuple(cfg.get("betas", (0.9, 0.999))))
-        elif name == "sgd":
-            opt = torch.optim.SGD(params, lr=lr, weight_decay=wd, momentum=float(cfg.get("momentum", 0.9)),
-                                  nesterov=bool(cfg.get("nesterov", False)))
-        else:
-            raise ValueError(f"optim.name: unknown optimiser {name!r}; choose adam, adamw or sgd")
-        sched = cfg.get("scheduler", "cosine")
-        if sched in (None, "none", "constant") and not cfg.get("warmup_steps"):
-            return opt
-        total = self._total_steps()
-        warmup = int(cfg.get("warmup_steps", 0))
-        floor = float(cfg.get("min_lr_ratio", 0.0))
-
-        def factor(step: int) -> float:
-            if warmup and step < warmup:
-                return (step + 1) / warmup
-            if sched in (None, "none", "constant"):
-                return 1.0
-            progress = min(1.0, (step - warmup) / max(total - warmup, 1))
-            if sched == "linear":
-                return floor + (1 - floor) * (1 - progress)
-            return floor + (1 - floor) * 0.5 * (1 + math.cos(math.pi * progress))
-
-        scheduler = torch.optim.lr_scheduler.LambdaLR(opt, factor)
-        return {"optimizer": opt, "lr_scheduler": {"scheduler": scheduler, "interval": "step", "name": "lr"}}
+        return build_optimizers(self.optim_cfg, params, self._total_steps)

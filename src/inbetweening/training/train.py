@@ -37,33 +37,26 @@ def output_dir(cfg: DictConfig) -> Path:
     return out
 
 
+def _plain(node):
+    return OmegaConf.to_container(node, resolve=True)
+
+
+def mask_settings(cfg: DictConfig) -> dict:
+    """The ``mask`` group as the data module and the LightningModule take it: the mask's name, and the gap
+    settings of ``mask=joints`` (``None`` for the other masks)."""
+    return {"mask": cfg.mask.name, "joint_mask": _plain(cfg.mask) if cfg.mask.name == "joints" else None}
+
+
 def make_datamodule(cfg: DictConfig) -> InbetweenDataModule:
-    d = OmegaConf.to_container(cfg.data, resolve=True)
-    return InbetweenDataModule(
-        name=d["name"], path=d.get("path"), cache_dir=d.get("cache_dir"), forward_axis=d.get("forward_axis"),
-        synthetic=d.get("synthetic"), download=bool(d.get("download", False)), batch_size=d["batch_size"],
-        eval_batch_size=d.get("eval_batch_size", 128), num_workers=d.get("num_workers", 0),
-        val_fraction=d.get("val_fraction", 0.1), transition_min=d["transition_min"],
-        transition_max=d["transition_max"], transition_per=d.get("transition_per", "batch"),
-        train_window=d.get("train_window", B.TRAIN_WINDOW), train_offset=d.get("train_offset", B.TRAIN_OFFSET),
-        mask=cfg.mask.name, joint_mask=OmegaConf.to_container(cfg.mask, resolve=True),
-        max_train_windows=d.get("max_train_windows"), max_eval_windows=d.get("max_eval_windows"),
-        max_val_windows=d.get("max_val_windows"), seed=int(cfg.seed),
-    )
+    """``cfg.data`` (``_target_`` and the data module's arguments), completed with the mask settings and the seed."""
+    return instantiate(cfg.data, _convert_="all", **mask_settings(cfg), seed=int(cfg.seed))
 
 
 def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
-    return InbetweenModule(
-        model=OmegaConf.to_container(cfg.model, resolve=True),
-        mask=cfg.mask.name,
-        loss=OmegaConf.to_container(cfg.loss, resolve=True),
-        optim=OmegaConf.to_container(cfg.optim, resolve=True),
-        val_lengths=list(cfg.data.val_lengths),
-        test_lengths=list(cfg.data.test_lengths),
-        joint_mask=OmegaConf.to_container(cfg.mask, resolve=True) if cfg.mask.name == "joints" else None,
-        centre=cfg.get("centre", "known"),
-        **dm.model_kwargs(),
-    )
+    """The LightningModule from the ``model``, ``mask``, ``loss`` and ``optim`` groups, ``centre``, and what the
+    (set up) data module knows: skeleton, statistics, benchmark lengths."""
+    return InbetweenModule(model=_plain(cfg.model), loss=_plain(cfg.loss), optim=_plain(cfg.optim), centre=cfg.centre,
+                           **mask_settings(cfg), **dm.model_kwargs())
 
 
 def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
