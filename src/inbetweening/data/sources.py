@@ -9,7 +9,13 @@ from pathlib import Path
 
 from inbetweening.data.errors import BVHError
 
-__all__ = ["iter_bvh_sources"]
+__all__ = ["find_files", "iter_bvh_sources"]
+
+
+def find_files(folder: Path, pattern: str = "*.bvh") -> list[Path]:
+    """Files under ``folder`` (recursively) whose name matches ``pattern`` case-insensitively, sorted by path."""
+    pat = pattern.lower()
+    return sorted(p for p in Path(folder).rglob("*") if fnmatch.fnmatch(p.name.lower(), pat) and p.is_file())
 
 
 def iter_bvh_sources(path: str | os.PathLike, pattern: str = "*.bvh") -> Iterator[tuple[str, bytes]]:
@@ -25,9 +31,7 @@ def iter_bvh_sources(path: str | os.PathLike, pattern: str = "*.bvh") -> Iterato
         raise FileNotFoundError(f"BVH source {str(path)!r} does not exist")
     pat = pattern.lower()
     if path.is_dir():
-        files = sorted(
-            (p.name, str(p)) for p in path.rglob("*") if fnmatch.fnmatch(p.name.lower(), pat) and p.is_file()
-        )
+        files = sorted((p.name, str(p)) for p in find_files(path, pattern))
         if not files:
             raise BVHError(f"no files matching {pattern!r} under this folder", str(path))
         for name, full in files:
