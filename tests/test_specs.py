@@ -198,3 +198,10 @@ def test_builtin_specs():
     assert lafan.download is not None and bn.download is None and syn.generate is not None
     assert len(LAFAN_MIRROR) == 8 and ("LeftForeArm", "RightForeArm") in LAFAN_MIRROR
     assert bn.split("dataset-2_walk_normal_010.bvh") == "test" and lafan.split("x_subject2.bvh") == "train"
+
+
+def test_entry_module_exports_the_registry():
+    import inbetweening.datasets as entry
+
+    assert entry.load_dataset is load_dataset and entry.register is register and entry.DATASETS is DATASETS
+    assert entry.DatasetSpec is DatasetSpec
