@@ -12,7 +12,7 @@ from inbetweening.data.clips import fold_static_root
 from inbetweening.data.datasets import load_dataset
 from inbetweening.data.errors import DatasetError
 from inbetweening.data.mirror import derive_mirror, mirror_permutation, side_of, side_pairs, swap_side, validate_mirror
-from inbetweening.data.specs import LAFAN_MIRROR, bandai_namco_split
+from inbetweening.data.specs import bandai_namco_split
 from inbetweening.data.synthetic import NAMES, PARENTS
 
 SHARED_BN2 = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "bandai-namco-2.zip"
@@ -23,6 +23,10 @@ BN_NAMES = (
     "UpperLeg_R", "LowerLeg_R", "Foot_R", "Toes_R",
 )  # fmt: skip
 BN_PARENTS = (-1, 0, 1, 2, 3, 4, 3, 6, 7, 8, 3, 10, 11, 12, 1, 14, 15, 16, 1, 18, 19, 20)
+LAFAN_MIRROR = (
+    ("LeftUpLeg", "RightUpLeg"), ("LeftLeg", "RightLeg"), ("LeftFoot", "RightFoot"), ("LeftToe", "RightToe"),
+    ("LeftShoulder", "RightShoulder"), ("LeftArm", "RightArm"), ("LeftForeArm", "RightForeArm"), ("LeftHand", "RightHand"),
+)  # fmt: skip
 BN_MIRROR = (
     ("Shoulder_L", "Shoulder_R"), ("UpperArm_L", "UpperArm_R"), ("LowerArm_L", "LowerArm_R"), ("Hand_L", "Hand_R"),
     ("UpperLeg_L", "UpperLeg_R"), ("LowerLeg_L", "LowerLeg_R"), ("Foot_L", "Foot_R"), ("Toes_L", "Toes_R"),
@@ -120,3 +124,9 @@ def test_unpaired_side_joint_without_counterpart_is_allowed():
     names = ("Hips", "LeftArm", "RightArm", "LeftProp")  # a prop on one side only: nothing to pair it with
     assert derive_mirror(names) == (("LeftArm", "RightArm"),)
     np.testing.assert_array_equal(mirror_permutation((("LeftArm", "RightArm"),), names), [0, 2, 1, 3])
+
+
+def test_a_skeleton_missing_one_side_keeps_the_other_pairs():
+    names = tuple(n for n in NAMES if n != "RightHand")  # e.g. a LAFAN-format file with a joint dropped
+    assert derive_mirror(names) == LAFAN_MIRROR[:-1]
+    assert validate_mirror(derive_mirror(names), names) == LAFAN_MIRROR[:-1]

@@ -12,11 +12,13 @@ from inbetweening.data.bvh import write_bvh
 from inbetweening.data.clips import Clip
 from inbetweening.data.datasets import load_dataset, resolve_path
 from inbetweening.data.errors import DatasetError
-from inbetweening.data.specs import DATASETS, LAFAN_MIRROR, DatasetSpec, get_spec, lafan_split, register
+from inbetweening.data.mirror import side_pairs
+from inbetweening.data.specs import DATASETS, DatasetSpec, get_spec, lafan_split, register
 from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip, make_bvh
 from inbetweening.evaluation import benchmark as B
 from inbetweening.geometry.skeleton import Skeleton
 
+LAFAN_MIRROR = side_pairs("Left{}", "UpLeg Leg Foot Toe Shoulder Arm ForeArm Hand")
 CONF_DATA = Path(__file__).resolve().parents[1] / "conf" / "data"
 MINI_RE = re.compile(r"^(?P<take>[a-z]+\d*)-(?P<actor>[A-Z])\.bvh$", re.IGNORECASE)
 
@@ -83,7 +85,7 @@ def test_builtin_lafan1_is_the_same_as_a_spec_with_its_fields(tmp_path, registry
     for s in range(1, 6):
         write_bvh(make_bvh(*generate_clip(rng, 130)), folder / f"walk_subject{s}.bvh")
     lafan = get_spec("lafan1")
-    register(DatasetSpec("copy", lafan.split, lafan.forward_axis, mirror=lafan.mirror))
+    register(DatasetSpec("copy", lafan.split, lafan.forward_axis, mirror=LAFAN_MIRROR))  # explicit: same map
     a = load_dataset("lafan1", path=folder, use_cache=False)
     b = load_dataset("copy", path=folder, use_cache=False)
     np.testing.assert_array_equal(a.test_X, b.test_X)
@@ -196,7 +198,7 @@ def test_builtin_specs():
     assert (lafan.fold_root, bn.fold_root, syn.fold_root) == (None, "joint_Root", None)
     assert (lafan.env_var, bn.env_var, syn.env_var) == ("LAFAN1_PATH", "BANDAI_NAMCO_PATH", None)
     assert lafan.download is not None and bn.download is None and syn.generate is not None
-    assert len(LAFAN_MIRROR) == 8 and ("LeftForeArm", "RightForeArm") in LAFAN_MIRROR
+    assert lafan.mirror is bn.mirror is syn.mirror is None  # derived from the loaded names, see test_mirror.py
     assert bn.split("dataset-2_walk_normal_010.bvh") == "test" and lafan.split("x_subject2.bvh") == "train"
 
 
