@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from inbetweening.atomic import write_text
+from inbetweening.data.sources import find_files
 
 SMALL = ("pos_mean", "pos_std", "offsets")  # loaded into memory; the rest is memory-mapped
 
@@ -38,20 +39,21 @@ def settings_key(settings: dict) -> str:
     return hashlib.sha1(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def _stat_signature(path: Path) -> list:
-    files = [path] if path.is_file() else sorted(path.rglob("*.bvh"))
+def _stat_signature(path: Path, pattern: str) -> list:
+    files = [path] if path.is_file() else find_files(path, pattern)
     return [(str(f), f.stat().st_size, f.stat().st_mtime_ns) for f in files]
 
 
-def hash_source(path: Path, memo_dir: Path | None = None) -> str:
-    """sha1 over the bytes of a zip file, or over the names and bytes of every .bvh file in a folder.
+def hash_source(path: Path, memo_dir: Path | None = None, pattern: str = "*.bvh") -> str:
+    """sha1 over the bytes of a zip file, or over the names and bytes of every file of a folder matching ``pattern``
+    (case-insensitively, as the readers match it).
 
     With ``memo_dir``, the digest is remembered against the files' (path, size, mtime) so an
     unchanged source is not re-read; any change to a file's size or modification time re-hashes it.
     """
     memo = None
     if memo_dir is not None:
-        sig = json.dumps(_stat_signature(path))
+        sig = json.dumps(_stat_signature(path, pattern))
         memo = Path(memo_dir) / "hashes" / (hashlib.sha1(sig.encode()).hexdigest() + ".txt")
         if memo.exists():
             digest = memo.read_text().strip()
@@ -63,7 +65,7 @@ def hash_source(path: Path, memo_dir: Path | None = None) -> str:
             while chunk := f.read(1 << 22):
                 h.update(chunk)
     else:
-        for p in sorted(path.rglob("*.bvh")):
+        for p in find_files(path, pattern):
             h.update(p.name.encode())
             h.update(p.read_bytes())
     digest = h.hexdigest()

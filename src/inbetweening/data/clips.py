@@ -1,0 +1,123 @@
+"""Clips and prepared datasets: the :class:`Clip`/:class:`MotionData` classes and BVH -> clip conversion.
+
+:func:`read_bvh_clips` is the default reader of a :class:`~inbetweening.data.specs.DatasetSpec`: it yields
+one clip per BVH file of a folder or zip whose name the spec's split rule accepts, folding a static root
+joint into its child where the spec names one (:func:`fold_static_root`).
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from inbetweening.data.bvh import BVH, parse_bvh
+from inbetweening.data.errors import DatasetError
+from inbetweening.data.sources import iter_bvh_sources
+from inbetweening.evaluation import benchmark as B
+from inbetweening.geometry.quaternion import qmul, qrot, remove_discontinuities
+from inbetweening.geometry.skeleton import Skeleton
+
+if TYPE_CHECKING:
+    from inbetweening.data.specs import DatasetSpec
+
+__all__ = ["Clip", "MotionData", "check_skeleton", "clip_from_bvh", "fold_static_root", "read_bvh_clips"]
+
+
+@dataclass
+class Clip:
+    """One motion clip: local quaternions ``(F, J, 4)`` wxyz and root positions ``(F, 3)`` (float64)."""
+
+    name: str
+    local_q: np.ndarray
+    root_pos: np.ndarray
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.root_pos.shape[0])
+
+
+@dataclass
+class MotionData:
+    """A prepared dataset: skeleton, clips per split, normalised benchmark windows and statistics."""
+
+    name: str
+    skeleton: Skeleton
+    fps: float
+    forward_axis: tuple[float, float, float]
+    train: list[Clip]
+    test: list[Clip]
+    pos_mean: np.ndarray  # (J*3,) mean of global positions over the training windows
+    pos_std: np.ndarray  # (J*3,)
+    test_X: np.ndarray = field(repr=False)  # (N, 65, J, 3) normalised benchmark windows
+    test_Q: np.ndarray = field(repr=False)  # (N, 65, J, 4)
+    source: str = ""
+    # left/right joint-name pairs (left first) of the skeleton, validated against it: see inbetweening.data.mirror
+    mirror: tuple[tuple[str, str], ...] = ()
+
+    def benchmark_set(self) -> B.BenchmarkSet:
+        return B.BenchmarkSet(self.test_X, self.test_Q, self.skeleton, self.pos_mean, self.pos_std)
+
+    def summary(self) -> dict:
+        return {
+            "dataset": self.name,
+            "joints": self.skeleton.num_joints,
+            "train_clips": len(self.train),
+            "test_clips": len(self.test),
+            "train_frames": int(sum(c.num_frames for c in self.train)),
+            "test_frames": int(sum(c.num_frames for c in self.test)),
+            "test_windows": int(self.test_X.shape[0]),
+        }
+
+
+def clip_from_bvh(bvh: BVH, name: str) -> tuple[Clip, Skeleton]:
+    """Local quaternions of every joint and the root's position channels, LAFAN1 convention."""
+    return Clip(name, bvh.local_rotations(), bvh.local_positions()[:, 0].copy()), bvh.skeleton()
+
+
+def fold_static_root(bvh: BVH, name: str, root_name: str = "joint_Root") -> tuple[Clip, Skeleton]:
+    """Drop a motionless top joint (Bandai-Namco's ``joint_Root``) by composing it into its child.
+
+    The child (``Hips``) becomes the root: its global rotation = R_top ⊗ R_hips and its global
+    position = p_top + R_top · p_hips, so the animation is unchanged.  Raises if the top joint is
+    not ``root_name`` or has more than one child.
+    """
+    if bvh.names[0] != root_name:
+        raise DatasetError(f"{name}: expected top joint {root_name!r}, found {bvh.names[0]!r}")
+    kids = [j for j, p in enumerate(bvh.parents) if p == 0]
+    if kids != [1]:
+        raise DatasetError(f"{name}: {root_name} must have exactly one child (joint 1), has {kids}")
+    q = bvh.local_rotations()
+    p = bvh.channel_positions()
+    hips_q = qmul(q[:, 0], q[:, 1])
+    hips_p = p[:, 0] + qrot(q[:, 0], p[:, 1])
+    local_q = np.concatenate([hips_q[:, None], q[:, 2:]], axis=1)
+    local_q = remove_discontinuities(local_q, axis=0)
+    skel = Skeleton(tuple(bvh.names[1:]), tuple(int(x) - 1 for x in bvh.parents[1:]), bvh.offsets[1:])
+    return Clip(name, local_q, hips_p), skel
+
+
+def check_skeleton(ref: Skeleton | None, skel: Skeleton, name: str) -> Skeleton:
+    """The dataset's skeleton so far (``ref``, ``None`` before the first file) after checking ``skel`` matches it."""
+    if ref is None:
+        return skel
+    if not ref.same_topology(skel):
+        raise DatasetError(f"{name}: skeleton differs from the dataset's first file ({skel.names[:3]}... vs {ref.names[:3]}...)")
+    return ref
+
+
+def read_bvh_clips(spec: DatasetSpec, path: Path) -> Iterator[tuple[str, Clip, Skeleton, float | None]]:
+    """The default reader: ``(file name, clip, skeleton, frames per second)`` per BVH file of ``path``.
+
+    Files are those matching ``spec.pattern``, sorted by name; a file the spec's split rule rejects is
+    skipped before it is parsed.  The clip is named after the file without its extension.
+    """
+    for fname, raw in iter_bvh_sources(path, spec.pattern):
+        if spec.split(fname) is None:
+            continue
+        bvh = parse_bvh(raw, source=fname)
+        stem = fname.rsplit(".", 1)[0]
+        clip, skel = fold_static_root(bvh, stem, spec.fold_root) if spec.fold_root else clip_from_bvh(bvh, stem)
+        yield fname, clip, skel, 1.0 / bvh.frame_time

@@ -1,0 +1,136 @@
+"""Every dataset is one :class:`DatasetSpec` in the :data:`DATASETS` registry.
+
+A spec holds everything :func:`inbetweening.data.datasets.load_dataset` needs: the file pattern, the split
+rule (file name -> ``"train"``/``"test"``/``None``), the root-local forward axis, where the files are found
+(environment variable, the config's default path, a hint for a missing path, an optional download), an
+optional static root joint to fold into its child, the left/right mirror map, the frame rate, and the
+reader (the BVH reader by default; a non-BVH source plugs in its own).  A new BVH dataset is one
+:func:`register` call (or one entry below) plus one ``conf/data/<name>.yaml``.
+
+* ``lafan1``       - Ubisoft LAFAN1, 77 BVH files ``<name>_subjectN.bvh`` (folder or ``lafan1.zip``);
+                     train = subject1-4, test = subject5; forward = root local +Y.
+* ``bandai_namco`` - Bandai-Namco-Research-Motiondataset-1/-2 (folder or zip).  The static
+                     ``joint_Root`` is folded into ``Hips``, which becomes the root; test = takes whose
+                     3-digit take number is divisible by 10, train = the rest; forward = root local +Z
+                     (measured on walk clips, see README).
+* ``synthetic``    - procedurally generated LAFAN-format BVH files (see :mod:`inbetweening.data.synthetic`),
+                     read back through the same BVH reader; test = subject5; forward = root local +Z.
+"""
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from inbetweening.data.clips import Clip, read_bvh_clips
+from inbetweening.data.errors import DatasetError
+from inbetweening.data.lafan1 import download_lafan1
+from inbetweening.data.mirror import MirrorMap
+from inbetweening.data.synthetic import generate_dataset
+from inbetweening.geometry.skeleton import Skeleton
+
+SplitRule = Callable[[str], "str | None"]
+# reader(spec, path) -> (file name, clip, skeleton, frames per second or None) per file, sorted by name
+Reader = Callable[["DatasetSpec", Path], Iterable[tuple[str, Clip, Skeleton, "float | None"]]]
+
+__all__ = ["DATASETS", "DatasetSpec", "bandai_namco_split", "get_spec", "lafan_split", "register"]
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """Everything that makes a dataset; see the module docstring.
+
+    ``mirror`` is a tuple of ``(left, right)`` joint names of the *loaded* skeleton (after root folding), or
+    ``None`` to derive it from the names' side markers (``LeftArm``/``RightArm``, ``Hand_L``/``Hand_R``); either
+    way it is validated against the skeleton on load (:mod:`inbetweening.data.mirror`) and handed out as
+    ``MotionData.mirror``.  Declare explicit pairs (e.g. with :func:`~inbetweening.data.mirror.side_pairs`) only
+    for names no side marker covers: an explicit map must fit every skeleton the spec is used with.
+
+    ``fps`` is the dataset's nominal frame rate: the files' own rate wins (a mismatch warns), and a reader
+    that knows none gets ``fps``.  ``generate(folder, **options)`` makes a generated dataset's files (no path
+    is read then).  ``default_path`` is the config's default location relative to the repository root
+    (``conf/data/<name>.yaml``); ``path_hint`` says where to get the files when the path is missing.
+    """
+
+    name: str
+    split: SplitRule
+    forward_axis: tuple[float, float, float]
+    pattern: str = "*.bvh"
+    env_var: str | None = None
+    default_path: str | None = None
+    path_hint: str = ""
+    fold_root: str | None = None
+    mirror: MirrorMap | None = None
+    fps: float = 30.0
+    reader: Reader = read_bvh_clips
+    download: Callable[[Path], Path] | None = None
+    generate: Callable[..., Path] | None = None
+
+    def __post_init__(self):
+        if len(self.forward_axis) != 3:
+            raise ValueError(f"DatasetSpec {self.name!r}: forward_axis must have 3 components, got {self.forward_axis!r}")
+        object.__setattr__(self, "forward_axis", tuple(float(a) for a in self.forward_axis))
+
+
+# ------------------------------------------------------------------------------------------
+# Split rules
+# ------------------------------------------------------------------------------------------
+_LAFAN_RE = re.compile(r"^(?P<seq>.+)_(?P<subject>subject\d+)\.bvh$", re.IGNORECASE)
+_BN_RE = re.compile(r"^dataset-(?P<ds>[12])_(?P<content>.+?)_(?P<style>[^_]+)_(?P<take>\d{3})\.bvh$", re.IGNORECASE)
+
+
+def lafan_split(fname: str, train_subjects=("subject1", "subject2", "subject3", "subject4"), test_subjects=("subject5",)):
+    """``<seq>_subjectN.bvh``: subject1-4 train, subject5 test; ``None`` for other names."""
+    m = _LAFAN_RE.match(fname)
+    if not m:
+        return None
+    subj = m.group("subject").lower()
+    return "train" if subj in train_subjects else "test" if subj in test_subjects else None
+
+
+def bandai_namco_split(fname: str):
+    """``dataset-N_<content>_<style>_<take>.bvh``: test when the take number is divisible by 10."""
+    m = _BN_RE.match(fname)
+    if not m:
+        return None
+    return "test" if int(m.group("take")) % 10 == 0 else "train"
+
+
+# ------------------------------------------------------------------------------------------
+# The registry
+# ------------------------------------------------------------------------------------------
+DATASETS: dict[str, DatasetSpec] = {}
+
+
+def register(spec: DatasetSpec, replace: bool = False) -> DatasetSpec:
+    """Add ``spec`` to :data:`DATASETS` under its name (``replace=True`` to overwrite an existing one)."""
+    if spec.name in DATASETS and not replace:
+        raise ValueError(f"dataset {spec.name!r} is already registered")
+    DATASETS[spec.name] = spec
+    return spec
+
+
+def get_spec(name: str) -> DatasetSpec:
+    """The registered spec called ``name``; :class:`DatasetError` listing the known names otherwise."""
+    if name not in DATASETS:
+        raise DatasetError(f"unknown dataset {name!r}; choose one of {sorted(DATASETS)}")
+    return DATASETS[name]
+
+
+# Mirror maps: the built-ins derive theirs from the loaded joint names (mirror=None), so a LAFAN-format folder
+# with another skeleton still loads (it is refused later, e.g. by a checkpoint of another skeleton).  The maps
+# this gives for the real skeletons are pinned in tests/test_mirror.py.
+register(DatasetSpec(
+    "lafan1", lafan_split, (0.0, 1.0, 0.0), env_var="LAFAN1_PATH", default_path="data/lafan1.zip",
+    path_hint="download lafan1.zip from the ubisoft-laforge-animation-dataset repository and pass its path "
+    "(or the folder of extracted .bvh files) as data.path=... or $LAFAN1_PATH",
+    download=download_lafan1,
+))  # fmt: skip
+register(DatasetSpec(
+    "bandai_namco", bandai_namco_split, (0.0, 0.0, 1.0), env_var="BANDAI_NAMCO_PATH",
+    default_path="../shared/datasets/bandai-namco-2.zip",
+    path_hint="pass the Bandai-Namco-Research-Motiondataset zip or its data/ folder as data.path=...",
+    fold_root="joint_Root",
+))  # fmt: skip
+register(DatasetSpec("synthetic", lafan_split, (0.0, 0.0, 1.0), generate=generate_dataset))
