@@ -12,6 +12,7 @@ import torch
 from conftest import CONF_DIR, TINY_MAX_FRAMES, TINY_PARENTS, compose_cfg, tiny_model
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.models import MODELS, InbetweenModel, build_network
+from inbetweening.training.config import ConfigError, validate
 
 J = len(TINY_PARENTS)
 ALL = sorted(MODELS)
@@ -56,6 +57,34 @@ def test_model_config_builds_the_model(name, tmp_path):
     net = build_network({**cfg.model, **MODELS[name].TINY}, skeleton)
     assert type(net) is MODELS[name] and isinstance(net, InbetweenModel)
     assert (sum(p.numel() for p in net.parameters()) > 0) == MODELS[name].trainable
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_config_validation_asks_the_model(name, tmp_path):
+    """A config is checked by the chosen model's own rules, the message naming ``model.<key>``."""
+    cfg = compose_cfg("train", [f"model={name}", "++model.feature_dim=3"], tmp_path, tmp_path)
+    with pytest.raises(ConfigError, match=r"^model.feature_dim: must be an integer >= 7, got 3$"):
+        validate(cfg)
+
+
+@pytest.mark.parametrize("overrides, match", [
+    (["model=unet1d", "model.norm_groups=3"], r"^model.norm_groups: 3 must divide model.base_channels=64$"),
+    (["model=st_transformer", "model.spatial_heads=3"], r"^model.spatial_heads: 3 must divide model.spatial_dim=32$"),
+    (["model=frame_transformer", "model.norm=group"], r"^model.norm: must be one of \['layer', 'batch'\]"),
+    (["model=graph_transformer", "model.graph=add"], r"^model.graph: must be one of"),
+    (["model=graph_transformer", "model.hops=1.5"], r"^model.hops: must be an integer >= 0, got 1.5$"),
+])
+def test_model_specific_config_errors(overrides, match, tmp_path):
+    with pytest.raises(ConfigError, match=match):
+        validate(compose_cfg("train", overrides, tmp_path, tmp_path))
+
+
+def test_rules_of_one_model_do_not_apply_to_another(tmp_path):
+    """``res_blocks=0`` is a valid ResNet-LSTM (the input layer straight into the LSTM); ``heads`` need not divide
+    ``d_model`` of a model without them (a setting of another model is refused as such)."""
+    validate(compose_cfg("train", ["model=resnet_lstm", "model.res_blocks=0"], tmp_path, tmp_path))
+    with pytest.raises(ConfigError, match=r"^model.heads: not a setting of model 'unet1d'"):
+        validate(compose_cfg("train", ["model=unet1d", "+model.heads=3"], tmp_path, tmp_path))
 
 
 @pytest.mark.parametrize("name", ALL)
