@@ -11,9 +11,40 @@ from omegaconf import open_dict
 
 CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")
 
+
+def model_overrides(name: str) -> list[str]:
+    """Hydra overrides ``model.<key>=<value>`` of the small test sizes a model declares (``MODELS[name].TINY``)."""
+    from inbetweening.models import MODELS
+
+    def value(v) -> str:
+        return "null" if v is None else str(v).lower() if isinstance(v, bool) else str(v)
+
+    return [f"model.{k}={value(v)}" for k, v in MODELS[name].TINY.items()]
+
+
+TINY_PARENTS = [-1, 0, 1, 2, 1, 4]  # small tree: 0-1-2-3 and 1-4-5
+TINY_MAX_FRAMES = 16
+
+
+def tiny_adjacency(parents=TINY_PARENTS) -> list[list[float]]:
+    """The parent/child relation matrix with self-loops, from the project's Skeleton."""
+    from inbetweening.geometry.skeleton import Skeleton
+
+    return Skeleton([f"j{i}" for i in range(len(parents))], parents, [[0.0, 0.0, 0.0]] * len(parents)).adjacency(1).tolist()
+
+
+def tiny_model(name: str, **kw):
+    """``MODELS[name]`` with its TINY sizes on the 6-joint test skeleton, ``max_frames=16``, no dropout; ``kw`` wins."""
+    from inbetweening.models import MODELS
+
+    args = {"num_joints": len(TINY_PARENTS), "adjacency": tiny_adjacency(), "max_frames": TINY_MAX_FRAMES,
+            "dropout": 0.0, **MODELS[name].TINY}
+    return MODELS[name](**{**args, **kw})
+
+
 # tiny model/data settings for fast CPU tests
 TINY = [
-    "model.d_model=16", "model.depth=1", "model.heads=2", "data.synthetic.num_clips=10",
+    *model_overrides("graph_transformer"), "data.synthetic.num_clips=10",
     "data.synthetic.min_frames=120", "data.synthetic.max_frames=160", "data.batch_size=8",
     "data.max_eval_windows=8", "trainer.max_steps=3", "trainer.max_epochs=1", "trainer.log_every_n_steps=1",
     "trainer.enable_model_summary=false",
@@ -41,7 +72,7 @@ def compose_cfg(config_name: str, overrides: list[str], out_dir: Path, cache: Pa
 
 # ------------------------------------------------------------------ animator tools (predict / export / notebook)
 TINY_CKPT_OVERRIDES = [
-    "model.d_model=16", "model.depth=1", "model.heads=2", "data.synthetic.num_clips=10",
+    *model_overrides("graph_transformer"), "data.synthetic.num_clips=10",
     "data.synthetic.min_frames=120", "data.synthetic.max_frames=160", "data.batch_size=8",
     "data.max_eval_windows=8", "trainer.max_steps=3", "trainer.max_epochs=1",
     "trainer.enable_model_summary=false", "+trainer.enable_progress_bar=false",

@@ -1,46 +1,20 @@
-"""Every registered model of the zoo honours the InbetweenModel contract: shapes, exact known pass-through (whole-frame
-and per-joint masks), unit quaternions, dynamic length, residual-to-interpolation start, trainability, ONNX export."""
+"""Behaviour of the individual models of the zoo: per-joint flags reach every network, every network trains, the
+baselines' closed forms, each model's own setting checks.  The common contract (shapes, exact known pass-through,
+unit quaternions, residual start, gradients, input checks, state_dict, ONNX) is tests/test_model_contract.py."""
 from __future__ import annotations
-
-import warnings
 
 import numpy as np
 import pytest
 import torch
 
-from conftest import sinusoid_batch
-from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.models import MODELS, Interpolation, ZeroVelocity, build_model
+from conftest import TINY_PARENTS, sinusoid_batch, tiny_model
+from conftest import tiny_adjacency as adjacency
+from inbetweening.models import MODELS, Interpolation, ZeroVelocity
 from inbetweening.predictor.masks import apply_mask
 
-PARENTS = [-1, 0, 1, 2, 1, 4]  # small tree: 0-1-2-3 and 1-4-5
-J = len(PARENTS)
-MAX_FRAMES = 16
-
-
-def adjacency(parents=PARENTS) -> list[list[float]]:
-    """The parent/child relation matrix with self-loops, from the project's Skeleton."""
-    return Skeleton([f"j{i}" for i in range(len(parents))], parents, [[0.0, 0.0, 0.0]] * len(parents)).adjacency(1).tolist()
-
-
-TINY = {
-    "graph_transformer": {"d_model": 16, "depth": 1, "heads": 2, "dropout": 0.0},
-    "frame_transformer": {"d_model": 16, "depth": 2, "heads": 2, "ffn_dim": 32, "dropout": 0.0},
-    "st_transformer": {"spatial_dim": 8, "spatial_depth": 1, "spatial_heads": 2, "d_model": 16, "temporal_depth": 1,
-                       "heads": 2, "dropout": 0.0},
-    "resnet_lstm": {"hidden_dim": 32, "res_blocks": 1, "lstm_hidden": 16, "lstm_layers": 2, "dropout": 0.0},
-    "unet1d": {"base_channels": 16, "levels": 2, "norm_groups": 4},
-    "zero_velocity": {},
-    "interpolation": {},
-}
+J = len(TINY_PARENTS)
 ALL = sorted(MODELS)
 TRAINABLE = [n for n in ALL if MODELS[n].trainable]
-BASELINES = [n for n in ALL if not MODELS[n].trainable]
-
-
-def tiny(name: str, **kw):
-    args = {"num_joints": J, "adjacency": adjacency(), "max_frames": MAX_FRAMES, **TINY[name]}
-    return build_model(name, **{**args, **kw})
 
 
 def make_batch(b=2, t=8, mask="frame", seed=0):
@@ -63,42 +37,10 @@ def _seed():
     torch.manual_seed(0)
 
 
-# ------------------------------------------------------------------ contract
-@pytest.mark.parametrize("mask", ["frame", "joint"])
-@pytest.mark.parametrize("name", ALL)
-def test_shape_known_passthrough_unit_quaternions(name, mask):
-    model = tiny(name).eval()
-    x, known, interp = make_batch(mask=mask)
-    with torch.no_grad():
-        out = model(x, known, interp)
-    assert out.shape == x.shape
-    assert torch.equal(out[known], x[known])
-    qn = out[..., 3:7].norm(dim=-1)[~known]
-    assert torch.allclose(qn, torch.ones_like(qn), atol=1e-5)
-
-
-@pytest.mark.parametrize("name", ALL)
-def test_dynamic_batch_and_length(name):
-    model = tiny(name).eval()
-    for b, t in [(1, 5), (3, 13)]:
-        x, known, interp = make_batch(b, t)
-        with torch.no_grad():
-            out = model(x, known, interp)
-        assert out.shape == (b, t, J, 7)
-        assert torch.isfinite(out).all()
-
-
-@pytest.mark.parametrize("name", TRAINABLE)
-def test_too_many_frames_raises(name):
-    x, known, _ = make_batch(1, MAX_FRAMES + 1)
-    with pytest.raises(ValueError, match="max_frames"):
-        tiny(name)(x, known)
-
-
 @pytest.mark.parametrize("name", TRAINABLE)
 def test_per_joint_flags_reach_the_model(name):
     """Only the known flag of one (zero-valued) slot changes: the other predictions must change too."""
-    model = tiny(name).eval()
+    model = tiny_model(name).eval()
     x, known, _ = make_batch(mask="frame")
     known2 = known.clone()
     known2[:, 4, 2] = True  # x is 0 there in both cases, only the flag differs
@@ -108,28 +50,10 @@ def test_per_joint_flags_reach_the_model(name):
     assert not torch.allclose(a[free], b[free], atol=1e-6)
 
 
-@pytest.mark.parametrize("name", [*TRAINABLE, "interpolation"])
-def test_residual_to_interpolation_starts_at_interp(name):
-    model = tiny(name, residual_to_interpolation=True)
-    x, known, interp = make_batch(mask="joint")
-    out = model(x, known, interp)
-    assert torch.allclose(out, model.finalize(interp, x, known), atol=1e-6)
-    if model.trainable:
-        out.abs().sum().backward()
-        assert sum(p.grad.abs().sum() for p in model.parameters() if p.grad is not None) > 0
-        assert model(x, known).shape == x.shape  # interp stays optional
-
-
-@pytest.mark.parametrize("name", ALL)
-def test_parameter_count(name):
-    n = sum(p.numel() for p in tiny(name).parameters())
-    assert (n > 0) == MODELS[name].trainable
-
-
 # ------------------------------------------------------------------ trainability
 @pytest.mark.parametrize("name", TRAINABLE)
 def test_trains(name):
-    model = tiny(name)
+    model = tiny_model(name)
     opt = torch.optim.Adam(model.parameters(), lr=3e-3)
     x, known, y = sinusoid_batch(J, b=8, island=True)
     free = ~known
@@ -141,30 +65,6 @@ def test_trains(name):
         opt.step()
         losses.append(loss.item())
     assert sum(losses[-3:]) / 3 < 0.8 * losses[0], losses
-
-
-# ------------------------------------------------------------------ ONNX
-@pytest.mark.parametrize("name", TRAINABLE)
-def test_onnx_export_matches_onnxruntime(name, tmp_path):
-    ort = pytest.importorskip("onnxruntime")
-    pytest.importorskip("onnx")
-    model = tiny(name).eval()
-    x, known, _ = make_batch(2, 8, mask="joint")
-    path = tmp_path / f"{name}.onnx"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        torch.onnx.export(
-            model, (x, known), str(path), dynamo=False, opset_version=17,
-            input_names=["x", "known"], output_names=["out"],
-            dynamic_axes={"x": {0: "B", 1: "T"}, "known": {0: "B", 1: "T"}, "out": {0: "B", 1: "T"}},
-        )
-    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
-    x2, known2, _ = make_batch(3, 13, mask="joint", seed=3)  # another B and T (other padding remainder for U-Net)
-    (got,) = session.run(None, {"x": x2.numpy(), "known": known2.numpy()})
-    with torch.no_grad():
-        ref = model(x2, known2).numpy()
-    assert got.shape == ref.shape
-    np.testing.assert_allclose(got, ref, atol=1e-4, rtol=0)
 
 
 # ------------------------------------------------------------------ baselines
@@ -232,38 +132,26 @@ def test_interpolation_model_is_lerp_and_slerp_in_closed_form():
         model(x, known)
 
 
-# ------------------------------------------------------------------ registry / validation
-def test_registry():
-    assert set(MODELS) == {"graph_transformer", "frame_transformer", "st_transformer", "resnet_lstm", "unet1d",
-                           "zero_velocity", "interpolation"}
-    assert set(BASELINES) == {"zero_velocity", "interpolation"}
-    for name in ALL:
-        assert isinstance(tiny(name), MODELS[name])
-
-
+# ------------------------------------------------------------------ validation
 @pytest.mark.parametrize(
     "name,kw,match",
     [
-        ("frame_transformer", {"heads": 3}, "heads"),
-        ("frame_transformer", {"depth": 0}, "depth"),
-        ("st_transformer", {"spatial_heads": 3}, "spatial_heads"),
-        ("resnet_lstm", {"lstm_layers": 0}, "lstm_layers"),
-        ("unet1d", {"norm_groups": 3}, "norm_groups"),
-        ("unet1d", {"levels": 0}, "levels"),
-        ("zero_velocity", {"feature_dim": 3}, "feature_dim"),
-        ("resnet_lstm", {"adjacency": [[1.0] * J] * (J - 1)}, "adjacency"),
+        ("frame_transformer", {"heads": 3}, r"^FrameTransformer: heads: 3 must divide d_model=16$"),
+        ("frame_transformer", {"depth": 0}, r"^FrameTransformer: depth: must be an integer >= 1, got 0$"),
+        ("frame_transformer", {"norm": "group"}, r"^FrameTransformer: norm: must be one of \['layer', 'batch'\]"),
+        ("st_transformer", {"spatial_heads": 3}, r"^STTransformer: spatial_heads: 3 must divide spatial_dim=8$"),
+        ("st_transformer", {"ffn_dim": 0}, r"^STTransformer: ffn_dim: must be an integer >= 1"),
+        ("resnet_lstm", {"lstm_layers": 0}, r"^ResNetLSTM: lstm_layers: must be an integer >= 1"),
+        ("resnet_lstm", {"res_blocks": -1}, r"^ResNetLSTM: res_blocks: must be an integer >= 0"),
+        ("resnet_lstm", {"activation": "swish"}, r"^ResNetLSTM: activation: must be one of"),
+        ("unet1d", {"norm_groups": 3}, r"^UNet1D: norm_groups: 3 must divide base_channels=16$"),
+        ("unet1d", {"levels": 0}, r"^UNet1D: levels: must be an integer >= 1"),
+        ("unet1d", {"base_channels": 16.0}, r"^UNet1D: base_channels: must be an integer >= 1, got 16.0$"),
     ],
 )
 def test_invalid_args(name, kw, match):
     with pytest.raises(ValueError, match=match):
-        tiny(name, **kw)
-
-
-@pytest.mark.parametrize("name", ALL)
-def test_wrong_input_shape_raises(name):
-    x, known, interp = make_batch()
-    with pytest.raises(ValueError, match="x must be"):
-        tiny(name)(x[:, :, :4], known[:, :, :4], interp[:, :, :4])
+        tiny_model(name, **kw)
 
 
 def test_baselines_ignore_architecture_settings():

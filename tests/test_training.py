@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import TINY, compose_cfg
+from conftest import TINY, compose_cfg, model_overrides
 from inbetweening.evaluation import benchmark as B
 from inbetweening.evaluation.collect import collect
 from inbetweening.evaluation.collect import main as collect_main
+from inbetweening.models import MODELS
 from inbetweening.predictor import features as F
 from inbetweening.predictor.inference import predict_transitions
 from inbetweening.predictor.masks import apply_mask, transition_known
@@ -23,16 +24,7 @@ from inbetweening.training.module import InbetweenModule
 from inbetweening.training.train import CheckpointError, load_module, make_datamodule, make_module, train
 
 ROOT = Path(__file__).resolve().parents[1]
-MODEL_TINY = {
-    "graph_transformer": ["model.d_model=16", "model.depth=1", "model.heads=2"],
-    "frame_transformer": ["model.d_model=16", "model.depth=1", "model.heads=2", "model.ffn_dim=32"],
-    "st_transformer": ["model.spatial_dim=8", "model.spatial_depth=1", "model.spatial_heads=2", "model.d_model=16",
-                       "model.temporal_depth=1", "model.heads=2"],
-    "resnet_lstm": ["model.hidden_dim=16", "model.res_blocks=1", "model.lstm_hidden=16", "model.lstm_layers=1"],
-    "unet1d": ["model.base_channels=8", "model.levels=2", "model.norm_groups=4"],
-    "zero_velocity": [],
-    "interpolation": [],
-}
+MODEL_TINY = {name: model_overrides(name) for name in MODELS}  # every registered model, its declared TINY sizes
 BASE = [o for o in TINY if not o.startswith("model.")] + ["callbacks=none", "logger=none"]
 
 

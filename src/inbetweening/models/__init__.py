@@ -1,4 +1,9 @@
-"""Model zoo: every model is an :class:`InbetweenModel` built from plain config values."""
+"""Model zoo: every model is an :class:`InbetweenModel` built from plain config values.
+
+Adding a model is one module (a subclass implementing ``network``, ``check_settings``, ``OUTPUT_HEAD`` and ``TINY``,
+see :mod:`.base`), one ``conf/model/<name>.yaml`` and one line in :data:`MODELS`; config validation and the contract
+tests (tests/test_model_contract.py) find it there.
+"""
 from __future__ import annotations
 
 from .base import InbetweenModel

@@ -1,31 +1,222 @@
-"""Common contract of every in-betweening model of the zoo."""
+"""Common contract of every in-betweening model of the zoo, written once.
+
+A model subclasses :class:`InbetweenModel` and implements only its network:
+
+* ``network(x, known, interp) -> raw (B, T, J, F)``;
+* ``check_settings(checks)`` (classmethod): rules of its own constructor settings (ValueError naming the setting);
+* ``OUTPUT_HEAD``: the parameter(s) / module(s) zeroed when ``residual_to_interpolation`` (so it starts at the
+  interpolation);
+* ``TINY``: small sizes for tests (every contract test builds every registered model with them).
+
+Everything else is here: the common constructor arguments and their checks, running the checks of every setting
+before anything is built (the same checks validate a config: :meth:`InbetweenModel.check_config`), the output head's
+zero initialisation, and ``forward`` = input checks -> ``network`` -> ``interp + raw`` (residual) -> :meth:`finalize`.
+"""
 from __future__ import annotations
+
+import inspect
+import numbers
+from collections.abc import Iterable, Mapping
+from typing import Any, ClassVar
 
 import torch
 from torch import Tensor, nn
 
+from .blocks import ACTIVATIONS, check_length
+
 FEATURE_DIM = 7  # per joint: [pos x, pos y, pos z, qw, qx, qy, qz]
 POS = slice(0, 3)
 QUAT = slice(3, 7)
+SKELETON_ARGS = ("num_joints", "adjacency")  # given by the skeleton, not by the model config
 
 
-class InbetweenModel(nn.Module):
-    """Base class: ``forward(x, known, interp=None) -> (B, T, J, 7)``.
+class Checks:
+    """Checks of named settings ``values``; the first failure raises ``ValueError("{prefix}{key}: ...")``.
 
-    * ``x``: ``(B, T, J, 7)`` masked input features (unknown values zeroed or interpolated by the data pipeline).
-    * ``known``: ``(B, T, J)`` bool, ``True`` where the value is given (keyframes / context).
-    * ``interp``: ``(B, T, J, 7)`` or ``None``: interpolation of the unknown frames (for residual prediction).
-
-    Every subclass ends its ``forward`` with :meth:`finalize`, so known values pass through bit-identically and
-    predicted quaternions have unit norm.  Baselines without parameters set ``trainable = False``.
+    ``prefix`` is ``""`` in a constructor (the class name is put in front) and ``"model."`` for a config, so the
+    message names the key the user typed; settings mentioned in a message carry the prefix too.
     """
 
-    trainable: bool = True
-    quat_eps: float = 1e-8
+    def __init__(self, values: Mapping[str, Any], prefix: str = ""):
+        self.values, self.prefix = values, prefix
 
-    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:  # pragma: no cover
-        """``x (B, T, J, F), known (B, T, J), interp (B, T, J, F) | None -> (B, T, J, F)``."""
+    def fail(self, key: str, detail: str) -> None:
+        raise ValueError(f"{self.prefix}{key}: {detail}")
+
+    def integer(self, *keys: str, minimum: int = 1, optional: bool = False) -> None:
+        """Each setting is an integer ``>= minimum`` (``None`` allowed when ``optional``: a derived default)."""
+        for k in keys:
+            v = self.values[k]
+            if v is None and optional:
+                continue
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < minimum:
+                self.fail(k, f"must be an integer >= {minimum}, got {v!r}")
+
+    def divides(self, key: str, total: str) -> None:
+        """Setting ``key`` divides setting ``total`` (both already checked as positive integers)."""
+        v, t = self.values[key], self.values[total]
+        if t % v:
+            self.fail(key, f"{v} must divide {self.prefix}{total}={t}")
+
+    def one_of(self, key: str, choices: Iterable[str]) -> None:
+        choices = list(choices)
+        if self.values[key] not in choices:
+            self.fail(key, f"must be one of {choices}, got {self.values[key]!r}")
+
+    def fraction(self, key: str) -> None:
+        """``0 <= value < 1`` (a dropout probability)."""
+        v = self.values[key]
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not 0.0 <= v < 1.0:
+            self.fail(key, f"must be in [0, 1), got {v}")
+
+    def activation(self, key: str = "activation") -> None:
+        self.one_of(key, sorted(ACTIVATIONS))
+
+
+def adjacency_tensor(adjacency: Any, num_joints: int) -> Tensor:
+    """``J x J`` nested list -> float32 ``(J, J)``; ValueError naming ``adjacency`` unless finite and ``J x J``."""
+    try:
+        adj = torch.as_tensor(adjacency, dtype=torch.float32)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"adjacency: must be a J x J nested list of numbers ({e})") from e
+    if tuple(adj.shape) != (num_joints, num_joints):
+        raise ValueError(f"adjacency: must have shape ({num_joints}, {num_joints}), got {tuple(adj.shape)}")
+    if not bool(torch.isfinite(adj).all()):
+        raise ValueError("adjacency: must be finite")
+    return adj
+
+
+class _Contract(type):
+    """Metaclass of the zoo: ``Model(...)`` checks every setting before the constructor runs (ValueError
+    ``"Model: key: ..."``), then zeroes the output head when ``residual_to_interpolation``."""
+
+    def __call__(cls, *args: Any, **kwargs: Any):
+        signature = inspect.signature(cls.__init__)
+        bound = signature.bind(None, *args, **kwargs)  # TypeError for unknown arguments, as a plain constructor
+        bound.apply_defaults()
+        values = {k: v for k, v in list(bound.arguments.items())[1:]
+                  if signature.parameters[k].kind is not inspect.Parameter.VAR_KEYWORD}
+        try:
+            Checks({"num_joints": values["num_joints"]}).integer("num_joints")
+            if values.get("adjacency") is not None:  # models that do not use it still check it (skeleton mismatch)
+                adjacency_tensor(values["adjacency"], values["num_joints"])
+            cls.check_config({k: v for k, v in values.items() if k not in SKELETON_ARGS})
+        except ValueError as e:
+            raise ValueError(f"{cls.__name__}: {e}") from None
+        model = super().__call__(*args, **kwargs)
+        model._init_output_head()
+        return model
+
+
+class InbetweenModel(nn.Module, metaclass=_Contract):
+    """Base class: ``forward(x, known, interp=None) -> (B, T, J, F)``.
+
+    * ``x``: ``(B, T, J, F)`` masked input features (unknown values zeroed or interpolated by the data pipeline).
+    * ``known``: ``(B, T, J)`` bool, ``True`` where the value is given (keyframes / context).
+    * ``interp``: ``(B, T, J, F)`` or ``None``: interpolation of the unknown frames (for residual prediction).
+
+    Known values pass through bit-identically and predicted quaternions have unit norm (:meth:`finalize`).
+
+    Common constructor arguments (every subclass passes them to ``super().__init__``): ``num_joints`` (``J``),
+    ``adjacency`` (``J x J`` joint relation matrix, checked even by models that do not use it), ``feature_dim``
+    (``F >= 7``: pos xyz + quaternion wxyz), ``max_frames`` (longest window ``T``), ``residual_to_interpolation``
+    (predict ``interp + network(...)`` when ``interp`` is given; output head initialised to 0), ``dropout``.
+    """
+
+    trainable: ClassVar[bool] = True  # baselines without parameters: False
+    length_limited: ClassVar[bool] = True  # forward raises ValueError when T > max_frames
+    quat_eps: ClassVar[float] = 1e-8
+    OUTPUT_HEAD: ClassVar[tuple[str, ...]] = ()  # names of parameters / submodules zeroed when residual
+    TINY: ClassVar[dict[str, Any]] = {}  # small settings for tests
+
+    def __init__(
+        self,
+        num_joints: int,
+        adjacency: list[list[float]] | None,
+        feature_dim: int = FEATURE_DIM,
+        max_frames: int = 128,
+        residual_to_interpolation: bool = False,
+        dropout: float = 0.0,
+    ):
+        super().__init__()
+        self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
+        self.residual_to_interpolation = bool(residual_to_interpolation)
+
+    # ------------------------------------------------------------------ settings
+    @classmethod
+    def settings(cls) -> dict[str, Any]:
+        """Constructor settings a config may give (name -> default), i.e. all but ``num_joints`` / ``adjacency``."""
+        params = inspect.signature(cls.__init__).parameters
+        return {k: p.default for k, p in params.items() if k != "self" and k not in SKELETON_ARGS
+                and p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)}
+
+    @classmethod
+    def accepts_any_setting(cls) -> bool:
+        """True if the constructor takes ``**kwargs`` (baselines ignore a sweep's architecture settings)."""
+        params = inspect.signature(cls.__init__).parameters.values()
+        return any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params)
+
+    @classmethod
+    def check_config(cls, settings: Mapping[str, Any], prefix: str = "") -> None:
+        """ValueError ``"{prefix}{key}: ..."`` for the first invalid setting; missing settings take the defaults.
+        Used by the constructor and by the config validation (``prefix="model."``)."""
+        checks = Checks({**cls.settings(), **settings}, prefix)
+        checks.integer("feature_dim", minimum=FEATURE_DIM)
+        checks.integer("max_frames")
+        checks.fraction("dropout")
+        cls.check_settings(checks)
+
+    @classmethod
+    def check_settings(cls, checks: Checks) -> None:
+        """The subclass's own rules, on ``checks.values`` (every constructor setting, defaults filled in)."""
+
+    # ------------------------------------------------------------------ output head
+    def output_head(self) -> list[nn.Parameter]:
+        """The parameters named by ``OUTPUT_HEAD`` (a parameter name, or a submodule: all its parameters)."""
+        named = dict(self.named_parameters())
+        params = [p for k, p in named.items() if any(k == h or k.startswith(h + ".") for h in self.OUTPUT_HEAD)]
+        if self.trainable and not params:
+            raise TypeError(f"{type(self).__name__}.OUTPUT_HEAD {self.OUTPUT_HEAD} names no parameter")
+        return params
+
+    def init_output_head(self) -> None:
+        """Initial values of the output head when not residual (default: as its layers built it)."""
+
+    def _init_output_head(self) -> None:
+        if self.residual_to_interpolation:  # start from the interpolation
+            with torch.no_grad():
+                for p in self.output_head():
+                    p.zero_()
+        else:
+            self.init_output_head()
+
+    # ------------------------------------------------------------------ forward
+    def network(self, x: Tensor, known: Tensor, interp: Tensor | None) -> Tensor:  # pragma: no cover
+        """``x (B, T, J, F), known (B, T, J) bool, interp (B, T, J, F) | None -> raw (B, T, J, F)``."""
         raise NotImplementedError
+
+    def check_input(self, x: Tensor, known: Tensor, interp: Tensor | None) -> None:
+        """ValueError unless ``x`` is ``(B, T, J, F)``, ``known`` ``(B, T, J)``, ``interp`` ``None`` or like ``x``,
+        and ``T <= max_frames`` (skipped while tracing / compiling, where shapes are symbolic)."""
+        if torch.jit.is_tracing() or torch.compiler.is_compiling():
+            return
+        name, j, f = type(self).__name__, self.num_joints, self.feature_dim
+        if x.dim() != 4 or x.shape[-2] != j or x.shape[-1] != f:
+            raise ValueError(f"{name}: x must be (B, T, {j}, {f}), got {tuple(x.shape)}")
+        if tuple(known.shape) != tuple(x.shape[:3]):
+            raise ValueError(f"{name}: known must be (B, T, J) = {tuple(x.shape[:3])}, got {tuple(known.shape)}")
+        if interp is not None and tuple(interp.shape) != tuple(x.shape):
+            raise ValueError(f"{name}: interp must have the shape of x {tuple(x.shape)}, got {tuple(interp.shape)}")
+        if self.length_limited:
+            check_length(x.shape[1], self.max_frames)
+
+    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
+        """``x (B, T, J, F), known (B, T, J), interp (B, T, J, F) | None -> (B, T, J, F)``."""
+        self.check_input(x, known, interp)
+        raw = self.network(x, known, interp)
+        if self.residual_to_interpolation and interp is not None:
+            raw = interp + raw
+        return self.finalize(raw, x, known)
 
     @classmethod
     def normalize_quaternions(cls, raw: Tensor) -> Tensor:

@@ -4,7 +4,7 @@
   (a whole-frame gap repeats the last context frame); before the first known frame, the next known one.
 * :class:`Interpolation`: the masked-input interpolation computed by the data pipeline (``interp``).
 
-Both end with :meth:`InbetweenModel.finalize` (known values copied bit-identically, unit quaternions).
+Both go through :meth:`InbetweenModel.forward` (known values copied bit-identically, unit quaternions).
 """
 from __future__ import annotations
 
@@ -12,13 +12,13 @@ import torch
 from torch import Tensor
 
 from .base import FEATURE_DIM, QUAT, InbetweenModel
-from .blocks import check_input, validate_common
 
 
 class _Baseline(InbetweenModel):
     """Shared constructor: plain values, same leading signature as the trainable models, no parameters."""
 
     trainable = False
+    length_limited = False  # any T works
 
     def __init__(
         self,
@@ -27,27 +27,25 @@ class _Baseline(InbetweenModel):
         feature_dim: int = FEATURE_DIM,
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
+        dropout: float = 0.0,
         **architecture: object,
     ):
-        # architecture settings shared by a sweep (dropout, depth, ...) mean nothing to a baseline: ignored
-        super().__init__()
-        validate_common(type(self).__name__, num_joints, adjacency, feature_dim, max_frames)
-        self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
-        # accepted for config uniformity; a baseline has nothing to add to the interpolation
-        self.residual_to_interpolation = bool(residual_to_interpolation)
+        # architecture settings shared by a sweep (depth, ...) mean nothing to a baseline: ignored; and a baseline has
+        # nothing to add to the interpolation: residual_to_interpolation is accepted for config uniformity only
+        del residual_to_interpolation
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, False, dropout)
 
 
 class ZeroVelocity(_Baseline):
     """Hold the last known value of each joint (zero-velocity / step extrapolation).
 
-    Args: ``num_joints``, ``adjacency`` (checked, unused), ``feature_dim``; ``max_frames`` and
+    Args: ``num_joints``, ``adjacency`` (checked, unused), ``feature_dim``; ``max_frames``, ``dropout`` and
     ``residual_to_interpolation`` are accepted for config uniformity and ignored (any ``T`` works).
     A joint with no known frame at all keeps its (masked) input with, if degenerate, the identity quaternion.
     """
 
-    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
-        """``x (B, T, J, F), known (B, T, J) bool, interp ignored -> (B, T, J, F)``."""
-        check_input(type(self).__name__, x, known, self.num_joints, self.feature_dim)
+    def network(self, x: Tensor, known: Tensor, interp: Tensor | None) -> Tensor:
+        """``x (B, T, J, F), known (B, T, J) bool, interp ignored -> raw (B, T, J, F)``."""
         known = known.to(torch.bool)
         t = x.shape[1]
         frame = torch.arange(t, device=x.device).view(1, t, 1).expand_as(known)
@@ -59,19 +57,15 @@ class ZeroVelocity(_Baseline):
         identity = torch.zeros_like(q)
         identity[..., 0] = 1.0
         degenerate = (q * q).sum(dim=-1, keepdim=True) < self.quat_eps
-        raw = torch.cat([raw[..., : QUAT.start], torch.where(degenerate, identity, q), raw[..., QUAT.stop :]], -1)
-        return self.finalize(raw, x, known)
+        return torch.cat([raw[..., : QUAT.start], torch.where(degenerate, identity, q), raw[..., QUAT.stop :]], -1)
 
 
 class Interpolation(_Baseline):
     """Return the data pipeline's interpolation ``interp`` (linear positions / slerp rotations) of the unknown
     values; ValueError if ``interp`` is ``None``.  Constructor as :class:`ZeroVelocity`."""
 
-    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
-        """``x (B, T, J, F), known (B, T, J) bool, interp (B, T, J, F) -> (B, T, J, F)``."""
-        check_input(type(self).__name__, x, known, self.num_joints, self.feature_dim)
+    def network(self, x: Tensor, known: Tensor, interp: Tensor | None) -> Tensor:
+        """``x (B, T, J, F), known (B, T, J) bool, interp (B, T, J, F) -> raw = interp``."""
         if interp is None:
             raise ValueError("Interpolation: interp is required (the masked-input interpolation of the data pipeline)")
-        if tuple(interp.shape) != tuple(x.shape):
-            raise ValueError(f"Interpolation: interp must have the shape of x {tuple(x.shape)}, got {tuple(interp.shape)}")
-        return self.finalize(interp, x, known)
+        return interp

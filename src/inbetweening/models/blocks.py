@@ -2,7 +2,7 @@
 
 Reused by every model of the zoo (graph transformer, frame transformer, spatio-temporal transformer, ResNet-LSTM,
 1D U-Net...): attention, norms, generic pre-/post-norm transformer encoder, residual MLP, and the small helpers
-every model needs (argument validation, input checks, per-frame feature flattening with the per-joint known flags).
+every model needs (sequence length check, per-frame feature flattening with the per-joint known flags).
 """
 from __future__ import annotations
 
@@ -23,12 +23,9 @@ __all__ = [
     "SinusoidalPositionalEncoding",
     "TransformerBlock",
     "TransformerEncoder",
-    "check_input",
     "check_length",
     "frame_features",
     "make_activation",
-    "require",
-    "validate_common",
 ]
 
 NORMS = ("layer", "batch")
@@ -298,53 +295,6 @@ class ResidualMLPBlock(nn.Module):
 
 
 # ---------------------------------------------------------------------------------------------------- helpers
-def require(cond: bool, owner: str, msg: str) -> None:
-    """Raise ``ValueError(f"{owner}: {msg}")`` unless ``cond``."""
-    if not cond:
-        raise ValueError(f"{owner}: {msg}")
-
-
-def validate_common(
-    owner: str,
-    num_joints: int,
-    adjacency: list[list[float]] | None,
-    feature_dim: int,
-    max_frames: int,
-    dropout: float = 0.0,
-    min_feature_dim: int = 7,
-) -> None:
-    """Checks shared by every model constructor (ValueError naming the offending argument).
-
-    ``adjacency`` may be ``None``; otherwise it must be a finite ``num_joints x num_joints`` nested list (models that
-    do not use it still check it, to catch a skeleton / ``num_joints`` mismatch in the config).
-    """
-    require(num_joints >= 1, owner, f"num_joints must be >= 1, got {num_joints}")
-    require(feature_dim >= min_feature_dim, owner,
-            f"feature_dim must be >= {min_feature_dim} (pos + quaternion), got {feature_dim}")
-    require(max_frames >= 1, owner, f"max_frames must be >= 1, got {max_frames}")
-    require(0.0 <= dropout < 1.0, owner, f"dropout must be in [0, 1), got {dropout}")
-    if adjacency is None:
-        return
-    try:
-        adj = torch.as_tensor(adjacency, dtype=torch.float32)
-    except (TypeError, ValueError) as e:
-        raise ValueError(f"{owner}: adjacency must be a J x J nested list of numbers ({e})") from e
-    require(tuple(adj.shape) == (num_joints, num_joints), owner,
-            f"adjacency must have shape ({num_joints}, {num_joints}), got {tuple(adj.shape)}")
-    require(bool(torch.isfinite(adj).all()), owner, "adjacency must be finite")
-
-
-def check_input(owner: str, x: Tensor, known: Tensor, num_joints: int, feature_dim: int) -> None:
-    """ValueError unless ``x`` is ``(B, T, num_joints, feature_dim)`` and ``known`` is ``(B, T, num_joints)``
-    (skipped while tracing / compiling, where shapes are symbolic)."""
-    if torch.jit.is_tracing() or torch.compiler.is_compiling():
-        return
-    if x.dim() != 4 or x.shape[-2] != num_joints or x.shape[-1] != feature_dim:
-        raise ValueError(f"{owner}: x must be (B, T, {num_joints}, {feature_dim}), got {tuple(x.shape)}")
-    if tuple(known.shape) != tuple(x.shape[:3]):
-        raise ValueError(f"{owner}: known must be (B, T, J) = {tuple(x.shape[:3])}, got {tuple(known.shape)}")
-
-
 def frame_features(x: Tensor, known: Tensor) -> Tensor:
     """One vector per frame: ``x (B, T, J, F), known (B, T, J) -> (B, T, J*F + J)`` = all joints' features followed
     by the per-joint known flags (1.0 known, 0.0 missing), so per-joint masks reach frame-level models."""

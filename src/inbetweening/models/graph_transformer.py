@@ -10,7 +10,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
-from .base import FEATURE_DIM, InbetweenModel
+from .base import FEATURE_DIM, Checks, InbetweenModel
 from .blocks import NORMS, AddNorm, FeedForward, MultiHeadAttention, PositionEmbedding, SinusoidalPositionalEncoding
 
 # multiply      : Z = (M ⊙ softmax_M(QKᵀ/√d)) V, the softmax taken over the M-neighbourhood, so a joint's output
@@ -49,9 +49,8 @@ class GraphTransformerLayer(nn.Module):
 class GraphTransformer(InbetweenModel):
     """Graph-attention in-betweening transformer.
 
-    Args (plain values only, so it can be built from a Hydra config):
-        num_joints: ``J``.
-        adjacency: ``J x J`` nested list, the joint relation matrix ``M`` (1 for parent/child and the diagonal; it
+    Args (plain values only, so it can be built from a Hydra config; common ones in :class:`InbetweenModel`):
+        num_joints, adjacency: ``J`` and the joint relation matrix ``M`` (1 for parent/child and the diagonal; it
             may already encode k-hop neighbourhoods, see ``hops``).
         feature_dim: features per joint ``F`` (>= 7: pos xyz + quaternion wxyz).
         d_model, depth, heads: transformer width, number of layers, attention heads (``d_model % heads == 0``).
@@ -66,6 +65,9 @@ class GraphTransformer(InbetweenModel):
         pos_encoding: temporal position encoding, ``"sinusoidal"`` or ``"learned"``.
         activation: feed-forward activation (``gelu``, ``relu``, ``silu``, ``tanh``).
     """
+
+    OUTPUT_HEAD = ("out_weight", "out_bias")
+    TINY = {"d_model": 16, "depth": 1, "heads": 2}
 
     def __init__(
         self,
@@ -85,13 +87,10 @@ class GraphTransformer(InbetweenModel):
         pos_encoding: str = "sinusoidal",
         activation: str = "gelu",
     ):
-        super().__init__()
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
-        adj = self._validate(num_joints, adjacency, feature_dim, d_model, depth, heads, ffn_dim, dropout, norm,
-                             graph, max_frames, pos_encoding)
-        self.num_joints, self.feature_dim, self.d_model = num_joints, feature_dim, d_model
-        self.graph, self.hops, self.max_frames = graph, hops, max_frames
-        self.residual_to_interpolation = bool(residual_to_interpolation)
+        adj = torch.as_tensor(adjacency, dtype=torch.float32)
+        self.d_model, self.graph, self.hops = d_model, graph, hops
         self.register_buffer("adjacency", adj)
         if graph == "multiply":  # softmax restricted to the neighbourhood: -inf (finite min) outside it
             self.register_buffer("graph_attn_mask", adj <= 0, persistent=False)
@@ -113,43 +112,23 @@ class GraphTransformer(InbetweenModel):
         # per-joint output head
         self.out_weight = nn.Parameter(torch.empty(num_joints, d_model, feature_dim))
         self.out_bias = nn.Parameter(torch.zeros(num_joints, feature_dim))
-        self._reset_projections()
-
-    @staticmethod
-    def _validate(num_joints, adjacency, feature_dim, d_model, depth, heads, ffn_dim, dropout, norm, graph,
-                  max_frames, pos_encoding) -> Tensor:
-        def need(cond: bool, msg: str) -> None:
-            if not cond:
-                raise ValueError(f"GraphTransformer: {msg}")
-
-        need(num_joints >= 1, f"num_joints must be >= 1, got {num_joints}")
-        need(feature_dim >= FEATURE_DIM, f"feature_dim must be >= {FEATURE_DIM} (pos + quaternion), got {feature_dim}")
-        need(depth >= 1, f"depth must be >= 1, got {depth}")
-        need(d_model >= 1 and heads >= 1, f"d_model and heads must be >= 1, got d_model={d_model}, heads={heads}")
-        need(d_model % heads == 0, f"d_model ({d_model}) must be divisible by heads ({heads})")
-        need(ffn_dim >= 1, f"ffn_dim must be >= 1, got {ffn_dim}")
-        need(0.0 <= dropout < 1.0, f"dropout must be in [0, 1), got {dropout}")
-        need(norm in NORMS, f"norm must be one of {list(NORMS)}, got {norm!r}")
-        need(graph in GRAPH_MODES, f"graph must be one of {list(GRAPH_MODES)}, got {graph!r}")
-        need(max_frames >= 1, f"max_frames must be >= 1, got {max_frames}")
-        need(pos_encoding in POS_ENCODINGS, f"pos_encoding must be one of {list(POS_ENCODINGS)}, got {pos_encoding!r}")
-        try:
-            adj = torch.as_tensor(adjacency, dtype=torch.float32)
-        except (TypeError, ValueError) as e:
-            raise ValueError(f"GraphTransformer: adjacency must be a J x J nested list of numbers ({e})") from e
-        need(tuple(adj.shape) == (num_joints, num_joints),
-             f"adjacency must have shape ({num_joints}, {num_joints}), got {tuple(adj.shape)}")
-        need(bool(torch.isfinite(adj).all()), "adjacency must be finite")
-        return adj
-
-    def _reset_projections(self) -> None:
-        # same scale as nn.Linear's default init (uniform ±1/sqrt(fan_in)), per joint
-        with torch.no_grad():
+        with torch.no_grad():  # same scale as nn.Linear's default init (uniform ±1/sqrt(fan_in)), per joint
             self.in_weight.uniform_(-self.feature_dim**-0.5, self.feature_dim**-0.5)
-            if self.residual_to_interpolation:  # start from the interpolation
-                self.out_weight.zero_()
-            else:
-                self.out_weight.uniform_(-self.d_model**-0.5, self.d_model**-0.5)
+
+    @classmethod
+    def check_settings(cls, checks: Checks) -> None:
+        checks.integer("d_model", "depth", "heads")
+        checks.integer("ffn_dim", optional=True)
+        checks.integer("hops", minimum=0)
+        checks.divides("heads", "d_model")
+        checks.one_of("norm", NORMS)
+        checks.one_of("graph", GRAPH_MODES)
+        checks.one_of("pos_encoding", POS_ENCODINGS)
+        checks.activation()
+
+    def init_output_head(self) -> None:
+        with torch.no_grad():  # uniform ±1/sqrt(d_model) like nn.Linear, per joint (zero when residual)
+            self.out_weight.uniform_(-self.d_model**-0.5, self.d_model**-0.5)
 
     def _graph_masks(self) -> tuple[Tensor | None, Tensor | None]:
         if self.graph == "multiply":
@@ -160,18 +139,12 @@ class GraphTransformer(InbetweenModel):
             return self.adjacency, None
         return None, None
 
-    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
-        """``x (B, T, J, F), known (B, T, J) bool, interp (B, T, J, F) | None -> (B, T, J, F)``."""
-        if x.dim() != 4 or x.shape[-2] != self.num_joints or x.shape[-1] != self.feature_dim:
-            raise ValueError(f"GraphTransformer: x must be (B, T, {self.num_joints}, {self.feature_dim}), "
-                             f"got {tuple(x.shape)}")
+    def network(self, x: Tensor, known: Tensor, interp: Tensor | None) -> Tensor:
+        """``x (B, T, J, F), known (B, T, J) bool, interp unused -> raw (B, T, J, F)``."""
         h = torch.einsum("btjf,jfd->btjd", x, self.in_weight) + self.in_bias
         h = h + self.joint_embed + self.flag_embed(known.long())
         h = h + self.time_embed(x.shape[1])[:, None, :]
         prob_mask, attn_mask = self._graph_masks()
         for layer in self.layers:
             h = layer(h, prob_mask=prob_mask, attn_mask=attn_mask)
-        raw = torch.einsum("btjd,jdf->btjf", h, self.out_weight) + self.out_bias
-        if self.residual_to_interpolation and interp is not None:
-            raw = interp + raw
-        return self.finalize(raw, x, known)
+        return torch.einsum("btjd,jdf->btjf", h, self.out_weight) + self.out_bias

@@ -8,22 +8,14 @@ from __future__ import annotations
 
 from torch import Tensor, nn
 
-from .base import FEATURE_DIM, InbetweenModel
-from .blocks import (
-    ResidualMLPBlock,
-    check_input,
-    check_length,
-    frame_features,
-    make_activation,
-    require,
-    validate_common,
-)
+from .base import FEATURE_DIM, Checks, InbetweenModel
+from .blocks import ResidualMLPBlock, frame_features, make_activation
 
 
 class ResNetLSTM(InbetweenModel):
     """Per-frame residual MLP encoder + LSTM over time + MLP decoder.
 
-    Args (plain values only):
+    Args (plain values only; common ones in :class:`InbetweenModel`):
         num_joints: ``J``.  adjacency: ``J x J`` joint relation matrix (checked, otherwise unused).
         feature_dim: features per joint ``F`` (>= 7).
         hidden_dim: width of the fully connected input / residual / output layers.
@@ -34,6 +26,9 @@ class ResNetLSTM(InbetweenModel):
         max_frames: longest window ``T`` (no position table; checked for consistency with the other models).
         residual_to_interpolation: predict ``interp + head(h)`` when ``interp`` is given (last layer initialised to 0).
     """
+
+    OUTPUT_HEAD = ("output_layers.3",)  # the last Linear of output_layers
+    TINY = {"hidden_dim": 32, "res_blocks": 1, "lstm_hidden": 16, "lstm_layers": 2}
 
     def __init__(
         self,
@@ -50,17 +45,7 @@ class ResNetLSTM(InbetweenModel):
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
     ):
-        super().__init__()
-        name = type(self).__name__
-        validate_common(name, num_joints, adjacency, feature_dim, max_frames, dropout)
-        require(hidden_dim >= 1, name, f"hidden_dim must be >= 1, got {hidden_dim}")
-        require(res_blocks >= 0, name, f"res_blocks must be >= 0, got {res_blocks}")
-        require(lstm_hidden >= 1, name, f"lstm_hidden must be >= 1, got {lstm_hidden}")
-        require(lstm_layers >= 1, name, f"lstm_layers must be >= 1, got {lstm_layers}")
-        make_activation(activation)
-        self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
-        self.residual_to_interpolation = bool(residual_to_interpolation)
-
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
         in_dim = num_joints * feature_dim + num_joints
         self.input_layers = nn.Sequential(nn.Linear(in_dim, hidden_dim), make_activation(activation))
         self.res_blocks = nn.Sequential(
@@ -75,17 +60,15 @@ class ResNetLSTM(InbetweenModel):
             make_activation(activation),
             nn.Linear(hidden_dim, num_joints * feature_dim),
         )
-        if self.residual_to_interpolation:
-            nn.init.zeros_(self.output_layers[-1].weight)
-            nn.init.zeros_(self.output_layers[-1].bias)
 
-    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
-        """``x (B, T, J, F), known (B, T, J) bool, interp (B, T, J, F) | None -> (B, T, J, F)``."""
-        check_input(type(self).__name__, x, known, self.num_joints, self.feature_dim)
-        check_length(x.shape[1], self.max_frames)
+    @classmethod
+    def check_settings(cls, checks: Checks) -> None:
+        checks.integer("hidden_dim", "lstm_hidden", "lstm_layers")
+        checks.integer("res_blocks", minimum=0)
+        checks.activation()
+
+    def network(self, x: Tensor, known: Tensor, interp: Tensor | None) -> Tensor:
+        """``x (B, T, J, F), known (B, T, J) bool, interp unused -> raw (B, T, J, F)``."""
         h = self.res_blocks(self.input_layers(frame_features(x, known)))  # (B, T, H)
         h, _ = self.lstm(h)
-        raw = self.output_layers(h).reshape(x.shape)
-        if self.residual_to_interpolation and interp is not None:
-            raw = interp + raw
-        return self.finalize(raw, x, known)
+        return self.output_layers(h).reshape(x.shape)

@@ -11,22 +11,14 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
-from .base import FEATURE_DIM, InbetweenModel
-from .blocks import (
-    PositionEmbedding,
-    TransformerEncoder,
-    check_input,
-    check_length,
-    make_activation,
-    require,
-    validate_common,
-)
+from .base import FEATURE_DIM, Checks, InbetweenModel
+from .blocks import PositionEmbedding, TransformerEncoder
 
 
 class STTransformer(InbetweenModel):
     """Spatial (joints) then temporal (frames) pre-norm transformer.
 
-    Args (plain values only):
+    Args (plain values only; common ones in :class:`InbetweenModel`):
         num_joints: ``J``.  adjacency: ``J x J`` joint relation matrix (checked, otherwise unused).
         feature_dim: features per joint ``F`` (>= 7).
         spatial_dim, spatial_depth, spatial_heads: per-joint width ``C``, spatial layers, spatial heads (divide ``C``).
@@ -37,6 +29,9 @@ class STTransformer(InbetweenModel):
         max_frames: longest window ``T``.
         residual_to_interpolation: predict ``interp + head(h)`` when ``interp`` is given (head initialised to 0).
     """
+
+    OUTPUT_HEAD = ("head",)
+    TINY = {"spatial_dim": 8, "spatial_depth": 1, "spatial_heads": 2, "d_model": 16, "temporal_depth": 1, "heads": 2}
 
     def __init__(
         self,
@@ -56,23 +51,10 @@ class STTransformer(InbetweenModel):
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
     ):
-        super().__init__()
-        name = type(self).__name__
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
         spatial_ffn_dim = 2 * spatial_dim if spatial_ffn_dim is None else spatial_ffn_dim
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
-        validate_common(name, num_joints, adjacency, feature_dim, max_frames, dropout)
-        require(spatial_depth >= 1, name, f"spatial_depth must be >= 1, got {spatial_depth}")
-        require(temporal_depth >= 1, name, f"temporal_depth must be >= 1, got {temporal_depth}")
-        require(spatial_dim >= 1 and spatial_heads >= 1 and spatial_dim % spatial_heads == 0, name,
-                f"spatial_heads must divide spatial_dim (spatial_dim={spatial_dim}, spatial_heads={spatial_heads})")
-        require(d_model >= 1 and heads >= 1 and d_model % heads == 0, name,
-                f"heads must divide d_model (d_model={d_model}, heads={heads})")
-        require(spatial_ffn_dim >= 1 and ffn_dim >= 1, name,
-                f"spatial_ffn_dim and ffn_dim must be >= 1, got {spatial_ffn_dim}, {ffn_dim}")
-        make_activation(activation)
-        self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
         self.spatial_dim, self.d_model = spatial_dim, d_model
-        self.residual_to_interpolation = bool(residual_to_interpolation)
 
         self.joint_proj = nn.Linear(feature_dim, spatial_dim)
         self.joint_embed = nn.Parameter(torch.randn(num_joints, spatial_dim) * 0.02)
@@ -86,20 +68,20 @@ class STTransformer(InbetweenModel):
                                            activation=activation, norm_first=True, final_norm=False)
         self.head_norm = nn.LayerNorm(d_model)
         self.head = nn.Linear(d_model, num_joints * feature_dim)
-        if self.residual_to_interpolation:
-            nn.init.zeros_(self.head.weight)
-            nn.init.zeros_(self.head.bias)
 
-    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
-        """``x (B, T, J, F), known (B, T, J) bool, interp (B, T, J, F) | None -> (B, T, J, F)``."""
-        check_input(type(self).__name__, x, known, self.num_joints, self.feature_dim)
-        check_length(x.shape[1], self.max_frames)
+    @classmethod
+    def check_settings(cls, checks: Checks) -> None:
+        checks.integer("spatial_dim", "spatial_depth", "spatial_heads", "d_model", "temporal_depth", "heads")
+        checks.integer("spatial_ffn_dim", "ffn_dim", optional=True)
+        checks.divides("spatial_heads", "spatial_dim")
+        checks.divides("heads", "d_model")
+        checks.activation()
+
+    def network(self, x: Tensor, known: Tensor, interp: Tensor | None) -> Tensor:
+        """``x (B, T, J, F), known (B, T, J) bool, interp unused -> raw (B, T, J, F)``."""
         b, t = x.shape[0], x.shape[1]
         s = self.joint_proj(x) + self.joint_embed + self.flag_embed(known.long())  # (B, T, J, C)
         s = self.spatial(s.reshape(-1, self.num_joints, self.spatial_dim))  # (B*T, J, C)
         h = self.frame_proj(s.reshape(b, t, self.num_joints * self.spatial_dim)) + self.time_embed(t)
         h = self.temporal(h)  # (B, T, D)
-        raw = self.head(self.head_norm(h)).reshape(x.shape)
-        if self.residual_to_interpolation and interp is not None:
-            raw = interp + raw
-        return self.finalize(raw, x, known)
+        return self.head(self.head_norm(h)).reshape(x.shape)

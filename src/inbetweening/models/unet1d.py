@@ -12,8 +12,8 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from .base import FEATURE_DIM, InbetweenModel
-from .blocks import check_input, check_length, frame_features, make_activation, require, validate_common
+from .base import FEATURE_DIM, Checks, InbetweenModel
+from .blocks import frame_features, make_activation
 
 
 class ConvBlock1d(nn.Module):
@@ -39,7 +39,7 @@ class ConvBlock1d(nn.Module):
 class UNet1D(InbetweenModel):
     """Temporal 1D U-Net.
 
-    Args (plain values only):
+    Args (plain values only; common ones in :class:`InbetweenModel`):
         num_joints: ``J``.  adjacency: ``J x J`` joint relation matrix (checked, otherwise unused).
         feature_dim: features per joint ``F`` (>= 7).
         base_channels: channels of the first stage; stage ``i`` has ``base_channels * 2**i`` (bottleneck ``i=levels``).
@@ -49,6 +49,9 @@ class UNet1D(InbetweenModel):
         max_frames: longest window ``T`` (no position table; checked for consistency with the other models).
         residual_to_interpolation: predict ``interp + head(h)`` when ``interp`` is given (output conv initialised to 0).
     """
+
+    OUTPUT_HEAD = ("head",)
+    TINY = {"base_channels": 16, "levels": 2, "norm_groups": 4}
 
     def __init__(
         self,
@@ -63,17 +66,8 @@ class UNet1D(InbetweenModel):
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
     ):
-        super().__init__()
-        name = type(self).__name__
-        validate_common(name, num_joints, adjacency, feature_dim, max_frames, dropout)
-        require(levels >= 1, name, f"levels must be >= 1, got {levels}")
-        require(base_channels >= 1 and norm_groups >= 1 and base_channels % norm_groups == 0, name,
-                f"norm_groups must divide base_channels (base_channels={base_channels}, norm_groups={norm_groups})")
-        make_activation(activation)
-        self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
         self.levels, self.multiple = levels, 2**levels
-        self.residual_to_interpolation = bool(residual_to_interpolation)
-
         chans = [base_channels * 2**i for i in range(levels + 1)]
         in_ch = num_joints * feature_dim + num_joints
         self.down_blocks = nn.ModuleList()
@@ -89,15 +83,16 @@ class UNet1D(InbetweenModel):
             self.upsample.append(nn.ConvTranspose1d(chans[i + 1], chans[i], kernel_size=2, stride=2))
             self.up_blocks.append(ConvBlock1d(2 * chans[i], chans[i], norm_groups, activation, dropout))
         self.head = nn.Conv1d(chans[0], num_joints * feature_dim, kernel_size=1)
-        if self.residual_to_interpolation:
-            nn.init.zeros_(self.head.weight)
-            nn.init.zeros_(self.head.bias)
 
-    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
-        """``x (B, T, J, F), known (B, T, J) bool, interp (B, T, J, F) | None -> (B, T, J, F)``."""
-        check_input(type(self).__name__, x, known, self.num_joints, self.feature_dim)
+    @classmethod
+    def check_settings(cls, checks: Checks) -> None:
+        checks.integer("base_channels", "levels", "norm_groups")
+        checks.divides("norm_groups", "base_channels")
+        checks.activation()
+
+    def network(self, x: Tensor, known: Tensor, interp: Tensor | None) -> Tensor:
+        """``x (B, T, J, F), known (B, T, J) bool, interp unused -> raw (B, T, J, F)``."""
         t = x.shape[1]
-        check_length(t, self.max_frames)
         h = frame_features(x, known).transpose(1, 2)  # (B, C, T)
         h = F.pad(h, (0, (self.multiple - t % self.multiple) % self.multiple))  # T -> multiple of 2**levels
         skips = []
@@ -108,7 +103,4 @@ class UNet1D(InbetweenModel):
         h = self.bottleneck(h)
         for up, block, skip in zip(self.upsample, self.up_blocks, reversed(skips)):
             h = block(torch.cat([up(h), skip], dim=1))
-        raw = self.head(h)[:, :, :t].transpose(1, 2).reshape(x.shape)
-        if self.residual_to_interpolation and interp is not None:
-            raw = interp + raw
-        return self.finalize(raw, x, known)
+        return self.head(h)[:, :, :t].transpose(1, 2).reshape(x.shape)

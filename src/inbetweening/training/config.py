@@ -23,29 +23,33 @@ def _get(cfg, key: str, default=None):
     return node
 
 
-POSITIVE_INT_KEYS = tuple(f"model.{k}" for k in (
-    "d_model", "depth", "heads", "ffn_dim", "max_frames", "hidden_dim", "res_blocks", "lstm_hidden", "lstm_layers",
-    "spatial_dim", "spatial_depth", "spatial_heads", "temporal_depth", "base_channels", "levels", "norm_groups",
-)) + tuple(f"data.{k}" for k in (
+POSITIVE_INT_KEYS = tuple(f"data.{k}" for k in (
     "batch_size", "eval_batch_size", "train_window", "train_offset", "max_train_windows", "max_eval_windows",
     "max_val_windows",
 ))
 
 
-def _check_model_keys(cfg, name: str) -> None:
-    """Every ``model.*`` key must be a constructor argument of the chosen model (baselines accept any)."""
-    import inspect
+def _check_model(cfg, name: str) -> None:
+    """The chosen model's settings, checked by the model class itself: every ``model.*`` key must be one of its
+    constructor settings (baselines accept any), and the values must pass its constructor's checks."""
+    from omegaconf import OmegaConf
 
     from inbetweening.models import MODELS
 
-    params = inspect.signature(MODELS[name].__init__).parameters
-    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
-        return
-    allowed = set(params) - {"self", "num_joints", "adjacency"} | {"name"}
-    for k in _get(cfg, "model") or {}:
-        if k not in allowed:
-            raise ConfigError(f"model.{k}: not a setting of model {name!r} (perhaps set by an experiment= for another "
-                              f"model); its settings are {sorted(allowed - {'name'})}")
+    model = MODELS[name]
+    node = _get(cfg, "model")
+    settings = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else dict(node)
+    settings.pop("name", None)
+    if not model.accepts_any_setting():
+        allowed = set(model.settings())
+        for k in settings:
+            if k not in allowed:
+                raise ConfigError(f"model.{k}: not a setting of model {name!r} (perhaps set by an experiment= for "
+                                  f"another model); its settings are {sorted(allowed)}")
+    try:
+        model.check_config(settings, prefix="model.")
+    except ValueError as e:
+        raise ConfigError(str(e)) from None
 
 
 def _resolve(cfg, key: str):
@@ -160,26 +164,12 @@ def validate(cfg: DictConfig) -> None:
     name = _get(cfg, "model.name")
     if name not in MODELS:
         raise ConfigError(f"model.name: unknown model {name!r}; choose one of {sorted(MODELS)}")
-    _check_model_keys(cfg, name)
+    _check_model(cfg, name)
     for key in POSITIVE_INT_KEYS:
         v = _get(cfg, key)
         if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 1):
             raise ConfigError(f"{key}: must be an integer >= 1, got {v!r}")
-    hops = _get(cfg, "model.hops")
-    if hops is not None and (not isinstance(hops, int) or hops < 0):
-        raise ConfigError(f"model.hops: must be an integer >= 0, got {hops!r}")
     _check_data(cfg, mask)
-    heads, d_model = _get(cfg, "model.heads"), _get(cfg, "model.d_model")
-    if heads is not None and d_model is not None and (int(heads) < 1 or int(d_model) % int(heads)):
-        raise ConfigError(f"model.heads: {heads} must divide model.d_model={d_model}")
-    for key in ("model.dropout",):
-        v = _get(cfg, key)
-        if v is not None and not 0.0 <= float(v) < 1.0:
-            raise ConfigError(f"{key}: must be in [0, 1), got {v}")
-    for key, allowed in (("model.norm", ("layer", "batch")), ("model.graph", ("multiply", "multiply_full", "none"))):
-        v = _get(cfg, key)
-        if v is not None and v not in allowed:
-            raise ConfigError(f"{key}: must be one of {list(allowed)}, got {v!r}")
     lo, hi = _get(cfg, "data.transition_min"), _get(cfg, "data.transition_max")
     window = int(_get(cfg, "data.train_window", 50))
     if lo is not None and hi is not None:
