@@ -59,3 +59,25 @@ def test_fully_masked_row_stays_finite():
     mask[0] = True  # query 0 may attend to nothing
     out = attn(torch.randn(2, 4, 8), attn_mask=mask)
     assert torch.isfinite(out).all()
+
+
+@pytest.mark.parametrize("dropout", [0.0, 0.2])
+def test_checkpointed_layers_give_the_same_output_and_gradients(dropout):
+    """Activation checkpointing recomputes each layer in backward: same values, same gradients (dropout's RNG
+    state is replayed), only the memory differs."""
+    grads = []
+    for ck in (False, True):
+        torch.manual_seed(0)
+        m = GraphTransformer(5, SK.adjacency().tolist(), d_model=8, depth=2, heads=2, dropout=dropout,
+                             checkpoint_layers=ck).train()
+        torch.manual_seed(1)
+        x = torch.randn(3, 6, 5, 7)
+        known = torch.zeros(3, 6, 5, dtype=torch.bool)
+        known[:, 0] = True
+        out = m(x, known, x)
+        out.square().sum().backward()
+        grads.append((out.detach(), [p.grad.clone() for p in m.parameters() if p.grad is not None]))
+    assert torch.equal(grads[0][0], grads[1][0])
+    assert len(grads[0][1]) == len(grads[1][1]) > 0
+    for a, b in zip(grads[0][1], grads[1][1]):
+        assert torch.allclose(a, b, rtol=1e-5, atol=1e-7)

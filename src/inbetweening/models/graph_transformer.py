@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import torch
 from torch import Tensor, nn
+from torch.utils.checkpoint import checkpoint
 
 from .base import FEATURE_DIM, Checks, InbetweenModel
 from .blocks import NORMS, AddNorm, FeedForward, MultiHeadAttention, PositionEmbedding, SinusoidalPositionalEncoding
@@ -64,6 +65,8 @@ class GraphTransformer(InbetweenModel):
         hops: documentation only (the adjacency passed in already encodes it).
         pos_encoding: temporal position encoding, ``"sinusoidal"`` or ``"learned"``.
         activation: feed-forward activation (``gelu``, ``relu``, ``silu``, ``tanh``).
+        checkpoint_layers: while training, keep only each layer's input for the backward pass and recompute the
+            layer there (activation checkpointing): a fraction of the memory for about one more forward pass.
     """
 
     OUTPUT_HEAD = ("out_weight", "out_bias")
@@ -86,8 +89,10 @@ class GraphTransformer(InbetweenModel):
         hops: int = 1,
         pos_encoding: str = "sinusoidal",
         activation: str = "gelu",
+        checkpoint_layers: bool = False,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
+        self.checkpoint_layers = bool(checkpoint_layers)
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
         adj = torch.as_tensor(adjacency, dtype=torch.float32)
         self.d_model, self.graph, self.hops = d_model, graph, hops
@@ -145,6 +150,10 @@ class GraphTransformer(InbetweenModel):
         h = h + self.joint_embed + self.flag_embed(known.long())
         h = h + self.time_embed(x.shape[1])[:, None, :]
         prob_mask, attn_mask = self._graph_masks()
+        recompute = self.checkpoint_layers and self.training and torch.is_grad_enabled()
         for layer in self.layers:
-            h = layer(h, prob_mask=prob_mask, attn_mask=attn_mask)
+            if recompute:  # keep only each layer's input for backward; its activations are recomputed there
+                h = checkpoint(layer, h, prob_mask=prob_mask, attn_mask=attn_mask, use_reentrant=False)
+            else:
+                h = layer(h, prob_mask=prob_mask, attn_mask=attn_mask)
         return torch.einsum("btjd,jdf->btjf", h, self.out_weight) + self.out_bias
