@@ -70,7 +70,7 @@ def facing_rotation(root_q: Array, forward_axis: Sequence[float]) -> Array:
     fwd = fwd / ((fwd * fwd).sum(-1)[..., None] ** 0.5 + 1e-8)
     rot = qnormalize(qbetween(plusx, fwd))
     degenerate = ((rot * rot).sum(-1) < 0.5)[..., None]
-    fallback_half = (fwd[..., :1] < 0)
+    fallback_half = fwd[..., :1] < -0.5  # facing -X; otherwise no horizontal facing at all
     half, ident = _const([0.0, 0.0, 1.0, 0.0], root_q), _const([1.0, 0.0, 0.0, 0.0], root_q)
     if _is_torch(root_q):
         return torch.where(degenerate, torch.where(fallback_half, half, ident), rot)
@@ -80,8 +80,10 @@ def facing_rotation(root_q: Array, forward_axis: Sequence[float]) -> Array:
 def canonical_frame(root: Array, local_q: Array, forward_axis: Sequence[float], frame: int,
                     known: Array | None = None) -> tuple[Array, Array]:
     """``(centre (..., 1, 3), rotation (..., 1, 4))`` of windows ``root (..., T, 3), local_q (..., T, J, 4)``:
-    the mean root XZ (over ``known (..., T)`` frames if given) and the facing of the root at ``frame``."""
-    return xz_centre(root, known), facing_rotation(local_q[..., frame : frame + 1, 0, :], forward_axis)
+    the mean root XZ (over ``known (..., T)`` frames if given) and the facing of the root at ``frame`` (a unit
+    quaternion, without the reference's epsilon, so :func:`uncanonicalise` inverts :func:`canonicalise` exactly)."""
+    rot = facing_rotation(local_q[..., frame : frame + 1, 0, :], forward_axis)
+    return xz_centre(root, known), rot / (rot * rot).sum(-1)[..., None] ** 0.5
 
 
 def canonicalise(root: Array, local_q: Array, centre: Array, rotation: Array) -> tuple[Array, Array]:

@@ -179,7 +179,6 @@ class Predictor(nn.Module):
         known_t[:p] = True
         known_t[-1] = True
         centre, rot = canonical.canonical_frame(root, local_q, self.forward_axis, p - 1, known_t)
-        rot = rot / np.linalg.norm(rot, axis=-1, keepdims=True)
         wr, wq = canonical.canonicalise(root, local_q, centre, rot)
         known = self.transition_known(1, t, n, device=self.device)
         _, pred, _ = self.predict_windows(wr[None], wq[None], known)
