@@ -37,9 +37,7 @@ def window_features(root, local_q, skeleton: Skeleton, mean, std, dtype=torch.fl
 
     FK runs in float64; the result is cast to ``dtype``.  NaN frames stay NaN (masks never read them).
     """
-    r = torch.as_tensor(root).double()
-    q = torch.as_tensor(local_q).double()
-    return F.encode(r, q, skeleton, mean, std).to(dtype=dtype, device=device)
+    return F.GlobalPosLocalQuat(skeleton, mean, std).encode_windows(root, local_q, dtype, device)
 
 
 def centred_forward(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str, shift_fn: ShiftFn):

@@ -112,9 +112,7 @@ class Predictor(nn.Module):
 
         FK runs in float64, the result is cast to ``dtype`` on ``device`` (default: the network's).  NaN frames
         stay NaN (nothing downstream reads unknown values)."""
-        r = torch.as_tensor(root).double()
-        q = torch.as_tensor(local_q).double()
-        return self.representation.encode(r, q).to(dtype=dtype, device=device or self.device)
+        return self.representation.encode_windows(root, local_q, dtype, device or self.device)
 
     def decode(self, feats: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Features -> ``root (..., T, 3), local_q (..., T, J, 4)`` in float64 (unit quaternions)."""

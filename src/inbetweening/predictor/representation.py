@@ -32,6 +32,13 @@ class Representation:
         """``root (..., T, 3), local_q (..., T, J, 4) -> features (..., T, J, F)`` (same dtype)."""
         raise NotImplementedError
 
+    def encode_windows(self, root, local_q, dtype=torch.float32, device=None) -> torch.Tensor:
+        """:meth:`encode` of numpy or torch windows (any float): FK in float64, the result cast to ``dtype`` on
+        ``device``.  NaN frames stay NaN (nothing downstream reads unknown values)."""
+        r = torch.as_tensor(root).double()
+        q = torch.as_tensor(local_q).double()
+        return self.encode(r, q).to(dtype=dtype, device=device)
+
     def decode(self, feats: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``features (..., T, J, F) -> root (..., T, 3), local_q (..., T, J, 4)`` (unit quaternions)."""
         raise NotImplementedError
