@@ -100,7 +100,7 @@ def test_recovery_rmse_of_a_zero_velocity_model_hand_derived(monkeypatch):
     monkeypatch.setattr(module_mod, "joints_known", lambda *a, **k: known.clone())
     module = InbetweenModule(model={"name": "zero_velocity"}, skeleton=sk.to_dict(),
                              pos_mean=np.linspace(-3, 3, 9).tolist(), pos_std=np.linspace(0.5, 4, 9).tolist(),
-                             mask="joints")
+                             mask="joints", centre="window")
     monkeypatch.setattr(module, "log_dict", lambda *a, **k: None)  # no trainer to log to
     root = torch.arange(9, dtype=torch.float64)[None, :, None] * torch.tensor([3.0, 0.0, 4.0], dtype=torch.float64)
     q = torch.zeros(1, 9, 3, 4, dtype=torch.float64)

@@ -133,7 +133,7 @@ def test_interpolation_model_reproduces_interpolation(clip):
     """With the interpolation baseline as the network, normalise -> predict -> undo is exactly lerp/slerp."""
     sk = clip.skeleton()
     module = InbetweenModule(model={"name": "interpolation"}, skeleton=sk.to_dict(), pos_mean=[0.0] * 66,
-                             pos_std=[50.0] * 66, forward_axis=(0.0, 0.0, 1.0))
+                             pos_std=[50.0] * 66, forward_axis=(0.0, 0.0, 1.0), centre="window")
     res = Inbetweener(module).fill_detailed(clip, keyframes=[0, 30, 75, 119])
     ri, qi = interpolate_arrays(res.root, res.local_q, res.known_frames)
     np.testing.assert_allclose(res.root, ri, atol=1e-3)

@@ -12,6 +12,7 @@ import pytest
 import torch
 
 from conftest import TINY, compose_cfg, model_overrides
+from inbetweening.checkpoint import predictor_state
 from inbetweening.evaluation import benchmark as B
 from inbetweening.evaluation.collect import collect
 from inbetweening.evaluation.collect import main as collect_main
@@ -98,8 +99,7 @@ def test_interpolation_model_matches_numpy_baseline(tmp_path, cache_dir):
 
 
 def _net_state(ckpt: Path) -> dict:
-    return {k: v for k, v in torch.load(ckpt, map_location="cpu", weights_only=True)["state_dict"].items()
-            if k.startswith("net.")}
+    return predictor_state(torch.load(ckpt, map_location="cpu", weights_only=True)["state_dict"])
 
 
 def _same_state(a: dict, b: dict) -> bool:

@@ -1,9 +1,14 @@
 """Reading checkpoints safely: no code runs while loading, and a wrong file is one clear error.
 
 Every load of the package (training resume, ``eval.py``, ``predict``, ``export``, ``Inbetweener``) goes
-through :func:`read_checkpoint` / :func:`load_module`: ``torch.load(weights_only=True)`` only rebuilds
-tensors, numbers, strings, lists and dicts, so a checkpoint carrying a pickled code payload is refused before
-anything in it runs.  Inference tools import this module, never the training code.
+through :func:`read_checkpoint` / :func:`load_module` / :func:`load_predictor`: ``torch.load(weights_only=True)``
+only rebuilds tensors, numbers, strings, lists and dicts, so a checkpoint carrying a pickled code payload is
+refused before anything in it runs.  Inference tools load a :class:`~inbetweening.predictor.predictor.Predictor`
+straight from the hyper-parameters and state dict (:func:`load_predictor`), never importing the training code.
+
+State dict layouts: the training module keeps the predictor under ``predictor.`` (``predictor.net.*``);
+checkpoints made before the predictor existed, and inference-only exports, hold the predictor's own keys
+(``net.*``).  :func:`predictor_state` and :func:`upgrade_module_state` read both.
 """
 from __future__ import annotations
 
@@ -67,6 +72,51 @@ def read_checkpoint(path: str | Path, raw: bytes | None = None) -> dict:
         raise CheckpointError(f"ckpt_path: {p} has non-finite weights ({bad} holds NaN or inf); "
                               "use an earlier checkpoint of the run")
     return ckpt
+
+
+PREDICTOR_PREFIX = "predictor."
+
+
+def predictor_state(state_dict: dict) -> dict:
+    """The predictor's own entries (``net.*``) of a training module's state dict, of either layout."""
+    if any(k.startswith(PREDICTOR_PREFIX) for k in state_dict):
+        return {k[len(PREDICTOR_PREFIX):]: v for k, v in state_dict.items() if k.startswith(PREDICTOR_PREFIX)}
+    return {k: v for k, v in state_dict.items() if k.startswith("net.")}
+
+
+def upgrade_module_state(state_dict: dict) -> dict:
+    """A training module's state dict in today's layout: older ``net.*`` keys become ``predictor.net.*``."""
+    return {(PREDICTOR_PREFIX + k if k.startswith("net.") else k): v for k, v in state_dict.items()}
+
+
+def peek_hyper_parameters(source) -> dict:
+    """The ``hyper_parameters`` of a checkpoint (a path or a readable binary file, rewound afterwards), loaded
+    without running code; ``{}`` when it cannot be read (the real load then says why)."""
+    try:
+        pos = source.tell() if hasattr(source, "read") else None
+        ckpt = _load(source.read() if pos is not None else _read_bytes(source), str(source))
+        if pos is not None:
+            source.seek(pos)
+    except (CheckpointError, OSError):
+        return {}
+    hp = ckpt.get("hyper_parameters") if isinstance(ckpt, dict) else None
+    return dict(hp) if isinstance(hp, dict) else {}
+
+
+def load_predictor(path: str | Path, device: str | torch.device = "cpu", ckpt: dict | None = None):
+    """The :class:`~inbetweening.predictor.predictor.Predictor` of a checkpoint (training or inference-only, any
+    layout; older checkpoints without ``centre`` get ``window``), in eval mode on ``device``, without Lightning.
+    ``ckpt``: the checkpoint's dict when already read with :func:`read_checkpoint`."""
+    from inbetweening.predictor.predictor import Predictor, upgrade_hparams
+
+    ckpt = read_checkpoint(path) if ckpt is None else ckpt
+    try:
+        pred = Predictor.from_hparams(upgrade_hparams(ckpt["hyper_parameters"]))
+        pred.load_state_dict(predictor_state(ckpt["state_dict"]))
+    except (RuntimeError, KeyError, TypeError, ValueError) as e:
+        msg = " ".join(str(e).split())
+        raise CheckpointError(f"ckpt_path: {path} does not match this version's models ({msg[:300]})") from None
+    return pred.to(device).eval()
 
 
 def load_module(path: str | Path):

@@ -21,10 +21,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import torch
 
-from inbetweening.geometry.quaternion import Array, qbetween, qinv, qmul, qnormalize, qrot, slerp_np
-from inbetweening.geometry.skeleton import Skeleton, fk, ik
+from inbetweening.geometry.canonical import canonicalise_windows
+from inbetweening.geometry.interp import interpolate_pose
+from inbetweening.geometry.quaternion import Array
+from inbetweening.geometry.skeleton import Skeleton, fk
 
 N_PAST = 10
 N_FUTURE = 10
@@ -66,13 +67,6 @@ def extract_windows(clips: Sequence, skeleton: Skeleton, window: int, offset: in
     return x, q
 
 
-def _mean_frames(x: Array) -> Array:
-    """Mean over the time axis (1), keeping it.  ``(B, T, ...) -> (B, 1, ...)``."""
-    if isinstance(x, torch.Tensor):
-        return x.mean(dim=1, keepdim=True)
-    return x.mean(axis=1, keepdims=True)
-
-
 def centre_and_rotate(
     X: Array, Q: Array, parents: Sequence[int], forward_axis: Sequence[float] = (0.0, 1.0, 0.0), n_past: int = N_PAST
 ) -> tuple[Array, Array]:
@@ -82,32 +76,10 @@ def centre_and_rotate(
     2. rotate about Y so that the root's ``forward_axis`` (a direction in the root's local frame,
        LAFAN1: +Y) at frame ``n_past - 1``, taken to global space and projected onto XZ, points to +X;
        the rotation is applied to global quaternions/positions which are then taken back to local (IK).
-    Works on numpy arrays (float64 recommended) and torch tensors.
+    Works on numpy arrays (float64 recommended) and torch tensors
+    (:func:`inbetweening.geometry.canonical.canonicalise_windows`).
     """
-    is_t = isinstance(X, torch.Tensor)
-    X = X.clone() if is_t else np.array(X, copy=True)
-    xz = _mean_frames(X[:, :, 0, 0::2])  # (B, 1, 2)
-    X[:, :, 0, 0] = X[:, :, 0, 0] - xz[..., 0]
-    X[:, :, 0, 2] = X[:, :, 0, 2] - xz[..., 1]
-
-    gq, gp = fk(Q, X, parents)
-    key = gq[:, n_past - 1 : n_past, 0:1, :]  # (B, 1, 1, 4)
-    if is_t:
-        axis = torch.as_tensor(forward_axis, dtype=X.dtype, device=X.device)
-        mask = torch.tensor([1.0, 0.0, 1.0], dtype=X.dtype, device=X.device)
-        plusx = torch.tensor([1.0, 0.0, 0.0], dtype=X.dtype, device=X.device)
-    else:
-        axis = np.asarray(forward_axis, dtype=np.float64)
-        mask = np.array([1.0, 0.0, 1.0])
-        plusx = np.array([1.0, 0.0, 0.0])
-    fwd = mask * qrot(key, axis)
-    fwd = fwd / ((fwd * fwd).sum(-1)[..., None] ** 0.5 + 1e-8)
-    yrot = qnormalize(qbetween(plusx, fwd))
-    inv = qinv(yrot)
-    gq = qmul(inv, gq)
-    gp = qrot(inv, gp)
-    Q, X = ik(gq, gp, parents)
-    return X, Q
+    return canonicalise_windows(X, Q, parents, forward_axis, n_past - 1)
 
 
 def prepare_windows(
@@ -181,11 +153,8 @@ def interpolation(root: np.ndarray, local_q: np.ndarray, n: int, n_past: int = N
     ``(B, T, 3), (B, T, J, 4), n -> (B, n, 3), (B, n, J, 4)``.
     """
     w = np.linspace(0.0, 1.0, num=n + 2, dtype=np.float32)[1:-1].astype(np.float64)
-    r0, r1 = root[:, n_past - 1], root[:, n_past + n]
-    r = r0[:, None] + w[None, :, None] * (r1 - r0)[:, None]
-    q0, q1 = local_q[:, n_past - 1][:, None], local_q[:, n_past + n][:, None]
-    q = slerp_np(q0, q1, w[None, :, None])
-    return r, q
+    a, b = slice(n_past - 1, n_past), slice(n_past + n, n_past + n + 1)
+    return interpolate_pose(root[:, a], local_q[:, a], root[:, b], local_q[:, b], w[None, :])
 
 
 BASELINES: dict[str, Predictor] = {"zero_velocity": zero_velocity, "interpolation": interpolation}
@@ -266,10 +235,8 @@ def score(
     ``gt_root, pred_root (B, n, 3)``, ``gt_q, pred_q (B, n, J, 4)`` local; non-root joints use the
     skeleton offsets; returns ``{"l2q@n", "l2p@n", "npss@n"}``.
     """
-    gt_gq, gt_gp = fk(np.asarray(gt_q, np.float64), skeleton.local_positions(np.asarray(gt_root, np.float64)),
-                      skeleton.parents)
-    pr_gq, pr_gp = fk(np.asarray(pred_q, np.float64), skeleton.local_positions(np.asarray(pred_root, np.float64)),
-                      skeleton.parents)
+    gt_gq, gt_gp = skeleton.pose(np.asarray(gt_root, np.float64), np.asarray(gt_q, np.float64))
+    pr_gq, pr_gp = skeleton.pose(np.asarray(pred_root, np.float64), np.asarray(pred_q, np.float64))
     b = gt_gq.shape[0]
     return {
         f"l2q@{n}": l2q(pr_gq, gt_gq),

@@ -110,6 +110,11 @@ class Skeleton:
     def fk(self, local_q: Array, local_p: Array) -> tuple[Array, Array]:
         return fk(local_q, local_p, self.parents)
 
+    def pose(self, root: Array, local_q: Array) -> tuple[Array, Array]:
+        """Global rotations and positions of a pose given by its root positions and local rotations (the bone
+        offsets for the other joints).  ``root (..., 3), local_q (..., J, 4) -> (..., J, 4), (..., J, 3)``."""
+        return fk(local_q, self.local_positions(root), self.parents)
+
     def ik(self, global_q: Array, global_p: Array) -> tuple[Array, Array]:
         return ik(global_q, global_p, self.parents)
 

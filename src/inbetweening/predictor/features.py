@@ -3,15 +3,19 @@
 ``encode`` turns (root position, local quaternions) into ``(B, T, J, 7)`` features; ``decode`` takes
 features back to what the benchmark scores (root position = joint 0's de-normalised position,
 local quaternions normalised).  Positions are z-scored with the training statistics.
+:class:`GlobalPosLocalQuat` is this layout as a registered :class:`~inbetweening.predictor.representation.Representation`.
 """
 from __future__ import annotations
 
 import torch
 
+from inbetweening.geometry.canonical import masked_mean
 from inbetweening.geometry.quaternion import qnormalize
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.predictor.representation import Representation, register_representation
 
-__all__ = ["FEATURES", "POS", "QUAT", "decode", "encode", "global_positions", "qnormalize"]
-from inbetweening.geometry.skeleton import Skeleton, fk
+__all__ = ["FEATURES", "POS", "QUAT", "GlobalPosLocalQuat", "decode", "encode", "global_positions",
+           "known_centre_shift", "qnormalize"]
 
 FEATURES = 7
 POS = slice(0, 3)
@@ -26,9 +30,8 @@ def _stats(mean, std, like: torch.Tensor, num_joints: int) -> tuple[torch.Tensor
 
 def encode(root: torch.Tensor, local_q: torch.Tensor, skeleton: Skeleton, mean, std) -> torch.Tensor:
     """``root (..., T, 3), local_q (..., T, J, 4) -> features (..., T, J, 7)``."""
-    j = skeleton.num_joints
-    _, gp = fk(local_q, skeleton.local_positions(root), skeleton.parents)
-    m, s = _stats(mean, std, gp, j)
+    _, gp = skeleton.pose(root, local_q)
+    m, s = _stats(mean, std, gp, skeleton.num_joints)
     return torch.cat([(gp - m) / s, local_q], dim=-1)
 
 
@@ -44,3 +47,43 @@ def global_positions(feat: torch.Tensor, mean, std) -> torch.Tensor:
     """De-normalised global positions carried by the features.  ``(..., J, 7) -> (..., J, 3)``."""
     m, s = _stats(mean, std, feat, feat.shape[-2])
     return feat[..., POS] * s + m
+
+
+def known_centre_shift(feats: torch.Tensor, known: torch.Tensor, std) -> torch.Tensor:
+    """Feature-space shift that moves the mean root XZ of the KNOWN frames to the origin.  ``-> (B, 1, J, 7)``.
+
+    Benchmark windows are centred on the mean root XZ over all their frames, including the ones to be
+    predicted, so absolute positions leak where the transition goes.  Subtracting this shift (and adding
+    it back to the prediction) makes the network see only what is known: ``centre="known"``.  The root's
+    known frames decide (per-joint masks included); unknown values are never read (NaN is fine).
+    """
+    s = torch.as_tensor(std, dtype=feats.dtype, device=feats.device).reshape(-1, 3)
+    xz = masked_mean(feats[:, :, 0, [0, 2]], known[:, :, 0])[:, 0]  # (B, 2) in the root's feature units
+    shift = torch.zeros(feats.shape[0], 1, feats.shape[2], feats.shape[3], dtype=feats.dtype, device=feats.device)
+    # positions are z-scored per joint coordinate: a world shift d is d / std_j in each joint's features
+    shift[:, 0, :, 0] = xz[:, None, 0] * s[0, 0] / s[:, 0]
+    shift[:, 0, :, 2] = xz[:, None, 1] * s[0, 2] / s[:, 2]
+    return shift
+
+
+@register_representation
+class GlobalPosLocalQuat(Representation):
+    """Z-scored global joint positions + local quaternions (the method's features, 7 per joint)."""
+
+    name = "global_pos_local_quat"
+    features = FEATURES
+    pos = POS
+    quat = QUAT
+    description = "per joint [(p - pos_mean) / pos_std (xyz, global position), local quaternion wxyz]"
+
+    def encode(self, root, local_q):
+        return encode(root, local_q, self.skeleton, self.mean, self.std)
+
+    def decode(self, feats):
+        return decode(feats, self.mean, self.std)
+
+    def global_positions(self, feats):
+        return global_positions(feats, self.mean, self.std)
+
+    def centre_shift(self, feats, known):
+        return known_centre_shift(feats, known, self.std)

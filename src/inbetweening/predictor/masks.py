@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import torch
 
-from inbetweening.geometry.quaternion import slerp_torch
+from inbetweening.geometry.interp import lerp, slerp
 
 MASK_NAMES = ("zero", "lerp", "joints")
 
@@ -84,8 +84,8 @@ def lerp_fill(x: torch.Tensor, known: torch.Tensor) -> torch.Tensor:
     safe = torch.where(known[..., None], x, torch.zeros_like(x))  # never read unknown values, even NaN ones
     xp = torch.gather(safe, 1, p[..., None].expand_as(x))
     xn = torch.gather(safe, 1, n[..., None].expand_as(x))
-    pos = xp[..., :3] + w[..., None] * (xn[..., :3] - xp[..., :3])
-    quat = slerp_torch(xp[..., 3:7], xn[..., 3:7], w)
+    pos = lerp(xp[..., :3], xn[..., :3], w[..., None])
+    quat = slerp(xp[..., 3:7], xn[..., 3:7], w)
     filled = torch.cat([pos, quat, xp[..., 7:]], dim=-1)
     return torch.where(known[..., None], x, filled)
 

@@ -16,12 +16,14 @@ The exported graph is the network alone, ``net(x, known, interp) -> out``:
 normalised like the training windows (see :mod:`inbetweening.tools.inbetweener`).  Everything needed to prepare
 them is stored in the model's ``metadata_props``, one JSON value per key: ``skeleton_names``,
 ``skeleton_parents``, ``skeleton_offsets``, ``pos_mean``, ``pos_std``, ``mask``, ``forward_axis``, ``n_past``,
-``fps``, ``train_window``, ``max_frames``, ``model``, ``dataset``, ``features``, ``inputs`` (the graph's input
-names).
+``fps``, ``train_window``, ``max_frames``, ``model``, ``dataset``, ``centre``, the feature layout
+(``representation``, ``features_per_joint``, ``position_slice``, ``quaternion_slice``, ``features``) and
+``inputs`` (the graph's input names).  With ``centre="known"`` the features are first shifted so that the known
+frames' mean root XZ is the origin, and the output shifted back (as
+:meth:`Predictor.predict <inbetweening.predictor.predictor.Predictor.predict>` does).
 """
 from __future__ import annotations
 
-import json
 import sys
 import warnings
 from collections.abc import Sequence
@@ -58,47 +60,22 @@ class ExportError(ValueError):
     """The export could not be done (unknown format, missing package, failed check)."""
 
 
-def metadata(module, inputs: Sequence[str] = ("x", "known", "interp")) -> dict[str, str]:
-    """The ``metadata_props`` entries (JSON strings) describing how to prepare inputs for ``module``'s network.
-
-    ``inputs``: the graph's input names (``interp`` is absent when the network does not read it).
-    """
-    hp = module.hparams
-    sk = module.skeleton
-    meta = {
-        "format": "inbetweening-onnx/1",
-        "model": dict(hp["model"]),
-        "skeleton_names": list(sk.names),
-        "skeleton_parents": list(sk.parents),
-        "skeleton_offsets": sk.offsets.tolist(),
-        "pos_mean": np.asarray(module.mean, dtype=float).tolist(),
-        "pos_std": np.asarray(module.std, dtype=float).tolist(),
-        "mask": module.mask_name,
-        "forward_axis": list(module.forward_axis),
-        "n_past": int(module.n_past),
-        "fps": float(hp.get("fps", 30.0)),
-        "train_window": int(hp.get("train_window", 50)),
-        "max_frames": int(getattr(module.net, "max_frames", 0) or 0),
-        "dataset": str(hp.get("dataset", "")),
-        "features": "per joint [(p - pos_mean) / pos_std (xyz, global position), local quaternion wxyz]",
-        "inputs": list(inputs),
-    }
-    return {k: json.dumps(v) for k, v in meta.items()}
+def _predictor(model):
+    """The :class:`~inbetweening.predictor.predictor.Predictor` of a predictor or a training module."""
+    return getattr(model, "predictor", model)
 
 
-def random_window(module, batch: int, gap: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def metadata(model, inputs: Sequence[str] = ("x", "known", "interp")) -> dict[str, str]:
+    """The ``metadata_props`` entries (JSON strings) describing how to prepare inputs for the network
+    (:meth:`Predictor.metadata <inbetweening.predictor.predictor.Predictor.metadata>`; the feature layout comes
+    from its representation).  ``inputs``: the graph's input names (``interp`` is absent when the network does
+    not read it)."""
+    return _predictor(model).metadata(inputs)
+
+
+def random_window(model, batch: int, gap: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Random masked inputs ``(x, known, interp)`` for ``batch`` windows with a ``gap``-frame transition."""
-    from inbetweening.predictor.masks import apply_mask, transition_known
-
-    g = torch.Generator().manual_seed(seed)
-    j = module.skeleton.num_joints
-    t = module.n_past + gap + 1
-    pos = torch.randn(batch, t, j, 3, generator=g)
-    quat = torch.randn(batch, t, j, 4, generator=g)
-    feats = torch.cat([pos, quat / quat.norm(dim=-1, keepdim=True)], dim=-1)
-    known = transition_known(batch, t, j, module.n_past, gap)
-    x, interp = apply_mask(module.mask_name, feats, known)
-    return x, known, interp
+    return _predictor(model).example_inputs(batch, gap, seed)
 
 
 def _run_ort(session, x, known, interp) -> np.ndarray:
@@ -108,8 +85,9 @@ def _run_ort(session, x, known, interp) -> np.ndarray:
     return out
 
 
-def export_onnx(module, path: str | Path, opset: int = 17, check: bool = True) -> dict:
-    """Export ``module.net`` to ONNX at ``path`` with metadata; optionally compare with ONNX Runtime.
+def export_onnx(model, path: str | Path, opset: int = 17, check: bool = True) -> dict:
+    """Export the network of ``model`` (a predictor or a training module) to ONNX at ``path`` with metadata;
+    optionally compare with ONNX Runtime.
 
     Returns ``{"path", "inputs", "max_abs_diff"}`` (``max_abs_diff`` is None without ``check``).
     """
@@ -119,9 +97,10 @@ def export_onnx(module, path: str | Path, opset: int = 17, check: bool = True) -
         raise ExportError("format=onnx needs the onnx package: pip install 'inbetweening[export]'") from None
     from inbetweening.atomic import atomic_path
 
-    net = module.net.eval().cpu()
+    predictor = _predictor(model)
+    net = predictor.net.eval().cpu()
     path = Path(path)
-    example = random_window(module, 2, 15)
+    example = random_window(predictor, 2, 15)
     axes = {"x": {0: "batch", 1: "frames"}, "known": {0: "batch", 1: "frames"},
             "interp": {0: "batch", 1: "frames"}, "out": {0: "batch", 1: "frames"}}
     with atomic_path(path) as tmp:  # an interrupted export never leaves half a file under the final name
@@ -131,27 +110,27 @@ def export_onnx(module, path: str | Path, opset: int = 17, check: bool = True) -
                               input_names=["x", "known", "interp"], output_names=["out"], dynamic_axes=axes)
         model = onnx.load(str(tmp))
         inputs = [i.name for i in model.graph.input]
-        for k, v in metadata(module, inputs).items():
+        for k, v in metadata(predictor, inputs).items():
             entry = model.metadata_props.add()
             entry.key, entry.value = k, v
         onnx.save(model, str(tmp))
     info = {"path": str(path), "inputs": inputs, "max_abs_diff": None}
     if check:
-        info["max_abs_diff"] = check_onnx(module, path)
+        info["max_abs_diff"] = check_onnx(predictor, path)
     return info
 
 
-def check_onnx(module, path: str | Path, batch: int = 3, gap: int = 7, seed: int = 1) -> float:
+def check_onnx(model, path: str | Path, batch: int = 3, gap: int = 7, seed: int = 1) -> float:
     """Largest absolute difference between ONNX Runtime and PyTorch on a random window."""
     try:
         import onnxruntime as ort
     except ImportError:
         raise ExportError("checking the export needs onnxruntime: pip install 'inbetweening[export]'") from None
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
-    x, known, interp = random_window(module, batch, gap, seed)
+    x, known, interp = random_window(model, batch, gap, seed)
     got = _run_ort(session, x, known, interp)
     with torch.no_grad():
-        ref = module.net.eval().cpu()(x, known, interp).numpy()
+        ref = _predictor(model).net.eval().cpu()(x, known, interp).numpy()
     if got.shape != ref.shape:
         raise ExportError(f"ONNX output shape {got.shape} differs from PyTorch's {ref.shape}")
     return float(np.abs(got - ref).max())
@@ -163,14 +142,15 @@ INFERENCE_KEYS = ("state_dict", "hyper_parameters", "pytorch-lightning_version",
 def export_checkpoint(src: str | Path, dst: str | Path) -> dict:
     """Write an inference-only copy of a training checkpoint (no optimiser/scheduler/loop state).
 
-    The result still loads with ``InbetweenModule.load_from_checkpoint`` and ``Inbetweener.from_checkpoint``;
-    metric states are dropped from the state dict.  Returns ``{"path", "bytes"}``.
+    The state dict is the predictor's own (``net.*``: what ``load_predictor`` reads; metric states dropped); the
+    result still loads with ``InbetweenModule.load_from_checkpoint`` and ``Inbetweener.from_checkpoint``.
+    Returns ``{"path", "bytes"}``.
     """
-    from inbetweening.checkpoint import read_checkpoint
+    from inbetweening.checkpoint import predictor_state, read_checkpoint
 
     ckpt = read_checkpoint(str(src))
     slim = {k: ckpt[k] for k in INFERENCE_KEYS if k in ckpt}
-    slim["state_dict"] = {k: v for k, v in ckpt["state_dict"].items() if k.startswith("net.")}
+    slim["state_dict"] = predictor_state(ckpt["state_dict"])
     from inbetweening.atomic import atomic_path
 
     dst = Path(dst)
@@ -196,7 +176,7 @@ def run(argv: Sequence[str]) -> int:
     if fmt not in FORMATS:
         fail(f"format: unknown export format {args['format']!r}; supported: {', '.join(FORMATS)}")
     from inbetweening.atomic import same_file
-    from inbetweening.checkpoint import CheckpointError, load_module
+    from inbetweening.checkpoint import CheckpointError, load_predictor
 
     if same_file(args["ckpt_path"], args["output"]) and not args.get("force", False):
         fail(f"output: {args['output']} is the checkpoint being exported; writing it would destroy the input "
@@ -207,8 +187,8 @@ def run(argv: Sequence[str]) -> int:
             info = export_checkpoint(args["ckpt_path"], args["output"])
             print(f"wrote {info['path']} ({info['bytes'] / 1e6:.2f} MB, weights and hyper-parameters only)")
             return 0
-        module = load_module(args["ckpt_path"])
-        info = export_onnx(module, args["output"], opset=args.get("opset", 17), check=args.get("check", True))
+        predictor = load_predictor(args["ckpt_path"])
+        info = export_onnx(predictor, args["output"], opset=args.get("opset", 17), check=args.get("check", True))
     except (CheckpointError, ExportError, OSError) as e:
         fail(e)
     print(f"wrote {info['path']} (inputs: {', '.join(info['inputs'])}; dynamic axes: batch, frames)")

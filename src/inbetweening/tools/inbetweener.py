@@ -43,13 +43,14 @@ import torch
 
 from inbetweening.data.bvh import BVH, BVHError, read_bvh
 from inbetweening.data.datasets import DatasetError, fold_static_root
-from inbetweening.geometry.quaternion import qinv, qmul, qnormalize, qrot, remove_discontinuities, slerp_np
-from inbetweening.geometry.skeleton import Skeleton, fk
-from inbetweening.predictor import features as F
-from inbetweening.predictor.inference import predict_features, window_features
-from inbetweening.predictor.masks import transition_known
+from inbetweening.geometry.interp import interpolate_keyframes, interpolate_pose
+from inbetweening.geometry.quaternion import qinv, qmul, qnormalize, qrot, remove_discontinuities
+from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["FillResult", "InbetweenError", "Inbetweener"]
+__all__ = ["FillResult", "InbetweenError", "Inbetweener", "interpolate_arrays"]
+
+# the keyframe interpolation baseline (root lerp, per-joint slerp), under its historical name
+interpolate_arrays = interpolate_keyframes
 
 
 class InbetweenError(ValueError):
@@ -78,39 +79,11 @@ class FillResult:
 
     def global_positions(self) -> np.ndarray:
         """``(F, J, 3)`` global joint positions of the result (model skeleton, its bone offsets)."""
-        return _global_positions(self.root, self.local_q, self.skeleton)
+        return self.skeleton.pose(np.asarray(self.root, np.float64), np.asarray(self.local_q, np.float64))[1]
 
     def interpolation(self) -> tuple[np.ndarray, np.ndarray]:
         """The same keyframes filled by linear root / slerp rotation interpolation: ``(F, 3), (F, J, 4)``."""
-        return interpolate_arrays(self.root, self.local_q, self.known_frames)
-
-
-def _global_positions(root: np.ndarray, local_q: np.ndarray, skeleton: Skeleton) -> np.ndarray:
-    _, gp = fk(np.asarray(local_q, np.float64), skeleton.local_positions(np.asarray(root, np.float64)),
-               skeleton.parents)
-    return gp
-
-
-def interpolate_arrays(root, local_q, known_frames) -> tuple[np.ndarray, np.ndarray]:
-    """Fill the frames between consecutive known frames by root lerp and per-joint slerp (the baseline).
-
-    ``root (F, 3), local_q (F, J, 4), known_frames`` (sorted, first 0, last F-1) -> new arrays; known frames
-    are copied unchanged and unknown frames are never read.
-    """
-    root = np.array(root, dtype=np.float64)
-    q = np.array(local_q, dtype=np.float64)
-    for a, b in itertools.pairwise(known_frames):
-        if b - a < 2:
-            continue
-        w = (np.arange(a + 1, b) - a) / (b - a)
-        root[a + 1 : b] = root[a] + w[:, None] * (root[b] - root[a])
-        q[a + 1 : b] = slerp_np(q[a][None], q[b][None], w[:, None])
-    return root, q
-
-
-def _yaw_quat(angle: float) -> np.ndarray:
-    """Rotation about +Y by ``angle`` radians, wxyz."""
-    return np.array([math.cos(angle / 2), 0.0, math.sin(angle / 2), 0.0])
+        return interpolate_keyframes(self.root, self.local_q, self.known_frames)
 
 
 def _check_frames(frames, length: int, what: str) -> list[int]:
@@ -140,27 +113,24 @@ class Inbetweener:
     """A trained in-betweening model wrapped for keyframe filling (see the module docstring).
 
     Args:
-        module: a trained :class:`~inbetweening.training.module.InbetweenModule` (moved to ``eval`` mode).
+        model: a :class:`~inbetweening.predictor.predictor.Predictor` (what :meth:`from_checkpoint` loads) or a
+            trained :class:`~inbetweening.training.module.InbetweenModule` (its predictor is used); moved to
+            ``eval`` mode.
         max_gap: longest transition generated in one window; default ``trained_gap``.  May be raised up to
             ``max_frames - n_past - 1`` of the network (beyond what it was trained on: quality not guaranteed).
         segment: split longer gaps (``True``, default) or raise :class:`InbetweenError`.
         trained_gap: the longest transition the model saw in training; default
-            ``hparams.train_window - n_past - 1``.
+            ``train_window - n_past - 1``.
     """
 
-    def __init__(self, module, max_gap: int | None = None, segment: bool = True, trained_gap: int | None = None):
-        self.module = module.eval()
-        self.net = module.net
-        self.skeleton: Skeleton = module.skeleton
-        self.n_past = int(module.n_past)
-        self.mean, self.std = module.mean, module.std
-        self.mask_name = module.mask_name
-        self.forward_axis = np.asarray(module.forward_axis, dtype=np.float64)
-        hp = module.hparams
-        self.fps = float(hp.get("fps", 30.0))
-        window = int(hp.get("train_window", 50))
-        max_frames = getattr(self.net, "max_frames", None)
-        self.hard_max_gap = (int(max_frames) if max_frames else 10**9) - self.n_past - 1
+    def __init__(self, model, max_gap: int | None = None, segment: bool = True, trained_gap: int | None = None):
+        self.module = model.eval()
+        self.predictor = getattr(model, "predictor", model)
+        self.skeleton: Skeleton = self.predictor.skeleton
+        self.n_past = int(self.predictor.n_past)
+        self.fps = float(self.predictor.fps)
+        window = int(self.predictor.train_window)
+        self.hard_max_gap = (self.predictor.max_frames or 10**9) - self.n_past - 1
         default = window - self.n_past - 1
         self.trained_gap = min(int(trained_gap) if trained_gap else default, default, self.hard_max_gap)
         if self.trained_gap < 1:
@@ -170,24 +140,22 @@ class Inbetweener:
 
     @classmethod
     def from_checkpoint(cls, path: str | Path, device: str | torch.device = "cpu", **kw) -> Inbetweener:
-        """Load a training checkpoint (``CheckpointError`` for missing or wrong files).
+        """Load a training checkpoint's predictor (``CheckpointError`` for missing or wrong files).
 
         ``kw`` go to the constructor (``max_gap``, ``segment``); ``trained_gap`` defaults to the data module's
         ``transition_max`` recorded in the checkpoint.
         """
-        from inbetweening.checkpoint import load_module, read_checkpoint
+        from inbetweening.checkpoint import load_predictor, read_checkpoint
 
         ckpt = read_checkpoint(str(path))
         dm = ckpt.get("datamodule_hyper_parameters") or {}
         if "trained_gap" not in kw and dm.get("mask", "lerp") != "joints" and dm.get("transition_max"):
             kw["trained_gap"] = int(dm["transition_max"])
-        del ckpt
-        module = load_module(str(path)).to(device)
-        return cls(module, **kw)
+        return cls(load_predictor(str(path), device, ckpt=ckpt), **kw)
 
     @property
     def device(self) -> torch.device:
-        return next((p.device for p in self.net.parameters()), torch.device("cpu"))
+        return self.predictor.device
 
     def _check_max_gap(self, max_gap: int | None) -> int:
         if max_gap is None:
@@ -241,8 +209,7 @@ class Inbetweener:
             points = [a + round(i * (b - a) / m) for i in range(m + 1)]
             if m > 1:
                 w = (np.array(points[1:-1]) - a) / (b - a)
-                root[points[1:-1]] = root[a] + w[:, None] * (root[b] - root[a])
-                q[points[1:-1]] = slerp_np(q[a][None], q[b][None], w[:, None])
+                root[points[1:-1]], q[points[1:-1]] = interpolate_pose(root[a], q[a], root[b], q[b], w)
                 if _pseudo is not None:
                     _pseudo.extend(points[1:-1])
             for s, e in itertools.pairwise(points):
@@ -256,30 +223,7 @@ class Inbetweener:
         n, p = b - a - 1, self.n_past
         ctx = np.clip(np.arange(a - p + 1, a + 1), 0, None)
         idx = np.concatenate([ctx, np.full(n, a), [b]])  # unknown frames hold frame a (never read by the model)
-        wr, wq = root[idx].copy(), q[idx].copy()
-        wq = _continuous(wq)
-        known_t = np.zeros(len(idx), dtype=bool)
-        known_t[:p] = True
-        known_t[-1] = True
-        # normalise as in training: XZ centred on the known frames, root forward at frame a -> +X
-        centre = np.zeros(3)
-        centre[[0, 2]] = wr[known_t][:, [0, 2]].mean(axis=0)
-        fwd = qrot(wq[p - 1, 0], self.forward_axis)
-        yaw = math.atan2(-fwd[2], fwd[0]) if math.hypot(fwd[0], fwd[2]) > 1e-9 else 0.0
-        inv = qinv(_yaw_quat(yaw))
-        wr = qrot(inv[None], wr - centre)
-        wq[:, 0] = qmul(inv[None], wq[:, 0])
-        dev = self.device
-        feats = window_features(wr[None], wq[None], self.skeleton, self.mean, self.std, device=dev)
-        known = transition_known(1, len(idx), self.skeleton.num_joints, p, n, device=dev)
-        pred, _ = predict_features(self.net, self.mask_name, feats, known, self.module.centre, self.std)
-        pr, pq = F.decode(pred.double(), self.mean, self.std)
-        pr = pr[0, p : p + n].cpu().numpy()
-        pq = pq[0, p : p + n].cpu().numpy()
-        pq /= np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit (decode's normalisation has an epsilon)
-        yq = _yaw_quat(yaw)[None]
-        pr = qrot(yq, pr) + centre
-        pq[:, 0] = qmul(yq, pq[:, 0])
+        pr, pq = self.predictor.fill_window(root[idx].copy(), _continuous(q[idx].copy()))
         # sign-continuous with frame a (cosmetic: every frame is written as Euler angles anyway)
         pq = _continuous(np.concatenate([q[a : a + 1], pq]))[1:]
         root[a + 1 : b], q[a + 1 : b] = pr, pq

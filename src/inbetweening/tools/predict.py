@@ -76,18 +76,12 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80) -> Pa
 
     skel = result.skeleton
     ir, iq = result.interpolation()
-    _, lerp = _fk(ir, iq, skel)
+    _, lerp = skel.pose(ir, iq)
     highlight = np.zeros(result.num_frames, dtype=bool)
     highlight[result.known_frames] = True
     seqs = {"model": result.global_positions(), "linear interpolation": lerp}
     return render_gif(seqs, skel.parents, path, fps=int(max(1, min(round(fps), 50))), highlight=highlight,
                       dpi=dpi, title=Path(path).stem)
-
-
-def _fk(root, q, skel):
-    from inbetweening.geometry.skeleton import fk
-
-    return fk(q, skel.local_positions(root), skel.parents)
 
 
 def run(argv: Sequence[str]) -> int:

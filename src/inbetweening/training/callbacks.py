@@ -7,9 +7,6 @@ import torch
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.plugins.io import TorchCheckpointIO
 
-from inbetweening.geometry.skeleton import fk
-from inbetweening.predictor import features as F
-from inbetweening.predictor.inference import predict_features
 from inbetweening.predictor.masks import transition_known
 from inbetweening.tools.render import draw_sequences
 
@@ -24,18 +21,12 @@ class SkeletonFigure(L.Callback):
 
     def sequences(self, pl_module, root: torch.Tensor, q: torch.Tensor) -> dict:
         """Global positions ``(T, J, 3)`` of ground truth, prediction and interpolation for one window."""
-        sk, n, p = pl_module.skeleton, self.n, pl_module.n_past
-        t = p + n + 1
-        feats = F.encode(root[None, :t].double(), q[None, :t].double(), sk, pl_module.mean, pl_module.std).float()
-        feats = feats.to(pl_module.device)
-        known = transition_known(1, t, sk.num_joints, p, n, device=feats.device)
-        pred, interp = predict_features(pl_module.net, pl_module.mask_name, feats, known, pl_module.centre,
-                                        pl_module.std)
-        out = {}
-        for label, f in (("ground truth", feats), ("prediction", pred), ("interpolation", interp)):
-            r, lq = F.decode(f.double().cpu(), pl_module.mean, pl_module.std)
-            out[label] = fk(lq, sk.local_positions(r), sk.parents)[1][0].numpy()
-        return out
+        pr, n = pl_module.predictor, self.n
+        t = pr.n_past + n + 1
+        known = pr.transition_known(1, t, n, device=pl_module.device)
+        feats, pred, interp = pr.predict_windows(root[None, :t], q[None, :t], known)
+        labelled = (("ground truth", feats), ("prediction", pred), ("interpolation", interp))
+        return {label: pr.skeleton.pose(*pr.decode(f.cpu()))[1][0].numpy() for label, f in labelled}
 
     def on_validation_epoch_end(self, trainer: L.Trainer, pl_module) -> None:
         if trainer.sanity_checking or trainer.current_epoch % self.every or not trainer.loggers:

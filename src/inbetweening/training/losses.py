@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import torch
 
-from inbetweening.geometry.skeleton import Skeleton, fk
+from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor import features as F
 
 LOSS_TERMS = ("l1", "fk_pos", "quat", "bone", "smooth", "foot")
@@ -30,7 +30,7 @@ def l1(pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor) -> torch.Tensor
 def fk_positions(pred: torch.Tensor, skeleton: Skeleton, mean, std) -> torch.Tensor:
     """Z-scored global positions from FK of the predicted root + local quaternions.  ``(B,T,J,7) -> (B,T,J,3)``."""
     root, q = F.decode(pred, mean, std)
-    _, gp = fk(q, skeleton.local_positions(root), skeleton.parents)
+    _, gp = skeleton.pose(root, q)
     m, s = F._stats(mean, std, gp, skeleton.num_joints)
     return (gp - m) / s
 

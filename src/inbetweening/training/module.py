@@ -12,19 +12,20 @@ import lightning as L
 import numpy as np
 import torch
 
+from inbetweening.checkpoint import peek_hyper_parameters, upgrade_module_state
 from inbetweening.evaluation.benchmark import N_PAST
 from inbetweening.evaluation.metrics import BenchmarkMetric, PerJointError
-from inbetweening.geometry.skeleton import Skeleton, fk
-from inbetweening.models import build_network
-from inbetweening.predictor import features as F
-from inbetweening.predictor.inference import CENTRES, masked_forward, predict_features
-from inbetweening.predictor.masks import MASK_NAMES, joints_known, transition_known
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.predictor.masks import joints_known
+from inbetweening.predictor.predictor import LEGACY_CENTRE, Predictor
+from inbetweening.predictor.representation import DEFAULT_REPRESENTATION
 from inbetweening.training.losses import total_loss
 from inbetweening.training.schedules import build_optimizers, upgrade_optim
 
 
 class InbetweenModule(L.LightningModule):
-    """In-betweening training/evaluation around a network from :mod:`inbetweening.models`.
+    """In-betweening training/evaluation around a :class:`~inbetweening.predictor.predictor.Predictor` (which
+    holds the network of :mod:`inbetweening.models`); every path from windows to predictions goes through it.
 
     Args:
         model: model config (``name`` + constructor kwargs; ``hops`` builds a k-hop relation matrix).
@@ -37,11 +38,13 @@ class InbetweenModule(L.LightningModule):
         val_lengths, test_lengths: transition lengths scored by the benchmark metrics.
         dataset: name of the training dataset (recorded in ``benchmark.json``).
         forward_axis, fps, train_window: data conventions, kept so tools can prepare new windows alike.
-        centre: ``known`` re-centres each window on the mean root XZ of its known frames before the network
-            (no information about the frames to predict leaks through the window's centring); ``window`` feeds
-            the benchmark's window-centred data as is (the default of checkpoints made before the option).
         joint_mask: gap settings of the mocap-recovery task (``mask=joints``): ``gap_min``, ``gap_max``,
             ``frac_min``, ``frac_max``; validation/test then also score recovery of missing joints.
+        centre: required, no default.  ``known`` re-centres each window on the mean root XZ of its known frames
+            before the network (no information about the frames to predict leaks through the window's centring);
+            ``window`` feeds the benchmark's window-centred data as is.  Checkpoints made before the option load
+            with ``window`` (what they did).
+        representation: the feature representation's name (:mod:`inbetweening.predictor.representation`).
     """
 
     def __init__(
@@ -61,25 +64,16 @@ class InbetweenModule(L.LightningModule):
         fps: float = 30.0,
         train_window: int = 50,
         joint_mask: dict | None = None,
-        centre: str = "window",
+        *,
+        centre: str,
+        representation: str = DEFAULT_REPRESENTATION,
     ):
         super().__init__()
         self.save_hyperparameters()
-        if mask not in MASK_NAMES:
-            raise ValueError(f"mask must be one of {list(MASK_NAMES)}, got {mask!r}")
-        self.skeleton = Skeleton.from_dict(skeleton)
-        self.mean = np.asarray(pos_mean, dtype=np.float64)
-        self.std = np.asarray(pos_std, dtype=np.float64)
-        self.mask_name = mask
+        self.predictor = Predictor.from_hparams(dict(self.hparams))
         self.loss_weights = dict(loss or {"l1": 1.0})
         self.optim_cfg = upgrade_optim(optim)  # checkpoints of the old form (optim.name, optim.lr, ...) still load
         self.hparams["optim"] = self.optim_cfg
-        self.n_past = n_past
-        self.forward_axis = tuple(float(a) for a in forward_axis)
-        if centre not in CENTRES:
-            raise ValueError(f"centre must be one of {list(CENTRES)}, got {centre!r}")
-        self.centre = centre
-        self.net = build_network(model, self.skeleton)
         j = self.skeleton.num_joints
         self.val_bench = BenchmarkMetric(self.skeleton, self.mean, self.std, val_lengths)
         self.test_bench = BenchmarkMetric(self.skeleton, self.mean, self.std, test_lengths)
@@ -89,6 +83,51 @@ class InbetweenModule(L.LightningModule):
         self.joint_mask = {k: v for k, v in (joint_mask or {}).items() if k != "name"}
         self.val_recovery = PerJointError(j)
         self.test_recovery = PerJointError(j)
+
+    # ------------------------------------------------------------------ checkpoints
+    @classmethod
+    def load_from_checkpoint(cls, checkpoint_path, *args, **kwargs):
+        """Lightning's loader; a checkpoint made before the ``centre`` option loads with ``centre="window"``."""
+        if "centre" not in kwargs and "centre" not in peek_hyper_parameters(checkpoint_path):
+            kwargs["centre"] = LEGACY_CENTRE
+        return super().load_from_checkpoint(checkpoint_path, *args, **kwargs)
+
+    def on_load_checkpoint(self, checkpoint: dict) -> None:
+        """Older state dicts (``net.*``) are renamed to today's layout (``predictor.net.*``)."""
+        checkpoint["state_dict"] = upgrade_module_state(checkpoint["state_dict"])
+
+    # ------------------------------------------------------------------ the predictor's settings
+    @property
+    def net(self) -> torch.nn.Module:
+        return self.predictor.net
+
+    @property
+    def skeleton(self) -> Skeleton:
+        return self.predictor.skeleton
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.predictor.mean
+
+    @property
+    def std(self) -> np.ndarray:
+        return self.predictor.std
+
+    @property
+    def mask_name(self) -> str:
+        return self.predictor.mask_name
+
+    @property
+    def centre(self) -> str:
+        return self.predictor.centre
+
+    @property
+    def n_past(self) -> int:
+        return self.predictor.n_past
+
+    @property
+    def forward_axis(self) -> tuple[float, ...]:
+        return self.predictor.forward_axis
 
     @property
     def _distributed(self) -> bool:
@@ -104,9 +143,8 @@ class InbetweenModule(L.LightningModule):
         return self.net(x, known, interp)
 
     def _step_loss(self, batch: dict, stage: str) -> torch.Tensor:
-        gt, known, loss_mask = batch["gt"], batch["known"], batch["loss_mask"]
-        pred, _, gt = masked_forward(self.net, self.mask_name, gt, known, self.centre, self.std)
-        loss, terms = total_loss(pred, gt, loss_mask, self.loss_weights, self.skeleton, self.mean, self.std)
+        pred, _, gt = self.predictor(batch["gt"], batch["known"])
+        loss, terms = total_loss(pred, gt, batch["loss_mask"], self.loss_weights, self.skeleton, self.mean, self.std)
         bs = gt.shape[0]
         self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=bs)
         for k, v in terms.items():
@@ -123,20 +161,18 @@ class InbetweenModule(L.LightningModule):
     def _bench_step(self, batch: dict, bench: BenchmarkMetric, joint: PerJointError, stage: str) -> None:
         """Score the benchmark windows of a batch at each transition length (same path as eval.py)."""
         root, q = batch["root"], batch["q"]  # (B, W, 3), (B, W, J, 4) float64, normalised windows
-        losses = []
+        pr, sk, losses = self.predictor, self.skeleton, []
         for n in bench.lengths:
             t = self.n_past + n + 1
-            feats = F.encode(root[:, :t], q[:, :t], self.skeleton, self.mean, self.std).float()
-            b, _, j, _ = feats.shape
-            known = transition_known(b, t, j, self.n_past, n, device=feats.device)
-            pred, _ = predict_features(self.net, self.mask_name, feats, known, self.centre, self.std)
+            known = pr.transition_known(root.shape[0], t, n, device=root.device)
+            feats, pred, _ = pr.predict_windows(root[:, :t], q[:, :t], known)
             unknown = ~known
-            losses.append(total_loss(pred, feats, unknown, {"l1": 1.0}, self.skeleton, self.mean, self.std)[0])
-            pr_root, pr_q = F.decode(pred.double(), self.mean, self.std)
+            losses.append(total_loss(pred, feats, unknown, {"l1": 1.0}, sk, self.mean, self.std)[0])
+            pr_root, pr_q = pr.decode(pred)
             sl = slice(self.n_past, self.n_past + n)
             bench.update(n, pr_root[:, sl], pr_q[:, sl], root[:, sl], q[:, sl])
-            pr_gq, pr_gp = fk(pr_q, self.skeleton.local_positions(pr_root), self.skeleton.parents)
-            gt_gq, gt_gp = fk(q[:, :t], self.skeleton.local_positions(root[:, :t]), self.skeleton.parents)
+            pr_gq, pr_gp = sk.pose(pr_root, pr_q)
+            gt_gq, gt_gp = sk.pose(root[:, :t], q[:, :t])
             joint.update(pr_gp, gt_gp, pr_gq, gt_gq, unknown)
         self.log(f"{stage}/loss", torch.stack(losses).mean(), prog_bar=True, batch_size=root.shape[0],
                  sync_dist=self._distributed)
@@ -144,19 +180,17 @@ class InbetweenModule(L.LightningModule):
     def _recovery_step(self, batch: dict, batch_idx: int, metric: PerJointError) -> None:
         """Mocap recovery: random joints missing over random gaps of the whole window (seeded per batch)."""
         root, q = batch["root"], batch["q"]
-        feats = F.encode(root, q, self.skeleton, self.mean, self.std).float()
-        b, t, j, _ = feats.shape
+        b, t = root.shape[:2]
         jm = self.joint_mask
         gen = torch.Generator().manual_seed(1000 + batch_idx)
-        known = joints_known(b, t, j, int(jm.get("gap_min", 10)), int(jm.get("gap_max", 200)),
+        known = joints_known(b, t, self.skeleton.num_joints, int(jm.get("gap_min", 10)), int(jm.get("gap_max", 200)),
                              float(jm.get("frac_min", 0.1)), float(jm.get("frac_max", 0.3)), generator=gen,
-                             device=feats.device)
-        pred, _ = predict_features(self.net, self.mask_name, feats, known, self.centre, self.std)
-        pr_root, pr_q = F.decode(pred.double(), self.mean, self.std)
-        pr_gq, _ = fk(pr_q, self.skeleton.local_positions(pr_root), self.skeleton.parents)
-        gt_gq, gt_gp = fk(q, self.skeleton.local_positions(root), self.skeleton.parents)
+                             device=root.device)
+        _, pred, _ = self.predictor.predict_windows(root, q, known)
+        pr_gq, _ = self.skeleton.pose(*self.predictor.decode(pred))
+        gt_gq, gt_gp = self.skeleton.pose(root, q)
         # recovered positions are the predicted global positions of the missing joints
-        metric.update(F.global_positions(pred.double(), self.mean, self.std), gt_gp, pr_gq, gt_gq, ~known)
+        metric.update(self.predictor.global_positions(pred), gt_gp, pr_gq, gt_gq, ~known)
 
     def validation_step(self, batch: dict, batch_idx: int) -> None:
         self._bench_step(batch, self.val_bench, self.val_joint, "val")

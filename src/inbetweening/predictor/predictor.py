@@ -1,0 +1,223 @@
+"""The predictor: one object from (root, local quaternion) windows to predicted transitions.
+
+It owns the skeleton, the training statistics, the feature representation, the mask, the centring mode, the
+context length, the forward axis and the network, and is the only path from windows to predictions used by
+training, validation/test, ``eval.py``, the TensorBoard figure, the animator tool and export.  It is built
+from plain values (:meth:`Predictor.from_hparams` / :meth:`Predictor.hparams`), so a checkpoint's
+hyper-parameters and state dict restore it without Hydra or Lightning (:func:`inbetweening.checkpoint.load_predictor`).
+
+Shapes: windows ``root (B, T, 3)``, ``local_q (B, T, J, 4)``; features ``(B, T, J, F)``; ``known (B, T, J)`` bool.
+"""
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from inbetweening.geometry import canonical
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.predictor.inference import centred_forward, check_centre, restore_frame
+from inbetweening.predictor.masks import MASK_NAMES, apply_mask, transition_known
+from inbetweening.predictor.representation import DEFAULT_REPRESENTATION, build_representation
+
+N_PAST = 10  # context frames of the benchmark protocol (inbetweening.evaluation.benchmark.N_PAST)
+LEGACY_CENTRE = "window"  # what checkpoints made before the ``centre`` option did
+
+# the predictor's hyper-parameters, as InbetweenModule records them
+HPARAMS = ("model", "skeleton", "pos_mean", "pos_std", "mask", "centre", "n_past", "forward_axis", "representation",
+           "fps", "train_window", "dataset")
+
+
+def upgrade_hparams(hp: dict) -> dict:
+    """Hyper-parameters of an older checkpoint in today's form: a missing ``centre`` is ``window`` (what those
+    checkpoints did), a missing ``representation`` the original one.  Returns a new dict."""
+    hp = dict(hp)
+    hp.setdefault("centre", LEGACY_CENTRE)
+    hp.setdefault("representation", DEFAULT_REPRESENTATION)
+    return hp
+
+
+class Predictor(nn.Module):
+    """Windows -> features -> (mask, centring) -> network -> predicted windows.
+
+    Args:
+        net: the network, ``net(x, known, interp) -> (B, T, J, F)`` (:mod:`inbetweening.models`).
+        skeleton: the training data's skeleton.
+        pos_mean, pos_std: training statistics of global positions, ``J*3`` floats each.
+        mask: ``zero`` | ``lerp`` | ``joints`` (what the network sees in place of unknown values).
+        centre: ``known`` (re-centre on the known frames' root XZ) or ``window`` (as given); required.
+        n_past: context frames before a transition.
+        forward_axis: the root's forward direction in its local frame (window canonicalisation).
+        representation: name of the feature representation (:mod:`inbetweening.predictor.representation`).
+        model: the network's config (recorded, for :meth:`hparams`); fps, train_window, dataset: data conventions.
+    """
+
+    def __init__(self, net: nn.Module, skeleton: Skeleton, pos_mean, pos_std, *, mask: str, centre: str,
+                 n_past: int = N_PAST, forward_axis: Sequence[float] = (0.0, 1.0, 0.0),
+                 representation: str = DEFAULT_REPRESENTATION, model: dict | None = None, fps: float = 30.0,
+                 train_window: int = 50, dataset: str = ""):
+        super().__init__()
+        if mask not in MASK_NAMES:
+            raise ValueError(f"mask must be one of {list(MASK_NAMES)}, got {mask!r}")
+        self.net = net
+        self.skeleton = skeleton
+        self.mean = np.asarray(pos_mean, dtype=np.float64)
+        self.std = np.asarray(pos_std, dtype=np.float64)
+        self.mask_name = mask
+        self.centre = check_centre(centre)
+        self.n_past = int(n_past)
+        self.forward_axis = tuple(float(a) for a in forward_axis)
+        self.representation = build_representation(representation, skeleton, self.mean, self.std)
+        self.model_cfg = dict(model or {})
+        self.fps, self.train_window, self.dataset = float(fps), int(train_window), str(dataset)
+
+    # ------------------------------------------------------------------ plain values
+    @classmethod
+    def from_hparams(cls, hp: dict) -> Predictor:
+        """Build the predictor (and a freshly initialised network) from plain values (:data:`HPARAMS`; ``model``,
+        ``skeleton``, ``pos_mean``, ``pos_std``, ``centre`` required)."""
+        from inbetweening.models import build_network
+
+        if "centre" not in hp:
+            raise ValueError("centre: required, one of ['window', 'known'] (older checkpoints: see upgrade_hparams)")
+        skeleton = Skeleton.from_dict(hp["skeleton"])
+        kw = {k: hp[k] for k in HPARAMS[4:] if k in hp and hp[k] is not None}
+        kw.setdefault("mask", "lerp")
+        return cls(build_network(hp["model"], skeleton), skeleton, hp["pos_mean"], hp["pos_std"],
+                   model=dict(hp["model"]), **kw)
+
+    def hparams(self) -> dict:
+        """Plain values that rebuild this predictor with :meth:`from_hparams` (weights: ``state_dict()``)."""
+        return {"model": dict(self.model_cfg), "skeleton": self.skeleton.to_dict(), "pos_mean": self.mean.tolist(),
+                "pos_std": self.std.tolist(), "mask": self.mask_name, "centre": self.centre, "n_past": self.n_past,
+                "forward_axis": list(self.forward_axis), "representation": self.representation.name,
+                "fps": self.fps, "train_window": self.train_window, "dataset": self.dataset}
+
+    @property
+    def device(self) -> torch.device:
+        return next((p.device for p in self.net.parameters()), torch.device("cpu"))
+
+    @property
+    def max_frames(self) -> int | None:
+        """Longest window the network accepts (``None``: any)."""
+        m = getattr(self.net, "max_frames", None)
+        return int(m) if m else None
+
+    # ------------------------------------------------------------------ features
+    def encode(self, root, local_q, dtype=torch.float32, device=None) -> torch.Tensor:
+        """``root (..., T, 3), local_q (..., T, J, 4)`` (numpy or torch) -> features ``(..., T, J, F)``.
+
+        FK runs in float64, the result is cast to ``dtype`` on ``device`` (default: the network's).  NaN frames
+        stay NaN (nothing downstream reads unknown values)."""
+        return self.representation.encode_windows(root, local_q, dtype, device or self.device)
+
+    def decode(self, feats: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Features -> ``root (..., T, 3), local_q (..., T, J, 4)`` in float64 (unit quaternions)."""
+        return self.representation.decode(feats.double())
+
+    def global_positions(self, feats: torch.Tensor) -> torch.Tensor:
+        """Global joint positions carried by the features, float64.  ``(..., J, F) -> (..., J, 3)``."""
+        return self.representation.global_positions(feats.double())
+
+    def transition_known(self, batch: int, frames: int, n, device=None) -> torch.Tensor:
+        """The in-betweening mask ``(B, T, J)``: ``n_past`` context frames, ``n`` unknown, then known frames."""
+        return transition_known(batch, frames, self.skeleton.num_joints, self.n_past, n, device=device)
+
+    # ------------------------------------------------------------------ forward / predict
+    def forward(self, feats: torch.Tensor, known: torch.Tensor):
+        """Training forward (with gradients): ``(pred, interp, target)``, ``target`` being ``feats`` in the frame
+        the prediction lives in (the loss compares the two)."""
+        return centred_forward(self.net, self.mask_name, feats, known, self.centre, self.representation.centre_shift)[:3]
+
+    @torch.no_grad()
+    def predict(self, feats: torch.Tensor, known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(prediction, interpolation)`` in the input's frame; known values bit-exact from ``feats``, unknown
+        input values never read (they may be NaN)."""
+        pred, interp, _, shift = centred_forward(self.net, self.mask_name, feats, known, self.centre,
+                                                 self.representation.centre_shift)
+        return restore_frame(feats, known, pred, interp, shift)
+
+    def predict_windows(self, root, local_q, known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Encode windows and predict their unknown values: ``(features, prediction, interpolation)``."""
+        feats = self.encode(root, local_q, device=known.device)
+        return (feats, *self.predict(feats, known))
+
+    def predict_transitions(self, root, local_q, n: int, device=None, batch_size: int = 256):
+        """The benchmark's predictor contract.
+
+        ``root (B, n_past+n+1, 3), local_q (B, n_past+n+1, J, 4)`` (transition frames may be NaN) ->
+        predicted ``root (B, n, 3)``, ``local_q (B, n, J, 4)`` as float64 numpy.
+        """
+        device = device or self.device
+        sl = slice(self.n_past, self.n_past + n)
+        outs_r, outs_q = [], []
+        for s in range(0, len(root), batch_size):
+            r, q = root[s : s + batch_size], local_q[s : s + batch_size]
+            known = self.transition_known(len(r), np.shape(r)[1], n, device=device)
+            _, pred, _ = self.predict_windows(r, q, known)
+            pr, pq = self.decode(pred)
+            outs_r.append(pr[:, sl].cpu().numpy())
+            outs_q.append(pq[:, sl].cpu().numpy())
+        return np.concatenate(outs_r), np.concatenate(outs_q)
+
+    def fill_window(self, root: np.ndarray, local_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One transition in world space, as the animator tool needs it.
+
+        ``root (T, 3), local_q (T, J, 4)``: ``n_past`` context frames, ``n = T - n_past - 1`` transition frames
+        (never read) and the target.  The window is canonicalised like the training windows (XZ centred on the
+        known frames' root, the root facing +X at the last context frame), predicted, and taken back.
+        Returns the ``n`` predicted frames ``root (n, 3), local_q (n, J, 4)``, float64, unit quaternions.
+        """
+        p, t = self.n_past, len(root)
+        n = t - p - 1
+        known_t = np.zeros(t, dtype=bool)
+        known_t[:p] = True
+        known_t[-1] = True
+        centre, rot = canonical.canonical_frame(root, local_q, self.forward_axis, p - 1, known_t)
+        wr, wq = canonical.canonicalise(root, local_q, centre, rot)
+        known = self.transition_known(1, t, n, device=self.device)
+        _, pred, _ = self.predict_windows(wr[None], wq[None], known)
+        pr, pq = self.decode(pred)
+        pr, pq = pr[0, p : p + n].cpu().numpy(), pq[0, p : p + n].cpu().numpy()
+        pq /= np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit (decode's normalisation has an epsilon)
+        return canonical.uncanonicalise(pr, pq, centre, rot)
+
+    # ------------------------------------------------------------------ export
+    def example_inputs(self, batch: int, gap: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Random network inputs ``(x, known, interp)`` for ``batch`` windows with a ``gap``-frame transition (CPU)."""
+        g = torch.Generator().manual_seed(seed)
+        j, t, rep = self.skeleton.num_joints, self.n_past + gap + 1, self.representation
+        feats = torch.zeros(batch, t, j, rep.features)
+        feats[..., rep.pos] = torch.randn(batch, t, j, rep.pos.stop - rep.pos.start, generator=g)
+        quat = torch.randn(batch, t, j, rep.quat.stop - rep.quat.start, generator=g)
+        feats[..., rep.quat] = quat / quat.norm(dim=-1, keepdim=True)
+        known = transition_known(batch, t, j, self.n_past, gap)
+        x, interp = apply_mask(self.mask_name, feats, known)
+        return x, known, interp
+
+    def metadata(self, inputs: Sequence[str] = ("x", "known", "interp")) -> dict[str, str]:
+        """What a consumer of the bare network needs to prepare its inputs, one JSON string per key."""
+        sk = self.skeleton
+        meta = {
+            "format": "inbetweening-onnx/1",
+            "model": dict(self.model_cfg),
+            "skeleton_names": list(sk.names),
+            "skeleton_parents": list(sk.parents),
+            "skeleton_offsets": sk.offsets.tolist(),
+            "pos_mean": self.mean.tolist(),
+            "pos_std": self.std.tolist(),
+            "mask": self.mask_name,
+            "centre": self.centre,
+            "forward_axis": list(self.forward_axis),
+            "n_past": self.n_past,
+            "fps": self.fps,
+            "train_window": self.train_window,
+            "max_frames": self.max_frames or 0,
+            "dataset": self.dataset,
+            **self.representation.metadata(),
+            "inputs": list(inputs),
+        }
+        return {k: json.dumps(v) for k, v in meta.items()}
