@@ -81,7 +81,7 @@ class GraphTransformer(InbetweenModel):
         depth: int = 6,
         heads: int = 4,
         ffn_dim: int | None = None,
-        dropout: float = 0.1,
+        dropout: float = 0.0,
         norm: str = "layer",
         graph: str = "multiply",
         residual_to_interpolation: bool = False,
@@ -89,7 +89,7 @@ class GraphTransformer(InbetweenModel):
         hops: int = 1,
         pos_encoding: str = "sinusoidal",
         activation: str = "gelu",
-        checkpoint_layers: bool = False,
+        checkpoint_layers: bool = True,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
         self.checkpoint_layers = bool(checkpoint_layers)
