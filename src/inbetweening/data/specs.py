@@ -51,6 +51,11 @@ class DatasetSpec:
     that knows none gets ``fps``.  ``generate(folder, **options)`` makes a generated dataset's files (no path
     is read then).  ``default_path`` is the config's default location relative to the repository root
     (``conf/data/<name>.yaml``); ``path_hint`` says where to get the files when the path is missing.
+
+    ``feet`` names the foot/toe joints of the loaded skeleton scored for foot skating by ``protocol=keyframes``
+    (:mod:`inbetweening.evaluation.keyframes`; empty: no skating figures); a foot joint is in contact when its
+    height (Y up, the data's length unit) is below ``contact_height`` and its speed (units per second) below
+    ``contact_speed``.
     """
 
     name: str
@@ -66,11 +71,18 @@ class DatasetSpec:
     reader: Reader = read_bvh_clips
     download: Callable[[Path], Path] | None = None
     generate: Callable[..., Path] | None = None
+    feet: tuple[str, ...] = ()
+    contact_height: float = 0.0
+    contact_speed: float = 0.0
 
     def __post_init__(self):
         if len(self.forward_axis) != 3:
             raise ValueError(f"DatasetSpec {self.name!r}: forward_axis must have 3 components, got {self.forward_axis!r}")
         object.__setattr__(self, "forward_axis", tuple(float(a) for a in self.forward_axis))
+        object.__setattr__(self, "feet", tuple(self.feet))
+        if self.feet and not (self.contact_height > 0 and self.contact_speed > 0):
+            raise ValueError(f"DatasetSpec {self.name!r}: feet need contact_height > 0 and contact_speed > 0, got "
+                             f"{self.contact_height!r} and {self.contact_speed!r}")
 
 
 # ------------------------------------------------------------------------------------------

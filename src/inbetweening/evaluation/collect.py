@@ -4,7 +4,8 @@
 
 One row per configuration: the run's Hydra overrides (``.hydra/overrides.yaml``) name it, rows are
 sorted by the chosen metric (ascending), and ``<out>.md`` / ``<out>.csv`` are written into the
-sweep directory (or ``--out`` path).
+sweep directory (or ``--out`` path).  Runs of ``eval.py protocol=keyframes`` add their figures as columns
+``kf_<figure>@<K>`` (``kf_model_cm@15``, ``kf_ratio@15``, ``kf_skate_model@15``, ...).
 """
 from __future__ import annotations
 
@@ -16,7 +17,9 @@ from pathlib import Path
 
 import yaml
 
-METRIC_ORDER = ("l2q", "l2p", "npss")
+METRIC_ORDER = ("l2q", "l2p", "npss", "kf_model_cm", "kf_interp_cm", "kf_ratio", "kf_skate_model", "kf_skate_interp",
+                "kf_skate_gt")
+KEYFRAME_FIGURES = tuple(m[3:] for m in METRIC_ORDER if m.startswith("kf_"))
 IGNORED = ("hydra.", "paths.", "seed=", "ckpt_path=", "trainer.max_steps=", "trainer.max_epochs=", "ablation=")
 
 
@@ -41,7 +44,7 @@ def collect(sweep_dir: str | Path, sort: str = "l2p@15") -> list[dict]:
         run = f.parent
         rows.append({"run": str(run.relative_to(root)) if run != root else ".", "config": run_label(run),
                      "dataset": res.get("dataset"), "model": res.get("model"), "n_windows": res.get("n_windows"),
-                     **res.get("metrics", {})})
+                     **res.get("metrics", {}), **keyframe_columns(res)})
     if not rows:
         raise FileNotFoundError(f"no benchmark.json under {root}")
     # overrides shared by every run say nothing about a row: drop them from the labels
@@ -50,6 +53,12 @@ def collect(sweep_dir: str | Path, sort: str = "l2p@15") -> list[dict]:
         r["config"] = " ".join(o for o in r["config"].split() if o not in common) or "(shared settings)"
     rows.sort(key=lambda r: (r.get(sort) is None, r.get(sort, 0.0)))
     return rows
+
+
+def keyframe_columns(res: dict) -> dict[str, float]:
+    """The ``keyframes`` figures of a ``benchmark.json`` (``protocol=keyframes``) as ``{"kf_<figure>@<K>": value}``."""
+    return {f"kf_{m}@{k}": v for k, row in (res.get("keyframes") or {}).items() for m, v in row.items()
+            if m in KEYFRAME_FIGURES}
 
 
 def metric_columns(rows: list[dict]) -> list[str]:

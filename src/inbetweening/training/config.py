@@ -154,6 +154,28 @@ def _check_data(cfg, mask) -> None:
                               f"configuration feeds the network ({N_PAST} context + longest transition + target)")
 
 
+PROTOCOLS = ("lafan", "keyframes")
+
+
+def _check_protocol(cfg) -> None:
+    """``protocol`` (eval.py): ``lafan`` or ``keyframes``; ``keyframe_intervals``: distinct integers >= 2."""
+    protocol = _get(cfg, "protocol")
+    if protocol is not None and protocol not in PROTOCOLS:
+        raise ConfigError(f"protocol: must be one of {list(PROTOCOLS)}, got {protocol!r}")
+    ks = _get(cfg, "keyframe_intervals")
+    if ks is None:
+        return
+    if isinstance(ks, (str, bytes)) or not hasattr(ks, "__len__") or len(ks) == 0:
+        raise ConfigError(f"keyframe_intervals: must be a non-empty list of integers >= 2 (e.g. [5, 15, 30, 45]), "
+                          f"got {ks!r}")
+    for k in ks:
+        if isinstance(k, bool) or not isinstance(k, int) or k < 2:
+            raise ConfigError(f"keyframe_intervals: intervals must be integers >= 2 (a keyframe every K frames), "
+                              f"got {k!r}")
+    if len(set(ks)) != len(ks):
+        raise ConfigError(f"keyframe_intervals: an interval is listed twice in {list(ks)}")
+
+
 def validate(cfg: DictConfig) -> None:
     """Raise :class:`ConfigError` naming the first invalid key."""
     mask = _get(cfg, "mask.name")
@@ -192,3 +214,4 @@ def validate(cfg: DictConfig) -> None:
         if float(v) < 0:
             raise ConfigError(f"loss.{k}: weight must be >= 0, got {v}")
     _check_optim(cfg)
+    _check_protocol(cfg)

@@ -1,0 +1,226 @@
+"""The keyframes-only protocol: whole test clips, a keyframe every ``K`` frames and nothing else.
+
+What an animator gives the tool.  For each interval ``K`` (default 5, 15, 30, 45) and each test clip of at least
+``K + 1`` frames, the keyframes are frames ``0, K, 2K, ..., mK`` (the clip is truncated to the last keyframe, so
+its last frame is a key); every other frame is generated from the keyframes alone (no context frames), by the
+animator path (:meth:`inbetweening.tools.inbetweener.Inbetweener.fill_arrays`) for a model, and by root lerp +
+per-joint slerp (:func:`inbetweening.geometry.interp.interpolate_keyframes`) for the interpolation baseline.
+Unknown frames are NaN when handed to a fill function, so nothing can read the ground truth.
+
+Scores, on the generated (non-key) frames, pooled over all clips:
+
+* **Position error**: mean over generated frames and joints of the Euclidean distance between predicted and
+  true global joint positions (FK by :meth:`~inbetweening.geometry.skeleton.Skeleton.pose`), in the dataset's
+  length unit (cm for LAFAN1, Bandai-Namco and the synthetic data); ``ratio`` = model / interpolation.
+* **Foot skating**: for each consecutive frame pair ``(t, t+1)`` touching a generated frame and each foot joint
+  (``DatasetSpec.feet``), the joint is *in contact* when its height (Y up, the pair's mean) is below
+  ``contact_height`` AND its speed ``|p[t+1] - p[t]| * fps`` is below ``contact_speed``.  Skating is the mean
+  horizontal (XZ) speed ``|(p[t+1] - p[t])_xz| * fps`` over the in-contact (pair, joint) entries, in length units
+  per second (cm/s).  Each motion (model, interpolation, ground truth) is judged on its own contacts; a motion
+  with no contact at all skates 0.
+
+Shapes: a clip ``root (F, 3)``, ``local_q (F, J, 4)``; global positions ``(F, J, 3)``.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from inbetweening.data.errors import DatasetError
+from inbetweening.geometry.interp import interpolate_keyframes
+from inbetweening.geometry.skeleton import Skeleton
+
+KEYFRAME_INTERVALS = (5, 15, 30, 45)
+UP = 1  # Y up
+HORIZONTAL = (0, 2)  # X and Z
+
+# fill(root (F, 3), local_q (F, J, 4) with NaN in unknown frames, keyframes) -> (root (F, 3), local_q (F, J, 4))
+Fill = Callable[[np.ndarray, np.ndarray, list[int]], tuple[np.ndarray, np.ndarray]]
+
+# the figures of one interval, in the order they are printed
+COLUMNS = ("model_cm", "interp_cm", "ratio", "skate_model", "skate_interp", "skate_gt")
+
+
+# ------------------------------------------------------------------------------------------
+# Pure scoring functions
+# ------------------------------------------------------------------------------------------
+def keyframe_indices(num_frames: int, interval: int) -> list[int]:
+    """Keyframes ``0, K, 2K, ..., mK`` with ``mK <= num_frames - 1`` (the clip is cut after ``mK``); ``[]`` when the
+    clip is too short for two keyframes (``num_frames < K + 1``)."""
+    if interval < 1:
+        raise ValueError(f"keyframe interval must be >= 1, got {interval}")
+    if num_frames < interval + 1:
+        return []
+    return list(range(0, num_frames, interval))
+
+
+def generated_frames(num_frames: int, keys: Sequence[int]) -> np.ndarray:
+    """``(F,)`` bool: True for the frames that are not keyframes."""
+    gen = np.ones(num_frames, dtype=bool)
+    gen[list(keys)] = False
+    return gen
+
+
+def position_error(pred_gp: np.ndarray, gt_gp: np.ndarray, frames: np.ndarray) -> tuple[float, int]:
+    """Sum and count of per-joint position errors over the selected frames.
+
+    ``pred_gp, gt_gp (F, J, 3)`` global positions, ``frames (F,)`` bool -> ``(sum of |pred - gt| over selected
+    frames and all joints, number of (frame, joint) entries)``; the mean is ``sum / count``.
+    """
+    d = np.linalg.norm(pred_gp[frames] - gt_gp[frames], axis=-1)
+    return float(d.sum()), int(d.size)
+
+
+def foot_contacts(feet_gp: np.ndarray, fps: float, contact_height: float, contact_speed: float) -> np.ndarray:
+    """Contact per frame pair and foot joint.  ``feet_gp (F, K, 3) -> (F-1, K)`` bool.
+
+    Pair ``(t, t+1)`` is in contact when the joint's mean height over the two frames is below ``contact_height``
+    and its speed ``|p[t+1] - p[t]| * fps`` is below ``contact_speed`` (length units per second).
+    """
+    step = np.diff(feet_gp, axis=0)
+    height = 0.5 * (feet_gp[1:, :, UP] + feet_gp[:-1, :, UP])
+    speed = np.linalg.norm(step, axis=-1) * fps
+    return (height < contact_height) & (speed < contact_speed)
+
+
+def horizontal_speed(feet_gp: np.ndarray, fps: float) -> np.ndarray:
+    """Horizontal (XZ) speed per frame pair.  ``(F, K, 3) -> (F-1, K)``, length units per second."""
+    step = np.diff(feet_gp, axis=0)[..., list(HORIZONTAL)]
+    return np.linalg.norm(step, axis=-1) * fps
+
+
+def foot_skate(feet_gp: np.ndarray, pairs: np.ndarray, fps: float, contact_height: float,
+               contact_speed: float) -> tuple[float, int]:
+    """Sum and count of the horizontal speeds of foot joints in contact (:func:`foot_contacts`).
+
+    ``feet_gp (F, K, 3)`` global positions of the foot joints, ``pairs (F-1,)`` bool: the frame pairs scored ->
+    ``(sum of horizontal speeds over in-contact entries, their number)``; the mean skate is ``sum / count``.
+    """
+    contact = foot_contacts(feet_gp, fps, contact_height, contact_speed) & pairs[:, None]
+    return float(horizontal_speed(feet_gp, fps)[contact].sum()), int(contact.sum())
+
+
+def scored_pairs(generated: np.ndarray) -> np.ndarray:
+    """``(F,)`` bool generated frames -> ``(F-1,)`` bool: the frame pairs ``(t, t+1)`` touching a generated frame."""
+    return generated[:-1] | generated[1:]
+
+
+# ------------------------------------------------------------------------------------------
+# Accumulation over clips
+# ------------------------------------------------------------------------------------------
+@dataclass
+class FootSpec:
+    """The foot joints (indices into the skeleton) and the contact thresholds of a dataset."""
+
+    joints: tuple[int, ...]
+    contact_height: float
+    contact_speed: float
+
+
+def foot_spec(skeleton: Skeleton, spec) -> FootSpec | None:
+    """The :class:`FootSpec` of a dataset spec (``feet``, ``contact_height``, ``contact_speed`` of
+    :class:`~inbetweening.data.specs.DatasetSpec`) on ``skeleton``; ``None`` when the spec names no feet.
+    ``DatasetError`` when a foot joint is not in the skeleton."""
+    if not spec.feet:
+        return None
+    missing = [n for n in spec.feet if n not in skeleton.names]
+    if missing:
+        raise DatasetError(f"dataset {spec.name!r}: foot joint(s) {missing} of its spec (DatasetSpec.feet) are not "
+                           f"in the skeleton ({len(skeleton.names)} joints)")
+    return FootSpec(tuple(skeleton.index(n) for n in spec.feet), float(spec.contact_height), float(spec.contact_speed))
+
+
+def hold_keyframes(root: np.ndarray, local_q: np.ndarray, keys: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The zero-velocity baseline on keyframes: every frame repeats the keyframe before it.
+    ``root (F, 3), local_q (F, J, 4)`` (unknown frames never read) -> new float64 arrays."""
+    idx = np.asarray(keys)[np.searchsorted(keys, np.arange(len(root)), side="right") - 1]
+    return np.array(root, np.float64)[idx], np.array(local_q, np.float64)[idx]
+
+
+@dataclass
+class _Totals:
+    """Running sums of one interval (means are ``sum / count``)."""
+
+    err: dict
+    skate: dict
+    clips: int = 0
+    frames: int = 0
+
+    @classmethod
+    def empty(cls) -> _Totals:
+        return cls({k: [0.0, 0] for k in ("model", "interp")}, {k: [0.0, 0] for k in ("model", "interp", "gt")})
+
+    def add(self, table: dict, key: str, value: tuple[float, int]) -> None:
+        table[key][0] += value[0]
+        table[key][1] += value[1]
+
+    def summary(self, with_skate: bool) -> dict:
+        """The interval's figures (:data:`COLUMNS`, skating only ``with_skate``) plus ``n_clips``/``n_frames``."""
+        model, interp = (self.err[k][0] / max(self.err[k][1], 1) for k in ("model", "interp"))
+        out = {"model_cm": model, "interp_cm": interp, "ratio": model / interp if interp > 0 else float("nan")}
+        if with_skate:  # no contact at all: nothing skates
+            out.update({f"skate_{k}": (s / c if c else 0.0) for k, (s, c) in self.skate.items()})
+        return {**out, "n_clips": self.clips, "n_frames": self.frames}
+
+
+def score_clip(totals: _Totals, skeleton: Skeleton, gt: tuple, pred: tuple, interp: tuple, keys: Sequence[int],
+               fps: float, feet: FootSpec | None) -> None:
+    """Add one filled clip to ``totals``.  ``gt``, ``pred``, ``interp``: ``(root (F, 3), local_q (F, J, 4))``."""
+    gen = generated_frames(len(gt[0]), keys)
+    pos = {k: skeleton.pose(np.asarray(r, np.float64), np.asarray(q, np.float64))[1]
+           for k, (r, q) in (("gt", gt), ("model", pred), ("interp", interp))}
+    for k in ("model", "interp"):
+        totals.add(totals.err, k, position_error(pos[k], pos["gt"], gen))
+    if feet is not None:
+        pairs = scored_pairs(gen)
+        for k, gp in pos.items():
+            totals.add(totals.skate, k, foot_skate(gp[:, list(feet.joints)], pairs, fps, feet.contact_height,
+                                                   feet.contact_speed))
+    totals.clips += 1
+    totals.frames += int(gen.sum())
+
+
+def evaluate_clips(clips: Sequence, skeleton: Skeleton, fill: Fill | None, intervals: Sequence[int], fps: float,
+                   feet: FootSpec | None = None, progress: Callable[[str], None] | None = None) -> dict[str, dict]:
+    """Run the protocol (module docstring) over ``clips`` (objects with ``root_pos (F, 3)``, ``local_q (F, J, 4)``).
+
+    ``fill`` generates the unknown frames (:data:`Fill`; ``None``: the model is the interpolation itself).
+    Returns ``{str(K): {"model_cm", "interp_cm", "ratio", "skate_model", "skate_interp", "skate_gt", "n_clips",
+    "n_frames"}}`` (no ``skate_*`` when ``feet`` is ``None``); intervals no clip is long enough for are left out.
+    """
+    out: dict[str, dict] = {}
+    for k in intervals:
+        totals = _Totals.empty()
+        for clip in clips:
+            keys = keyframe_indices(len(clip.root_pos), int(k))
+            if not keys:
+                continue
+            n = keys[-1] + 1
+            gt = (np.asarray(clip.root_pos[:n], np.float64), np.asarray(clip.local_q[:n], np.float64))
+            gen = generated_frames(n, keys)
+            root_in, q_in = gt[0].copy(), gt[1].copy()
+            root_in[gen], q_in[gen] = np.nan, np.nan  # a fill that reads unknown frames fails loudly
+            interp = interpolate_keyframes(root_in, q_in, keys)
+            pred = interp if fill is None else fill(root_in, q_in, keys)
+            if not (np.isfinite(pred[0]).all() and np.isfinite(pred[1]).all()):
+                raise ValueError(f"keyframes protocol: the fill returned non-finite values (interval {k}, "
+                                 f"clip {getattr(clip, 'name', '?')})")
+            score_clip(totals, skeleton, gt, pred, interp, keys, fps, feet)
+        if totals.clips:
+            out[str(k)] = totals.summary(feet is not None)
+        if progress is not None:
+            progress(f"keyframes every {k}: {totals.clips} clips")
+    return out
+
+
+def format_table(results: dict[str, dict], unit: str = "cm") -> str:
+    """Markdown table of :func:`evaluate_clips`'s results: one row per keyframe interval."""
+    head = (f"| keyframe every | model ({unit}) | interpolation ({unit}) | ratio | skate model ({unit}/s) "
+            f"| skate interpolation ({unit}/s) | skate ground truth ({unit}/s) | clips | generated frames |")
+    lines = [head, "|---:|" + "---:|" * 8]
+    for k, r in results.items():
+        cells = [("" if r.get(c) is None else f"{r[c]:.3f}" if c == "ratio" else f"{r[c]:.2f}") for c in COLUMNS]
+        lines.append(f"| {k} | " + " | ".join(cells) + f" | {r['n_clips']} | {r['n_frames']} |")
+    return "\n".join(lines)
