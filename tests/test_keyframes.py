@@ -3,7 +3,6 @@ the whole protocol on clips whose answers are known, and eval.py / benchmark.jso
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pytest
@@ -50,12 +49,17 @@ def test_position_error_is_the_mean_distance_on_the_selected_frames():
     assert n == 4 and s == pytest.approx(12.0)
 
 
+def _skate(feet, pairs=None):
+    """Skating of a motion on its own contacts (what the protocol does for the ground truth)."""
+    contact = KF.foot_contacts(feet, FPS, H, S)
+    return KF.foot_skate(feet, contact if pairs is None else contact & pairs[:, None], FPS)
+
+
 def test_a_foot_sliding_on_the_ground_skates_at_its_speed():
     t = np.arange(20)
     vx, vz = 12.0, 16.0  # cm/s -> horizontal speed 20 cm/s
     foot = np.stack([vx * t / FPS, np.full(20, 1.0), vz * t / FPS], -1)[:, None]  # (F, 1, 3), 1 cm high
-    pairs = np.ones(19, bool)
-    s, n = KF.foot_skate(foot, pairs, FPS, H, S)
+    s, n = _skate(foot)
     assert n == 19 and s / n == pytest.approx(20.0)
     assert KF.foot_contacts(foot, FPS, H, S).all()
 
@@ -63,19 +67,33 @@ def test_a_foot_sliding_on_the_ground_skates_at_its_speed():
 def test_a_foot_in_the_air_or_moving_fast_contributes_nothing():
     t = np.arange(20)
     air = np.stack([12.0 * t / FPS, np.full(20, 30.0), 0 * t], -1)[:, None]  # 30 cm high
-    assert KF.foot_skate(air, np.ones(19, bool), FPS, H, S) == (0.0, 0)
+    assert _skate(air) == (0.0, 0)
     fast = np.stack([200.0 * t / FPS, np.zeros(20), 0 * t], -1)[:, None]  # on the ground, 200 cm/s > S
-    assert KF.foot_skate(fast, np.ones(19, bool), FPS, H, S) == (0.0, 0)
+    assert _skate(fast) == (0.0, 0)
     # half the clip on the ground at 6 cm/s, then lifted: only the ground pairs count, at 6 cm/s
     mixed = np.stack([6.0 * t / FPS, np.where(t < 10, 0.0, 40.0), 0 * t], -1)[:, None]
-    s, n = KF.foot_skate(mixed, np.ones(19, bool), FPS, H, S)
+    s, n = _skate(mixed)
     assert n == 9 and s / n == pytest.approx(6.0)  # pairs (0,1) .. (8,9); (9,10) has mean height 20
     # vertical speed does not skate: a foot pressing down (on the ground, slowly) has horizontal speed 0
     press = np.stack([0 * t, 2.0 - 0.1 * t / FPS, 0 * t], -1)[:, None]
-    assert KF.foot_skate(press, np.ones(19, bool), FPS, H, S) == (0.0, 19)
+    assert _skate(press) == (0.0, 19)
     # only the scored pairs count
-    s, n = KF.foot_skate(mixed, np.arange(19) < 4, FPS, H, S)
+    s, n = _skate(mixed, np.arange(19) < 4)
     assert n == 4 and s / n == pytest.approx(6.0)
+
+
+def test_skating_is_measured_where_the_ground_truth_is_in_contact():
+    """A generated foot sliding at 90 cm/s where the real foot is planted skates 90 cm/s (on its own contacts it
+    would have none: faster than contact_speed); where the real foot is in the air nothing counts."""
+    t = np.arange(20)
+    gt = np.stack([0 * t, np.where(t < 10, 1.0, 40.0), 0 * t], -1)[:, None].astype(float)  # planted, then lifted
+    gen = gt.copy()
+    gen[:, 0, 0] = 90.0 * t / FPS
+    contact = KF.foot_contacts(gt, FPS, H, S)
+    s, n = KF.foot_skate(gen, contact, FPS)
+    assert n == 9 and s / n == pytest.approx(90.0)
+    assert KF.foot_skate(gt, contact, FPS) == (0.0, 9)
+    assert _skate(gen) == (0.0, 0)
 
 
 def test_hold_keyframes_repeats_the_previous_key():
@@ -109,7 +127,6 @@ def test_interpolation_is_exact_on_a_clip_linear_in_time():
         assert r["interp_cm"] == pytest.approx(0.0, abs=1e-9) and r["model_cm"] == r["interp_cm"]
         assert r["skate_gt"] == pytest.approx(12.0) and r["skate_interp"] == pytest.approx(12.0)
         assert r["n_clips"] == 1 and r["n_frames"] == 60 - 60 // int(k)
-        assert math.isnan(r["ratio"])  # 0 / 0: the strict writer refuses it (see below)
 
 
 def test_a_model_returning_the_ground_truth_has_error_0_and_the_ground_truths_skate():
@@ -135,18 +152,22 @@ def test_a_model_returning_the_ground_truth_has_error_0_and_the_ground_truths_sk
     assert res["45"]["interp_cm"] > res["5"]["interp_cm"]
 
 
-def test_hold_baseline_skates_0_when_its_jumps_are_too_fast_for_contact():
-    """Holding a key: the foot stands still (in contact, speed 0) and then jumps K frames' distance in one frame
-    (12 cm/s * 15 = 180 cm/s > 60 cm/s: no contact); its error at frame a + i is 12 cm/s * i / 30."""
+def test_hold_baseline_stands_still_then_jumps_on_the_ground_truths_contacts():
+    """Holding a key: the foot stands still for 14 pairs, then jumps 15 frames' distance in one (12 cm/s * 15 =
+    180 cm/s); the ground truth slides at 12 cm/s, in contact all along, so the hold's skate is 2 * 180 / 30 pairs
+    = 12 cm/s; its error at frame a + i is 12 cm/s * i / 30."""
     clip = _sliding_clip(31, 12.0)
     res = KF.evaluate_clips([clip], SKEL, KF.hold_keyframes, [15], FPS, FEET)["15"]
-    assert res["skate_model"] == 0.0 and res["skate_gt"] == pytest.approx(12.0)
+    assert res["skate_model"] == pytest.approx(12.0) and res["skate_gt"] == pytest.approx(12.0)
     assert res["model_cm"] == pytest.approx(12.0 / FPS * np.mean(np.arange(1, 15)))
     assert res["interp_cm"] == pytest.approx(0.0, abs=1e-9) and res["n_frames"] == 28
+    clip.root_pos[:, 0] = 0.0  # the ground truth stands: the hold and interpolation stand too
+    res = KF.evaluate_clips([clip], SKEL, KF.hold_keyframes, [15], FPS, FEET)["15"]
+    assert res["skate_model"] == res["skate_interp"] == res["skate_gt"] == 0.0 and res["model_cm"] == 0.0
 
 
 def test_short_clips_are_left_out_and_no_feet_means_no_skating():
-    res = KF.evaluate_clips([_sliding_clip(20, 6.0), _sliding_clip(61, 6.0)], SKEL, None, [15, 45], FPS, None)
+    res = KF.evaluate_clips([_sliding_clip(20, 6.0), _sliding_clip(40, 6.0)], SKEL, None, [15, 45], FPS, None)
     assert res["15"]["n_clips"] == 2 and "45" not in res  # no clip has 46 frames
     assert "skate_gt" not in res["15"] and set(res["15"]) == {"model_cm", "interp_cm", "ratio", "n_clips", "n_frames"}
 
@@ -195,7 +216,7 @@ def test_eval_keyframes_protocol_end_to_end(tiny_checkpoint, tmp_path, cache_dir
     """eval.py protocol=keyframes for a checkpoint and for interpolation; collect tabulates both."""
     over = [*DATA, "protocol=keyframes", "keyframe_intervals=[5,30]"]
     base = evaluate(compose_cfg("eval", [*over, "model=interpolation"], tmp_path / "sweep" / "interp", cache_dir))
-    got = evaluate(compose_cfg("eval", [*over, f"ckpt_path={tiny_checkpoint}"], tmp_path / "sweep" / "model",
+    got = evaluate(compose_cfg("eval", [*over, f"ckpt_path='{tiny_checkpoint}'"], tmp_path / "sweep" / "model",
                                cache_dir))
     out = capsys.readouterr().out
     assert "Keyframes-only protocol: synthetic" in out and "| keyframe every |" in out

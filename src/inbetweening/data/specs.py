@@ -130,6 +130,13 @@ def get_spec(name: str) -> DatasetSpec:
     return DATASETS[name]
 
 
+# Foot contact (protocol=keyframes foot skating), cm and cm/s, chosen on the Bandai-Namco-2 test clips: planted
+# feet sit at 11.7-12.4 cm (Foot_*, 5th-95th percentile of pairs slower than 15 cm/s) and toes at 4.3-5.7 cm
+# (Toes_*) above the floor (y = 0); height < 15 cm and speed < 30 cm/s flags 75 % (feet) / 78 % (toes) of the frame
+# pairs, and for the toes exactly the pairs a 8 cm height limit flags (the speed limit already excludes the swing).
+# LAFAN1 (cm, 30 fps) and the synthetic data use the same values (LAFAN1 is not on this machine to check them).
+CONTACT = {"contact_height": 15.0, "contact_speed": 30.0}
+
 # Mirror maps: the built-ins derive theirs from the loaded joint names (mirror=None), so a LAFAN-format folder
 # with another skeleton still loads (it is refused later, e.g. by a checkpoint of another skeleton).  The maps
 # this gives for the real skeletons are pinned in tests/test_mirror.py.
@@ -137,12 +144,13 @@ register(DatasetSpec(
     "lafan1", lafan_split, (0.0, 1.0, 0.0), env_var="LAFAN1_PATH", default_path="data/lafan1.zip",
     path_hint="download lafan1.zip from the ubisoft-laforge-animation-dataset repository and pass its path "
     "(or the folder of extracted .bvh files) as data.path=... or $LAFAN1_PATH",
-    download=download_lafan1,
+    download=download_lafan1, feet=("LeftFoot", "LeftToe", "RightFoot", "RightToe"), **CONTACT,
 ))  # fmt: skip
 register(DatasetSpec(
     "bandai_namco", bandai_namco_split, (0.0, 0.0, 1.0), env_var="BANDAI_NAMCO_PATH",
     default_path="../shared/datasets/bandai-namco-2.zip",
     path_hint="pass the Bandai-Namco-Research-Motiondataset zip or its data/ folder as data.path=...",
-    fold_root="joint_Root",
+    fold_root="joint_Root", feet=("Foot_L", "Toes_L", "Foot_R", "Toes_R"), **CONTACT,
 ))  # fmt: skip
-register(DatasetSpec("synthetic", lafan_split, (0.0, 0.0, 1.0), generate=generate_dataset))
+register(DatasetSpec("synthetic", lafan_split, (0.0, 0.0, 1.0), generate=generate_dataset,
+                     feet=("LeftFoot", "LeftToe", "RightFoot", "RightToe"), **CONTACT))
