@@ -278,7 +278,7 @@ def test_bandai_namco_content_split_holds_out_whole_contents(tmp_path):
     assert d.split == "content" and d.summary()["split"] == "content"
     assert sorted({content(c) for c in d.test}) == ["run", "wave-both-hands"] and len(d.test) == 8
     assert sorted({content(c) for c in d.train}) == ["walk", "wave-left-hand"] and len(d.train) == 8
-    assert d.test_X.shape[0] == 8  # 110 frames: one 65-frame window per test clip
+    assert d.test_X.shape[0] == 16  # 110 frames: two 65-frame windows (start 0 and 40) per test clip
     std = load_dataset("bandai_namco", path=zpath, cache_dir=tmp_path / "c")  # the default: by take number
     assert std.split == "standard" and [c.name for c in std.test] == [
         f"dataset-2_{n}_normal_{t:03d}" for n in BN_CONTENTS for t in (10, 20)]
@@ -330,9 +330,9 @@ def test_eval_and_the_data_module_on_the_content_split(tmp_path, capsys):
     cfg = compose_cfg("eval", over, tmp_path / "run", tmp_path / "c")
     metrics = evaluate(cfg)
     res = json.loads((tmp_path / "run" / "benchmark.json").read_text())
-    assert (res["dataset"], res["split"], res["model"], res["n_windows"]) == ("bandai_namco", "content", "interpolation", 8)
+    assert (res["dataset"], res["split"], res["model"], res["n_windows"]) == ("bandai_namco", "content", "interpolation", 16)
     assert res["metrics"] == pytest.approx(metrics)
-    assert "Benchmark: bandai_namco, split content, 8 test windows" in capsys.readouterr().out
+    assert "Benchmark: bandai_namco, split content, 16 test windows" in capsys.readouterr().out
     dm = make_datamodule(cfg)
     dm.setup("fit")
     d = load_dataset("bandai_namco", path=zpath, cache_dir=tmp_path / "c", split="content")
@@ -425,11 +425,11 @@ def test_bandai_namco_2_content_split(tmp_path):
     d = load_dataset("bandai_namco", path=SHARED_BN2, cache_dir=tmp_path / "c", split="content")
     s = d.summary()
     assert (s["split"], s["train_clips"], s["test_clips"]) == ("content", 2377, 525)  # run 317 + wave-both-hands 208
-    assert (s["train_frames"], s["test_frames"], s["test_windows"]) == (TRAIN_FRAMES, TEST_FRAMES, TEST_WINDOWS)
+    assert (s["train_frames"], s["test_frames"], s["test_windows"]) == (309342, 75589, 1270)
     assert s["train_frames"] + s["test_frames"] == 384931  # every frame of the dataset, as in the standard split
     content = lambda clip: clip.name.split("_")[1]  # noqa: E731 - dataset-2_<content>_<style>_<take>
     assert {content(c) for c in d.test} == {"run", "wave-both-hands"}
     train, val = split_train_val(d.train, 0.1)  # the data module's validation hold-out (data.val_fraction)
-    assert len(val) == VAL_CLIPS and len(train) + len(val) == 2377
+    assert len(val) == 237 and len(train) + len(val) == 2377
     assert len({content(c) for c in d.train}) == 8
     assert not {content(c) for c in train + val} & {"run", "wave-both-hands"}
