@@ -155,8 +155,9 @@ class InbetweenDataModule(L.LightningDataModule):
     which come from the ``mask`` group and the run's ``seed``.
 
     Args:
-        name, path, cache_dir, forward_axis, synthetic, download: the dataset (see
-            :func:`inbetweening.data.datasets.load_dataset`).
+        name, path, cache_dir, forward_axis, synthetic, download, split: the dataset (see
+            :func:`inbetweening.data.datasets.load_dataset`); ``split`` names one of its spec's split rules
+            (``standard``; ``bandai_namco`` also has ``content``).  Validation clips come from its training part.
         batch_size, eval_batch_size, num_workers: loaders (``eval_batch_size``: validation and test).
         val_fraction: share of the training clips held out for validation.
         transition_min, transition_max, transition_per: transition lengths drawn for training batches
@@ -179,6 +180,7 @@ class InbetweenDataModule(L.LightningDataModule):
         forward_axis: list[float] | None,
         synthetic: dict | None,
         download: bool,
+        split: str,
         batch_size: int,
         eval_batch_size: int,
         num_workers: int,
@@ -206,7 +208,7 @@ class InbetweenDataModule(L.LightningDataModule):
     def _load(self) -> MotionData:
         h = self.hparams
         return load_dataset(h.name, path=h.path, cache_dir=h.cache_dir, forward_axis=h.forward_axis,
-                            download=h.download, synthetic=dict(h.synthetic) if h.synthetic else None)
+                            download=h.download, synthetic=dict(h.synthetic) if h.synthetic else None, split=h.split)
 
     def prepare_data(self) -> None:
         self._load()  # builds the cache (and downloads LAFAN1 if allowed) once, on one process

@@ -1,6 +1,6 @@
 """``train(cfg)`` and ``evaluate(cfg)``: the Hydra-configured jobs behind ``train.py`` and ``eval.py``.
 
-Both return a metrics dict and write ``benchmark.json`` (``{"dataset", "model", "n_windows",
+Both return a metrics dict and write ``benchmark.json`` (``{"dataset", "split", "model", "n_windows",
 "metrics": {"l2q@5": ...}}``) into the run's output directory.
 """
 from __future__ import annotations
@@ -82,9 +82,11 @@ def resume_command(cfg: DictConfig) -> str:
         return "python train.py <same overrides>"
 
 
-def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metrics: dict) -> dict:
-    """Write ``benchmark.json`` (strict JSON, atomically); a non-finite metric is an error, never a number."""
-    res = {"dataset": dataset, "model": model, "n_windows": int(n_windows),
+def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metrics: dict,
+                    split: str | None = None) -> dict:
+    """Write ``benchmark.json`` (strict JSON, atomically); a non-finite metric is an error, never a number.
+    ``split``: the dataset's split rule (``data.split``), recorded when given."""
+    res = {"dataset": dataset, **({"split": split} if split else {}), "model": model, "n_windows": int(n_windows),
            "metrics": {k: float(v) for k, v in metrics.items()}}
     bad = [k for k, v in res["metrics"].items() if not math.isfinite(v)]
     if bad:
@@ -145,8 +147,9 @@ def train(cfg: DictConfig) -> dict[str, float]:
         name = cfg.model.name
         if not test_trainer.is_global_zero:  # DDP: metrics are synced; rank 0 alone writes and prints
             return metrics
-        write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics)
-        print(f"\nTest benchmark ({dm.data.name}, {len(dm.test_set)} windows, checkpoint: {best or 'final weights'})")
+        write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split)
+        print(f"\nTest benchmark ({dm.data.name}, split {dm.hparams.split}, {len(dm.test_set)} windows, "
+              f"checkpoint: {best or 'final weights'})")
         print(B.format_table(with_baselines(name, metrics, dm, cfg.data.test_lengths), cfg.data.test_lengths))
         if "recovery_rmse" in metrics:
             print(f"mocap recovery: RMSE of recovered joint positions = {metrics['recovery_rmse']:.3f}")
@@ -205,8 +208,8 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
         name = module.hparams.model["name"]
         if not trainer.is_global_zero:  # DDP: metrics are synced; rank 0 alone writes and prints
             return metrics
-    write_benchmark(out / "benchmark.json", dataset, name, n, metrics)
-    print(f"\nBenchmark: {dataset}, {n} test windows -> {out / 'benchmark.json'}")
+    write_benchmark(out / "benchmark.json", dataset, name, n, metrics, dm.hparams.split)
+    print(f"\nBenchmark: {dataset}, split {dm.hparams.split}, {n} test windows -> {out / 'benchmark.json'}")
     print(B.format_table({name: metrics}, cfg.data.test_lengths))
     return metrics
 
