@@ -22,7 +22,14 @@ from inbetweening.checkpoint import CheckpointError, load_module, read_checkpoin
 from inbetweening.data.bvh import BVHError
 from inbetweening.data.datasets import DatasetError
 from inbetweening.evaluation import benchmark as B
-from inbetweening.training.callbacks import AtomicCheckpointIO, InterruptCheckpoint, NonFiniteError, NonFiniteGuard, ResumeState
+from inbetweening.training.callbacks import (
+    AtomicCheckpointIO,
+    InterruptCheckpoint,
+    NonFiniteError,
+    NonFiniteGuard,
+    ResumeState,
+    TrimHeap,
+)
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.module import InbetweenModule
@@ -64,8 +71,8 @@ def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
     lgs = [instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else []
     if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
-    if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
-        cbs += [NonFiniteGuard(), ResumeState(),
+    if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM,
+        cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # the heap trimmed between epochs
                 InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]
     return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False, plugins=[AtomicCheckpointIO()])
 
