@@ -53,6 +53,12 @@ BAD = [
     (["+data.foo=1"], r"^data.foo: not an argument of inbetweening.training.datamodule.InbetweenDataModule"),
     (["+data.seed=1"], r"^data.seed: not an argument of .*InbetweenDataModule; its settings are \['batch_size'"),
     (["~data.batch_size"], r"^data.batch_size: missing \(a required argument of "),
+    (["data.split=content"], r"^data.split: dataset 'synthetic' has no split 'content'; its splits are \['standard'\]$"),
+    (["data=lafan1", "data.split=content"], r"^data.split: dataset 'lafan1' has no split 'content'; its splits are "
+                                            r"\['standard'\]$"),
+    (["data=bandai_namco", "data.split=takes"], r"^data.split: dataset 'bandai_namco' has no split 'takes'; its splits "
+                                               r"are \['standard', 'content'\]$"),
+    (["data=bandai_namco", "data.split=null"], r"^data.split: dataset 'bandai_namco' has no split None"),
 ]
 
 
@@ -86,6 +92,20 @@ def test_cli_exits_2_with_one_line(overrides, match, tmp_path):
     assert r.returncode == 2, r.stderr[-1500:]
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), r.stderr
+
+
+def test_an_unknown_split_is_one_line_and_exit_2_before_data_loads(tmp_path, capsys):
+    from inbetweening.training.train import evaluate, run_cli
+
+    # the path does not exist either: the split is checked first, from the spec, before anything is read
+    cfg = compose_cfg("eval", ["data=lafan1", "data.split=content", "model=interpolation",
+                               f"data.path={tmp_path / 'missing.zip'}"], tmp_path, tmp_path)
+    with pytest.raises(SystemExit) as e:
+        run_cli(evaluate, cfg)
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert err == "error: data.split: dataset 'lafan1' has no split 'content'; its splits are ['standard']\n"
+    validate(compose_cfg("train", ["data=bandai_namco", "data.split=content"], tmp_path, tmp_path))  # offered: fine
 
 
 def test_reference_experiment_composes_with_another_model(tmp_path):

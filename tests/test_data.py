@@ -13,6 +13,7 @@ import torch
 from inbetweening.data.bvh import BVH, parse_bvh, write_bvh
 from inbetweening.data.datasets import (
     DatasetError,
+    bandai_namco_content_split,
     bandai_namco_split,
     fold_static_root,
     lafan_split,
@@ -54,14 +55,17 @@ def bn_bvh(rng, frames: int) -> BVH:
                syn.frame_time, motion)
 
 
-def write_bn_zip(path: Path, takes=range(1, 13), frames: int = 130) -> Path:
+def write_bn_zip(path: Path, takes=range(1, 13), frames: int = 130, contents=("walk",)) -> Path:
+    """A Bandai-Namco-2-format zip: ``dataset-2_<content>_normal_<take>.bvh`` for every content and take."""
+    from inbetweening.data.bvh import format_bvh
+
     rng = np.random.default_rng(2)
     with zipfile.ZipFile(path, "w") as z:
-        for t in takes:
-            bvh = bn_bvh(rng, frames)
-            from inbetweening.data.bvh import format_bvh
-
-            z.writestr(f"Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk_normal_{t:03d}.bvh", format_bvh(bvh))
+        for content in contents:
+            for t in takes:
+                bvh = bn_bvh(rng, frames)
+                z.writestr(f"Bandai-Namco-Research-Motiondataset-2/data/dataset-2_{content}_normal_{t:03d}.bvh",
+                           format_bvh(bvh))
     return path
 
 
@@ -224,6 +228,17 @@ def test_split_rules():
     assert bandai_namco_split("dataset-2_walk_normal_010.bvh") == "test"
     assert bandai_namco_split("dataset-2_walk-left_happy_011.bvh") == "train"
     assert bandai_namco_split("dataset-1_run_active_100.bvh") == "test"
+    # the content split: every take of run and wave-both-hands is test, whatever its take number or style
+    assert bandai_namco_content_split("dataset-2_run_feminine_021.bvh") == "test"
+    assert bandai_namco_content_split("dataset-2_wave-both-hands_elderly_010.bvh") == "test"
+    assert bandai_namco_content_split("dataset-2_Run_normal_001.bvh") == "test"  # names match case-insensitively
+    assert bandai_namco_content_split("dataset-2_walk_normal_010.bvh") == "train"
+    assert bandai_namco_content_split("dataset-2_wave-left-hand_happy_003.bvh") == "train"
+    assert bandai_namco_content_split("dataset-2_raise-up-both-hands_active_011.bvh") == "train"
+    assert bandai_namco_content_split("dataset-2_walk-turn-left_normal_007.bvh") == "train"  # not a prefix match
+    assert bandai_namco_content_split("dataset-2_running_normal_001.bvh") == "train"
+    assert bandai_namco_content_split("README.md") is None
+    assert bandai_namco_content_split("dataset-2_run_normal.bvh") is None  # no take number: not a clip
 
 
 def test_lafan1_missing_path_offline_says_where_to_put_it(tmp_path, monkeypatch):
@@ -251,6 +266,81 @@ def test_bandai_namco_fold_root_preserves_animation_and_split(tmp_path):
     np.testing.assert_allclose(folded, full[:, 1:], atol=1e-3)  # print precision of the file
     d = load_dataset("bandai_namco", path=write_bn_zip(tmp_path / "bn.zip"), cache_dir=tmp_path / "c")
     assert len(d.test) == 1 and len(d.train) == 11 and d.forward_axis == (0.0, 0.0, 1.0)
+
+
+BN_CONTENTS = ("run", "walk", "wave-both-hands", "wave-left-hand")
+
+
+def test_bandai_namco_content_split_holds_out_whole_contents(tmp_path):
+    zpath = write_bn_zip(tmp_path / "bn.zip", takes=(9, 10, 11, 20), frames=110, contents=BN_CONTENTS)
+    d = load_dataset("bandai_namco", path=zpath, cache_dir=tmp_path / "c", split="content")
+    content = lambda clip: clip.name.split("_")[1]  # noqa: E731 - dataset-2_<content>_<style>_<take>
+    assert d.split == "content" and d.summary()["split"] == "content"
+    assert sorted({content(c) for c in d.test}) == ["run", "wave-both-hands"] and len(d.test) == 8
+    assert sorted({content(c) for c in d.train}) == ["walk", "wave-left-hand"] and len(d.train) == 8
+    assert d.test_X.shape[0] == 16  # 110 frames: two 65-frame windows (start 0 and 40) per test clip
+    std = load_dataset("bandai_namco", path=zpath, cache_dir=tmp_path / "c")  # the default: by take number
+    assert std.split == "standard" and [c.name for c in std.test] == [
+        f"dataset-2_{n}_normal_{t:03d}" for n in BN_CONTENTS for t in (10, 20)]
+    # validation clips are held out of the training contents only
+    from inbetweening.training.datamodule import split_train_val
+
+    _, val = split_train_val(d.train, 0.25)
+    assert val and {content(c) for c in val} <= {"walk", "wave-left-hand"}
+
+
+def test_the_split_is_part_of_the_cache_key(tmp_path):
+    zpath = write_bn_zip(tmp_path / "bn.zip", takes=(9, 10, 11, 20), frames=110, contents=BN_CONTENTS)
+    cache = tmp_path / "c"
+    std = load_dataset("bandai_namco", path=zpath, cache_dir=cache)
+    content = load_dataset("bandai_namco", path=zpath, cache_dir=cache, split="content")
+    assert len(list((cache / "prepared").glob("bandai_namco-*"))) == 2  # one entry per split
+    assert [c.name for c in content.test] != [c.name for c in std.test]
+    assert not np.array_equal(content.pos_mean, std.pos_mean)  # statistics of other training clips
+    # served from the cache, each split gets its own arrays back (never the other split's)
+    for split, first in (("standard", std), ("content", content)):
+        again = load_dataset("bandai_namco", path=zpath, cache_dir=cache, split=split)
+        assert again.split == split and [c.name for c in again.test] == [c.name for c in first.test]
+        np.testing.assert_array_equal(again.test_X, first.test_X)
+        np.testing.assert_array_equal(again.pos_std, first.pos_std)
+    assert len(list((cache / "prepared").glob("bandai_namco-*"))) == 2
+    uncached = load_dataset("bandai_namco", path=zpath, use_cache=False, split="content")
+    np.testing.assert_array_equal(uncached.test_X, content.test_X)
+
+
+def test_an_unknown_split_names_the_splits_of_the_dataset(tmp_path):
+    with pytest.raises(DatasetError, match=r"dataset 'bandai_namco' has no split 'takes'; its splits are "
+                                           r"\['standard', 'content'\]"):
+        load_dataset("bandai_namco", path=tmp_path / "missing.zip", split="takes")  # before the path is looked at
+    with pytest.raises(DatasetError, match=r"dataset 'lafan1' has no split 'content'; its splits are \['standard'\]"):
+        load_dataset("lafan1", path=write_lafan_folder(tmp_path / "l"), cache_dir=tmp_path / "c", split="content")
+    assert not (tmp_path / "c").exists()  # nothing prepared or cached
+
+
+def test_eval_and_the_data_module_on_the_content_split(tmp_path, capsys):
+    import json
+
+    from conftest import compose_cfg
+    from inbetweening.training.datamodule import split_train_val
+    from inbetweening.training.train import evaluate, make_datamodule
+
+    zpath = write_bn_zip(tmp_path / "bn.zip", takes=(9, 10, 11, 20), frames=110, contents=BN_CONTENTS)
+    over = ["data=bandai_namco", f"data.path={zpath}", "data.split=content", "model=interpolation",
+            "data.val_fraction=0.25"]
+    cfg = compose_cfg("eval", over, tmp_path / "run", tmp_path / "c")
+    metrics = evaluate(cfg)
+    res = json.loads((tmp_path / "run" / "benchmark.json").read_text())
+    assert (res["dataset"], res["split"], res["model"], res["n_windows"]) == ("bandai_namco", "content", "interpolation", 16)
+    assert res["metrics"] == pytest.approx(metrics)
+    assert "Benchmark: bandai_namco, split content, 16 test windows" in capsys.readouterr().out
+    dm = make_datamodule(cfg)
+    dm.setup("fit")
+    d = load_dataset("bandai_namco", path=zpath, cache_dir=tmp_path / "c", split="content")
+    np.testing.assert_array_equal(dm.test_set.root.numpy(), d.test_X[:, :, 0])
+    val = split_train_val(d.train, 0.25)[1]  # validation: clips of the training contents (walk, wave-left-hand)
+    vX, _ = B.prepare_windows(val, d.skeleton, B.TEST_WINDOW, B.TEST_OFFSET, d.forward_axis)
+    assert len(val) == 2 and {c.name.split("_")[1] for c in val} <= {"walk", "wave-left-hand"}
+    np.testing.assert_array_equal(dm.val_set.root.numpy(), vX[:, :, 0])
 
 
 def test_cache_is_fast_and_keyed_by_content_and_settings(tmp_path):
@@ -325,3 +415,21 @@ def test_bandai_namco_2_integration(tmp_path):
     }
     for name, fn in B.BASELINES.items():
         _check_table(B.evaluate_transitions(bench, fn), readme[name], exact[name])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not SHARED_BN2.exists(), reason=f"Bandai-Namco-2 not found at {SHARED_BN2}")
+def test_bandai_namco_2_content_split(tmp_path):
+    from inbetweening.training.datamodule import split_train_val
+
+    d = load_dataset("bandai_namco", path=SHARED_BN2, cache_dir=tmp_path / "c", split="content")
+    s = d.summary()
+    assert (s["split"], s["train_clips"], s["test_clips"]) == ("content", 2377, 525)  # run 317 + wave-both-hands 208
+    assert (s["train_frames"], s["test_frames"], s["test_windows"]) == (309342, 75589, 1270)
+    assert s["train_frames"] + s["test_frames"] == 384931  # every frame of the dataset, as in the standard split
+    content = lambda clip: clip.name.split("_")[1]  # noqa: E731 - dataset-2_<content>_<style>_<take>
+    assert {content(c) for c in d.test} == {"run", "wave-both-hands"}
+    train, val = split_train_val(d.train, 0.1)  # the data module's validation hold-out (data.val_fraction)
+    assert len(val) == 237 and len(train) + len(val) == 2377
+    assert len({content(c) for c in d.train}) == 8
+    assert not {content(c) for c in train + val} & {"run", "wave-both-hands"}

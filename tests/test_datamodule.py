@@ -203,3 +203,25 @@ def test_batches_with_worker_processes_equal_in_process_batches(tmp_path, cache_
     it = iter(loader)
     loader.batch_sampler.sampler.set_epoch(1)
     assert _same_batches(list(it), want)
+
+
+def test_test_stage_builds_no_training_windows(tmp_path, cache_dir):
+    """``eval.py`` sets the data module up for testing only: the training set is never built (memory)."""
+    cfg = compose_cfg("train", DATA, tmp_path, cache_dir)
+    dm = make_datamodule(cfg)
+    dm.setup("test")
+    assert dm.train_feats is None and len(dm.test_set) > 0
+    dm.setup("fit")  # fitting afterwards still gets its windows
+    assert dm.train_feats is not None and len(dm.val_set) > 0
+
+
+def test_training_features_encoded_in_chunks_equal_one_pass(tmp_path, cache_dir):
+    dm = _dm(tmp_path, cache_dir)
+    h, d = dm.hparams, dm.data
+    train_clips, _ = split_train_val(d.train, h.val_fraction)
+    X, Q = B.prepare_windows(train_clips, d.skeleton, h.train_window, h.train_offset, d.forward_axis)
+    X, Q = X[: h.max_train_windows], Q[: h.max_train_windows]
+    whole = window_features(X[:, :, 0], Q, d.skeleton, d.pos_mean, d.pos_std)
+    assert len(whole) > 7
+    assert torch.equal(dm._encode_in_chunks(X[:, :, 0], Q, chunk=3), whole)
+    assert torch.equal(dm.train_feats, whole)

@@ -51,3 +51,15 @@ def test_diverging_cli_run_exits_3_with_one_line(tmp_path):
     errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and "training stopped" in errors[0]
     assert "Traceback" not in r.stderr
+
+
+def test_heap_is_trimmed_between_epochs(tmp_path):
+    """glibc keeps freed heap pages; the trainer returns them between epochs (memory of long runs)."""
+    import platform
+
+    from inbetweening.training.callbacks import TrimHeap, trim_heap
+    from inbetweening.training.train import make_trainer
+
+    assert trim_heap() == (platform.libc_ver()[0] == "glibc")
+    cfg = compose_cfg("train", ["logger=none", "callbacks=none"], tmp_path, tmp_path / "cache")
+    assert any(isinstance(c, TrimHeap) for c in make_trainer(cfg).callbacks)

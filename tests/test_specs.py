@@ -173,6 +173,29 @@ def test_registry_errors(registry):
         spec.name = "z"  # frozen
 
 
+def test_named_splits(tmp_path, registry):
+    single = DatasetSpec("one", lafan_split, (0, 1, 0))
+    assert single.splits == {"standard": lafan_split} and single.split is lafan_split  # one rule: the standard split
+    bn = get_spec("bandai_namco")
+    assert list(bn.splits) == ["standard", "content"] and bn.split is bn.split_rule("standard")
+    assert bn.split_rule("content")("dataset-2_run_normal_001.bvh") == "test"
+    with pytest.raises(DatasetError, match=r"^dataset 'one' has no split 'content'; its splits are \['standard'\]$"):
+        single.split_rule("content")
+    with pytest.raises(ValueError, match=r"splits must map names to split rules and include 'standard', got \['b'\]"):
+        DatasetSpec("x", {"b": lafan_split}, (0, 1, 0))
+    with pytest.raises(ValueError, match="splits must map names to split rules"):
+        DatasetSpec("x", {"standard": "subject5"}, (0, 1, 0))
+    # a registered spec with two splits: load_dataset picks one; a file only one split uses is still read
+    by_actor = {"standard": mini_split, "reverse": lambda f: {"train": "test", "test": "train"}.get(mini_split(f) or "")}
+    spec = register(DatasetSpec("mini2", by_actor, (1, 0, 0)))
+    assert spec.reads("take0-A.bvh") and not spec.reads("calibration.bvh")
+    folder = write_mini_folder(tmp_path / "m")
+    a = load_dataset("mini2", path=folder, cache_dir=tmp_path / "c")
+    b = load_dataset("mini2", path=folder, cache_dir=tmp_path / "c", split="reverse")
+    assert [c.name for c in a.test] == [c.name for c in b.train] == ["take4-C", "take5-C"]
+    assert (a.split, b.split) == ("standard", "reverse") and len(b.test) == 4
+
+
 def test_a_spec_without_env_var_says_only_data_path():
     with pytest.raises(DatasetError, match=r"data.path is not set for dataset 'synthetic' \(set data.path=...\)$"):
         resolve_path("synthetic", None)

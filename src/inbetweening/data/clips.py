@@ -1,7 +1,7 @@
 """Clips and prepared datasets: the :class:`Clip`/:class:`MotionData` classes and BVH -> clip conversion.
 
 :func:`read_bvh_clips` is the default reader of a :class:`~inbetweening.data.specs.DatasetSpec`: it yields
-one clip per BVH file of a folder or zip whose name the spec's split rule accepts, folding a static root
+one clip per BVH file of a folder or zip whose name one of the spec's split rules accepts, folding a static root
 joint into its child where the spec names one (:func:`fold_static_root`).
 """
 from __future__ import annotations
@@ -56,6 +56,7 @@ class MotionData:
     source: str = ""
     # left/right joint-name pairs (left first) of the skeleton, validated against it: see inbetweening.data.mirror
     mirror: tuple[tuple[str, str], ...] = ()
+    split: str = "standard"  # the spec's split rule that made train/test (DatasetSpec.splits)
 
     def benchmark_set(self) -> B.BenchmarkSet:
         return B.BenchmarkSet(self.test_X, self.test_Q, self.skeleton, self.pos_mean, self.pos_std)
@@ -63,6 +64,7 @@ class MotionData:
     def summary(self) -> dict:
         return {
             "dataset": self.name,
+            "split": self.split,
             "joints": self.skeleton.num_joints,
             "train_clips": len(self.train),
             "test_clips": len(self.test),
@@ -111,11 +113,11 @@ def check_skeleton(ref: Skeleton | None, skel: Skeleton, name: str) -> Skeleton:
 def read_bvh_clips(spec: DatasetSpec, path: Path) -> Iterator[tuple[str, Clip, Skeleton, float | None]]:
     """The default reader: ``(file name, clip, skeleton, frames per second)`` per BVH file of ``path``.
 
-    Files are those matching ``spec.pattern``, sorted by name; a file the spec's split rule rejects is
+    Files are those matching ``spec.pattern``, sorted by name; a file no split rule of the spec uses is
     skipped before it is parsed.  The clip is named after the file without its extension.
     """
     for fname, raw in iter_bvh_sources(path, spec.pattern):
-        if spec.split(fname) is None:
+        if not spec.reads(fname):
             continue
         bvh = parse_bvh(raw, source=fname)
         stem = fname.rsplit(".", 1)[0]

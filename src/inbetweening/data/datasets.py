@@ -1,13 +1,13 @@
 """Motion datasets behind one interface: ``load_dataset(name, path=..., ...) -> MotionData``.
 
-What a name means (files, split, forward axis, root folding, mirror map, reader) is its
+What a name means (files, named splits, forward axis, root folding, mirror map, reader) is its
 :class:`~inbetweening.data.specs.DatasetSpec` in :data:`~inbetweening.data.specs.DATASETS`; this module
 only runs the steps every dataset shares: find the files (:func:`resolve_path`), read and split the clips,
 cut and normalise the benchmark windows, compute the training statistics, and cache the result.
 
 Prepared data (clips, benchmark windows, statistics) is cached as ``.npy`` files (memory-mapped on load)
-in a folder keyed by a hash of the source files' bytes and of every preprocessing setting, so a changed
-file or setting never serves stale data (:mod:`inbetweening.data.cache`).
+in a folder keyed by a hash of the source files' bytes and of every preprocessing setting (the split
+included), so a changed file or setting never serves stale data (:mod:`inbetweening.data.cache`).
 """
 from __future__ import annotations
 
@@ -24,7 +24,17 @@ from inbetweening.data.clips import Clip, MotionData, check_skeleton, clip_from_
 from inbetweening.data.errors import BVHError, DatasetError
 from inbetweening.data.lafan1 import download_lafan1, verify_lafan1
 from inbetweening.data.mirror import derive_mirror, validate_mirror
-from inbetweening.data.specs import DATASETS, DatasetSpec, bandai_namco_split, get_spec, lafan_split, register
+from inbetweening.data.specs import (
+    DATASETS,
+    DEFAULT_SPLIT,
+    DatasetSpec,
+    SplitRule,
+    bandai_namco_content_split,
+    bandai_namco_split,
+    get_spec,
+    lafan_split,
+    register,
+)
 from inbetweening.evaluation import benchmark as B
 from inbetweening.geometry.skeleton import Skeleton
 
@@ -49,6 +59,7 @@ def _save_cache(path: Path, data: MotionData) -> None:
         "names": list(data.skeleton.names),
         "parents": list(data.skeleton.parents),
         "source": data.source,
+        "split": data.split,
     }
     for split in ("train", "test"):
         clips = getattr(data, split)
@@ -71,20 +82,20 @@ def _load_cache(path: Path) -> MotionData:
     return MotionData(
         meta["name"], skel, meta["fps"], tuple(meta["forward_axis"]), splits["train"], splits["test"],
         arrays["pos_mean"], arrays["pos_std"], np.asarray(arrays["test_X"]), np.asarray(arrays["test_Q"]),
-        meta["source"],
+        meta["source"], split=meta.get("split", DEFAULT_SPLIT),
     )
 
 
 # ------------------------------------------------------------------------------------------
 # Preparation
 # ------------------------------------------------------------------------------------------
-def _read_clips(spec: DatasetSpec, path: Path) -> tuple[Skeleton, float, dict[str, list[Clip]]]:
-    """The spec's reader over ``path``: one skeleton, the first file's frame rate, clips per split."""
+def _read_clips(spec: DatasetSpec, path: Path, rule: SplitRule) -> tuple[Skeleton, float, dict[str, list[Clip]]]:
+    """The spec's reader over ``path``: one skeleton, the first file's frame rate, clips per split of ``rule``."""
     skel: Skeleton | None = None
     fps = None
     splits: dict[str, list[Clip]] = {"train": [], "test": []}
     for fname, clip, s, rate in spec.reader(spec, path):
-        split = spec.split(fname)
+        split = rule(fname)
         if split is None:
             continue
         skel = check_skeleton(skel, s, fname)
@@ -97,16 +108,17 @@ def _read_clips(spec: DatasetSpec, path: Path) -> tuple[Skeleton, float, dict[st
     return skel, float(round(fps, 6)), splits
 
 
-def prepare(spec: DatasetSpec, path: Path, forward_axis) -> MotionData:
-    """Read every file, split, cut/normalise the benchmark windows, compute training statistics."""
-    skel, fps, splits = _read_clips(spec, path)
+def prepare(spec: DatasetSpec, path: Path, forward_axis, split: str = DEFAULT_SPLIT) -> MotionData:
+    """Read every file, split (by the spec's split ``split``), cut/normalise the benchmark windows, compute
+    training statistics."""
+    skel, fps, splits = _read_clips(spec, path, spec.split_rule(split))
     trX, trQ = B.prepare_windows(splits["train"], skel, B.TRAIN_WINDOW, B.TRAIN_OFFSET, forward_axis)
     if len(trX) == 0:
         raise DatasetError(f"{path}: no training window of {B.TRAIN_WINDOW} frames could be cut")
     mean, std = B.position_stats(trX, trQ, skel.parents)
     teX, teQ = B.prepare_windows(splits["test"], skel, B.TEST_WINDOW, B.TEST_OFFSET, forward_axis)
     return MotionData(spec.name, skel, fps, tuple(float(a) for a in forward_axis), splits["train"], splits["test"],
-                      mean, std, teX, teQ, str(path))
+                      mean, std, teX, teQ, str(path), split=split)
 
 
 def resolve_path(name: str, path: str | os.PathLike | None, download: bool = False) -> Path:
@@ -140,13 +152,16 @@ def load_dataset(
     use_cache: bool = True,
     download: bool = False,
     synthetic: dict | None = None,
+    split: str = DEFAULT_SPLIT,
 ) -> MotionData:
     """Load (or prepare and cache) a registered dataset (:data:`~inbetweening.data.specs.DATASETS`) by name.
 
     ``synthetic`` holds the options of a generated dataset's ``generate`` (ignored by the others);
-    ``forward_axis`` overrides the spec's.
+    ``forward_axis`` overrides the spec's; ``split`` names one of the spec's split rules (``DatasetSpec.splits``,
+    :class:`DatasetError` for another name).
     """
     spec = get_spec(name)
+    spec.split_rule(split)  # an unknown split fails before any file is read
     cache_root = Path(cache_dir) if cache_dir else default_cache_dir()
     if spec.generate is not None:
         src = spec.generate(cache_root / spec.name, **(synthetic or {}))
@@ -157,8 +172,10 @@ def load_dataset(
         "v": CACHE_VERSION, "name": name, "axis": axis, "fold": spec.fold_root,
         "train": (B.TRAIN_WINDOW, B.TRAIN_OFFSET), "test": (B.TEST_WINDOW, B.TEST_OFFSET),
     }
+    if split != DEFAULT_SPLIT:  # the standard split keeps the key it had before splits had names (entries stay valid)
+        settings["split"] = split
     if not use_cache:
-        data = prepare(spec, src, axis)
+        data = prepare(spec, src, axis, split)
         data.mirror = mirror_map(spec, data.skeleton)
         return data
     key = f"{name}-{hash_source(src, cache_root, spec.pattern)[:16]}-{settings_key(settings)}"
@@ -171,7 +188,7 @@ def load_dataset(
             warnings.warn(f"dataset cache entry {cache_file} is unreadable or corrupt ({e}); rebuilding it", stacklevel=2)
             shutil.rmtree(cache_file, ignore_errors=True)
     if data is None:
-        data = prepare(spec, src, axis)
+        data = prepare(spec, src, axis, split)
         _save_cache(cache_file, data)
     data.mirror = mirror_map(spec, data.skeleton)
     return data
@@ -183,8 +200,10 @@ __all__ = [
     "DATASETS",
     "Clip",
     "DatasetError",
+    "DEFAULT_SPLIT",
     "DatasetSpec",
     "MotionData",
+    "bandai_namco_content_split",
     "bandai_namco_split",
     "clip_from_bvh",
     "download_lafan1",

@@ -1,7 +1,8 @@
 """Every dataset is one :class:`DatasetSpec` in the :data:`DATASETS` registry.
 
-A spec holds everything :func:`inbetweening.data.datasets.load_dataset` needs: the file pattern, the split
-rule (file name -> ``"train"``/``"test"``/``None``), the root-local forward axis, where the files are found
+A spec holds everything :func:`inbetweening.data.datasets.load_dataset` needs: the file pattern, its named
+split rules (file name -> ``"train"``/``"test"``/``None``; ``"standard"`` is the default, ``data.split``
+picks another), the root-local forward axis, where the files are found
 (environment variable, the config's default path, a hint for a missing path, an optional download), an
 optional static root joint to fold into its child, the left/right mirror map, the frame rate, and the
 reader (the BVH reader by default; a non-BVH source plugs in its own).  A new BVH dataset is one
@@ -11,7 +12,9 @@ reader (the BVH reader by default; a non-BVH source plugs in its own).  A new BV
                      train = subject1-4, test = subject5; forward = root local +Y.
 * ``bandai_namco`` - Bandai-Namco-Research-Motiondataset-1/-2 (folder or zip).  The static
                      ``joint_Root`` is folded into ``Hips``, which becomes the root; test = takes whose
-                     3-digit take number is divisible by 10, train = the rest; forward = root local +Z
+                     3-digit take number is divisible by 10, train = the rest (split ``standard``), or
+                     test = every take of the contents ``run`` and ``wave-both-hands``, train = the other
+                     contents (split ``content``: motions never seen in training); forward = root local +Z
                      (measured on walk clips, see README).
 * ``synthetic``    - procedurally generated LAFAN-format BVH files (see :mod:`inbetweening.data.synthetic`),
                      read back through the same BVH reader; test = subject5; forward = root local +Z.
@@ -19,8 +22,8 @@ reader (the BVH reader by default; a non-BVH source plugs in its own).  A new BV
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from inbetweening.data.clips import Clip, read_bvh_clips
@@ -34,12 +37,21 @@ SplitRule = Callable[[str], "str | None"]
 # reader(spec, path) -> (file name, clip, skeleton, frames per second or None) per file, sorted by name
 Reader = Callable[["DatasetSpec", Path], Iterable[tuple[str, Clip, Skeleton, "float | None"]]]
 
-__all__ = ["DATASETS", "DatasetSpec", "bandai_namco_split", "get_spec", "lafan_split", "register"]
+DEFAULT_SPLIT = "standard"
+
+__all__ = [
+    "BN_TEST_CONTENTS", "DATASETS", "DEFAULT_SPLIT", "DatasetSpec", "bandai_namco_content_split", "bandai_namco_split",
+    "get_spec", "lafan_split", "register",
+]
 
 
 @dataclass(frozen=True)
 class DatasetSpec:
     """Everything that makes a dataset; see the module docstring.
+
+    ``splits`` maps split names to split rules; it must hold :data:`DEFAULT_SPLIT` (``"standard"``), the split
+    used unless another is asked for (``load_dataset(..., split=...)``, ``data.split=...``).  A single rule
+    is the spec's only split, ``"standard"``.  :attr:`split` is the standard rule.
 
     ``mirror`` is a tuple of ``(left, right)`` joint names of the *loaded* skeleton (after root folding), or
     ``None`` to derive it from the names' side markers (``LeftArm``/``RightArm``, ``Hand_L``/``Hand_R``); either
@@ -59,7 +71,7 @@ class DatasetSpec:
     """
 
     name: str
-    split: SplitRule
+    splits: SplitRule | Mapping[str, SplitRule] = field(hash=False)
     forward_axis: tuple[float, float, float]
     pattern: str = "*.bvh"
     env_var: str | None = None
@@ -83,6 +95,26 @@ class DatasetSpec:
         if self.feet and not (self.contact_height > 0 and self.contact_speed > 0):
             raise ValueError(f"DatasetSpec {self.name!r}: feet need contact_height > 0 and contact_speed > 0, got "
                              f"{self.contact_height!r} and {self.contact_speed!r}")
+        splits = {DEFAULT_SPLIT: self.splits} if callable(self.splits) else dict(self.splits)
+        if DEFAULT_SPLIT not in splits or not all(callable(r) for r in splits.values()):
+            raise ValueError(f"DatasetSpec {self.name!r}: splits must map names to split rules and include "
+                             f"{DEFAULT_SPLIT!r}, got {sorted(splits)}")
+        object.__setattr__(self, "splits", splits)
+
+    @property
+    def split(self) -> SplitRule:
+        """The standard split's rule."""
+        return self.splits[DEFAULT_SPLIT]
+
+    def split_rule(self, split: str) -> SplitRule:
+        """The rule of the split called ``split``; :class:`DatasetError` listing the spec's splits otherwise."""
+        if split not in self.splits:
+            raise DatasetError(f"dataset {self.name!r} has no split {split!r}; its splits are {list(self.splits)}")
+        return self.splits[split]
+
+    def reads(self, fname: str) -> bool:
+        """Whether some split of the spec uses the file ``fname`` (the reader skips the others unparsed)."""
+        return any(rule(fname) is not None for rule in self.splits.values())
 
 
 # ------------------------------------------------------------------------------------------
@@ -107,6 +139,18 @@ def bandai_namco_split(fname: str):
     if not m:
         return None
     return "test" if int(m.group("take")) % 10 == 0 else "train"
+
+
+BN_TEST_CONTENTS = ("run", "wave-both-hands")  # Bandai-Namco-2 contents held out whole by the content split
+
+
+def bandai_namco_content_split(fname: str, test_contents=BN_TEST_CONTENTS):
+    """``dataset-N_<content>_<style>_<take>.bvh``: test when the content is one of ``test_contents`` (every take
+    and style of it), train otherwise: the test motions are never seen in training or validation."""
+    m = _BN_RE.match(fname)
+    if not m:
+        return None
+    return "test" if m.group("content").lower() in test_contents else "train"
 
 
 # ------------------------------------------------------------------------------------------
@@ -147,7 +191,8 @@ register(DatasetSpec(
     download=download_lafan1, feet=("LeftFoot", "LeftToe", "RightFoot", "RightToe"), **CONTACT,
 ))  # fmt: skip
 register(DatasetSpec(
-    "bandai_namco", bandai_namco_split, (0.0, 0.0, 1.0), env_var="BANDAI_NAMCO_PATH",
+    "bandai_namco", {DEFAULT_SPLIT: bandai_namco_split, "content": bandai_namco_content_split}, (0.0, 0.0, 1.0),
+    env_var="BANDAI_NAMCO_PATH",
     default_path="../shared/datasets/bandai-namco-2.zip",
     path_hint="pass the Bandai-Namco-Research-Motiondataset zip or its data/ folder as data.path=...",
     fold_root="joint_Root", feet=("Foot_L", "Toes_L", "Foot_R", "Toes_R"), **CONTACT,

@@ -4,8 +4,9 @@
 
 One row per configuration: the run's Hydra overrides (``.hydra/overrides.yaml``) name it, rows are
 sorted by the chosen metric (ascending), and ``<out>.md`` / ``<out>.csv`` are written into the
-sweep directory (or ``--out`` path).  Runs of ``eval.py protocol=keyframes`` add their figures as columns
-``kf_<figure>@<K>`` (``kf_model_cm@15``, ``kf_ratio@15``, ``kf_skate_model@15``, ...).
+sweep directory (or ``--out`` path).  Runs whose ``benchmark.json`` records the dataset's split (``data.split``)
+get a ``split`` column; older files without it leave that cell empty.  Runs of ``eval.py protocol=keyframes`` add
+their figures as columns ``kf_<figure>@<K>`` (``kf_model_cm@15``, ``kf_ratio@15``, ``kf_skate_model@15``, ...).
 """
 from __future__ import annotations
 
@@ -34,7 +35,8 @@ def run_label(run_dir: Path) -> str:
 
 
 def collect(sweep_dir: str | Path, sort: str = "l2p@15") -> list[dict]:
-    """Rows ``{"run", "config", "dataset", "model", "n_windows", <metrics>...}`` sorted by ``sort``."""
+    """Rows ``{"run", "config", "dataset", "split", "model", "n_windows", <metrics>...}`` sorted by ``sort``
+    (``split`` is ``None`` for a file that does not record it)."""
     root = Path(sweep_dir)
     if not root.exists():
         raise FileNotFoundError(f"{root} does not exist")
@@ -43,7 +45,8 @@ def collect(sweep_dir: str | Path, sort: str = "l2p@15") -> list[dict]:
         res = json.loads(f.read_text())
         run = f.parent
         rows.append({"run": str(run.relative_to(root)) if run != root else ".", "config": run_label(run),
-                     "dataset": res.get("dataset"), "model": res.get("model"), "n_windows": res.get("n_windows"),
+                     "dataset": res.get("dataset"), "split": res.get("split"), "model": res.get("model"),
+                     "n_windows": res.get("n_windows"),
                      **res.get("metrics", {}), **keyframe_columns(res)})
     if not rows:
         raise FileNotFoundError(f"no benchmark.json under {root}")
@@ -70,18 +73,26 @@ def metric_columns(rows: list[dict]) -> list[str]:
     return sorted(keys, key=order)
 
 
+def has_split(rows: list[dict]) -> bool:
+    """Whether any run recorded its dataset split (then the tables get a ``split`` column)."""
+    return any(r.get("split") is not None for r in rows)
+
+
 def to_markdown(rows: list[dict]) -> str:
     cols = metric_columns(rows)
-    head = "| config | model | " + " | ".join(c.upper() for c in cols) + " |"
-    lines = [head, "|---|---|" + "---:|" * len(cols)]
+    split = has_split(rows)
+    head = "| config | model | " + ("split | " if split else "") + " | ".join(c.upper() for c in cols) + " |"
+    lines = [head, "|---|---|" + ("---|" if split else "") + "---:|" * len(cols)]
     for r in rows:
         cells = [("" if r.get(c) is None else f"{r[c]:.4f}" if c.startswith("npss") else f"{r[c]:.3f}") for c in cols]
+        if split:
+            cells.insert(0, r.get("split") or "")
         lines.append(f"| {r['config']} | {r['model']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
 def write_csv(rows: list[dict], path: Path) -> None:
-    cols = ["config", "model", "dataset", "n_windows", *metric_columns(rows), "run"]
+    cols = ["config", "model", "dataset", *(["split"] if has_split(rows) else []), "n_windows", *metric_columns(rows), "run"]
     with open(path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
         w.writeheader()

@@ -5,6 +5,7 @@ import inspect
 
 from omegaconf import DictConfig
 
+from inbetweening.data.specs import DATASETS, DEFAULT_SPLIT
 from inbetweening.evaluation.benchmark import N_PAST
 from inbetweening.predictor.masks import MASK_NAMES
 from inbetweening.training.losses import LOSS_TERMS
@@ -129,6 +130,10 @@ def _check_data(cfg, mask) -> None:
             if not isinstance(n, int) or not 1 <= n <= 45:
                 raise ConfigError(f"{key}: lengths must be integers in 1..45 (65-frame benchmark windows), got {n!r}")
     name = _get(cfg, "data.name")
+    split = _get(cfg, "data.split", DEFAULT_SPLIT)
+    if name in DATASETS and (not isinstance(split, str) or split not in DATASETS[name].splits):
+        raise ConfigError(f"data.split: dataset {name!r} has no split {split!r}; its splits are "
+                          f"{list(DATASETS[name].splits)}")
     syn = _get(cfg, "data.synthetic")
     if name == "synthetic":
         if _get(cfg, "data.path") is not None:

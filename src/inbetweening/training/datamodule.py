@@ -155,8 +155,9 @@ class InbetweenDataModule(L.LightningDataModule):
     which come from the ``mask`` group and the run's ``seed``.
 
     Args:
-        name, path, cache_dir, forward_axis, synthetic, download: the dataset (see
-            :func:`inbetweening.data.datasets.load_dataset`).
+        name, path, cache_dir, forward_axis, synthetic, download, split: the dataset (see
+            :func:`inbetweening.data.datasets.load_dataset`); ``split`` names one of its spec's split rules
+            (``standard``; ``bandai_namco`` also has ``content``).  Validation clips come from its training part.
         batch_size, eval_batch_size, num_workers: loaders (``eval_batch_size``: validation and test).
         val_fraction: share of the training clips held out for validation.
         transition_min, transition_max, transition_per: transition lengths drawn for training batches
@@ -179,6 +180,7 @@ class InbetweenDataModule(L.LightningDataModule):
         forward_axis: list[float] | None,
         synthetic: dict | None,
         download: bool,
+        split: str,
         batch_size: int,
         eval_batch_size: int,
         num_workers: int,
@@ -206,16 +208,23 @@ class InbetweenDataModule(L.LightningDataModule):
     def _load(self) -> MotionData:
         h = self.hparams
         return load_dataset(h.name, path=h.path, cache_dir=h.cache_dir, forward_axis=h.forward_axis,
-                            download=h.download, synthetic=dict(h.synthetic) if h.synthetic else None)
+                            download=h.download, synthetic=dict(h.synthetic) if h.synthetic else None, split=h.split)
 
     def prepare_data(self) -> None:
         self._load()  # builds the cache (and downloads LAFAN1 if allowed) once, on one process
 
     def setup(self, stage: str | None = None) -> None:
-        if self.data is not None:
-            return
+        """Test windows for every stage; training and validation windows only when fitting or validating (a
+        test run never builds the training set: ``eval.py`` on Bandai-Namco-2 would otherwise hold it in memory)."""
         h = self.hparams
-        self.data = data = self._load()
+        if self.data is None:
+            self.data = data = self._load()
+            self.test_set = _Windows(data.test_X[: h.max_eval_windows], data.test_Q[: h.max_eval_windows])
+        if stage in (None, "fit", "validate") and self.train_feats is None:
+            self._setup_fit()
+
+    def _setup_fit(self) -> None:
+        h, data = self.hparams, self.data
         sk, axis = data.skeleton, data.forward_axis
         train_clips, val_clips = split_train_val(data.train, h.val_fraction)
         X, Q = B.prepare_windows(train_clips, sk, h.train_window, h.train_offset, axis)
@@ -223,12 +232,22 @@ class InbetweenDataModule(L.LightningDataModule):
             X, Q = X[: h.max_train_windows], Q[: h.max_train_windows]
         if len(X) == 0:
             raise ValueError(f"data: no training window of {h.train_window} frames in dataset {h.name!r}")
-        self.train_feats = window_features(X[:, :, 0], Q, sk, data.pos_mean, data.pos_std)
+        self.train_feats = self._encode_in_chunks(X[:, :, 0], Q)
         vX, vQ = B.prepare_windows(val_clips or train_clips[:1], sk, B.TEST_WINDOW, B.TEST_OFFSET, axis)
-        lim = h.max_eval_windows
-        vlim = h.max_val_windows or lim
+        vlim = h.max_val_windows or h.max_eval_windows
         self.val_set = _Windows(vX[:vlim], vQ[:vlim])
-        self.test_set = _Windows(data.test_X[:lim], data.test_Q[:lim])
+
+    def _encode_in_chunks(self, root, q, chunk: int = 1024) -> torch.Tensor:
+        """Features of every training window, ``chunk`` windows at a time (the float64 FK of a whole dataset at
+        once would hold several GB of intermediates); identical to encoding them all at once."""
+        d = self.data
+        first = window_features(root[:chunk], q[:chunk], d.skeleton, d.pos_mean, d.pos_std)
+        out = torch.empty((len(root), *first.shape[1:]), dtype=first.dtype)
+        out[:chunk] = first
+        for s in range(chunk, len(root), chunk):
+            out[s : s + chunk] = window_features(root[s : s + chunk], q[s : s + chunk], d.skeleton, d.pos_mean,
+                                                 d.pos_std)
+        return out
 
     def test_benchmark_set(self) -> B.BenchmarkSet:
         """The (possibly capped) test windows as a :class:`~inbetweening.evaluation.benchmark.BenchmarkSet`."""

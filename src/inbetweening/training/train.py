@@ -1,6 +1,6 @@
 """``train(cfg)`` and ``evaluate(cfg)``: the Hydra-configured jobs behind ``train.py`` and ``eval.py``.
 
-Both return a metrics dict and write ``benchmark.json`` (``{"dataset", "model", "n_windows",
+Both return a metrics dict and write ``benchmark.json`` (``{"dataset", "split", "model", "n_windows",
 "metrics": {"l2q@5": ...}}``) into the run's output directory.
 """
 from __future__ import annotations
@@ -23,7 +23,14 @@ from inbetweening.data.bvh import BVHError
 from inbetweening.data.datasets import DatasetError
 from inbetweening.data.specs import get_spec
 from inbetweening.evaluation import benchmark as B
-from inbetweening.training.callbacks import AtomicCheckpointIO, InterruptCheckpoint, NonFiniteError, NonFiniteGuard, ResumeState
+from inbetweening.training.callbacks import (
+    AtomicCheckpointIO,
+    InterruptCheckpoint,
+    NonFiniteError,
+    NonFiniteGuard,
+    ResumeState,
+    TrimHeap,
+)
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.module import InbetweenModule
@@ -65,8 +72,8 @@ def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
     lgs = [instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else []
     if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
-    if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
-        cbs += [NonFiniteGuard(), ResumeState(),
+    if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM,
+        cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # the heap trimmed between epochs
                 InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]
     return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False, plugins=[AtomicCheckpointIO()])
 
@@ -84,12 +91,12 @@ def resume_command(cfg: DictConfig) -> str:
 
 
 def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metrics: dict,
-                    keyframes: dict | None = None) -> dict:
+                    split: str | None = None, keyframes: dict | None = None) -> dict:
     """Write ``benchmark.json`` (strict JSON, atomically); a non-finite metric is an error, never a number.
-
-    ``keyframes``: the ``protocol=keyframes`` figures ``{"<K>": {"model_cm": ..., "n_clips": ...}}``, written under
-    the ``keyframes`` key (integers stay integers)."""
-    res = {"dataset": dataset, "model": model, "n_windows": int(n_windows),
+    ``split``: the dataset's split rule (``data.split``), recorded when given.  ``keyframes``: the
+    ``protocol=keyframes`` figures ``{"<K>": {"model_cm": ..., "n_clips": ...}}``, written under the ``keyframes``
+    key (integers stay integers)."""
+    res = {"dataset": dataset, **({"split": split} if split else {}), "model": model, "n_windows": int(n_windows),
            "metrics": {k: float(v) for k, v in metrics.items()}}
     checked = dict(res["metrics"])
     if keyframes is not None:
@@ -155,8 +162,9 @@ def train(cfg: DictConfig) -> dict[str, float]:
         name = cfg.model.name
         if not test_trainer.is_global_zero:  # DDP: metrics are synced; rank 0 alone writes and prints
             return metrics
-        write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics)
-        print(f"\nTest benchmark ({dm.data.name}, {len(dm.test_set)} windows, checkpoint: {best or 'final weights'})")
+        write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split)
+        print(f"\nTest benchmark ({dm.data.name}, split {dm.hparams.split}, {len(dm.test_set)} windows, "
+              f"checkpoint: {best or 'final weights'})")
         print(B.format_table(with_baselines(name, metrics, dm, cfg.data.test_lengths), cfg.data.test_lengths))
         if "recovery_rmse" in metrics:
             print(f"mocap recovery: RMSE of recovered joint positions = {metrics['recovery_rmse']:.3f}")
@@ -218,8 +226,8 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
         name = module.hparams.model["name"]
         if not trainer.is_global_zero:  # DDP: metrics are synced; rank 0 alone writes and prints
             return metrics
-    write_benchmark(out / "benchmark.json", dataset, name, n, metrics)
-    print(f"\nBenchmark: {dataset}, {n} test windows -> {out / 'benchmark.json'}")
+    write_benchmark(out / "benchmark.json", dataset, name, n, metrics, dm.hparams.split)
+    print(f"\nBenchmark: {dataset}, split {dm.hparams.split}, {n} test windows -> {out / 'benchmark.json'}")
     print(B.format_table({name: metrics}, cfg.data.test_lengths))
     return metrics
 
@@ -232,7 +240,8 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     from inbetweening.evaluation import keyframes as KF
     from inbetweening.tools.inbetweener import Inbetweener
 
-    data = make_datamodule(cfg)._load()
+    dm = make_datamodule(cfg)
+    data = dm._load()
     ckpt_path, name, fill = cfg.get("ckpt_path"), cfg.model.name, None
     if ckpt_path:
         ib = Inbetweener.from_checkpoint(ckpt_path)
@@ -248,9 +257,9 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     res = KF.evaluate_clips(data.test, data.skeleton, fill, list(cfg.keyframe_intervals), data.fps, feet,
                             progress=log.info)
     out = output_dir(cfg)
-    write_benchmark(out / "benchmark.json", data.name, name, len(data.test), {}, keyframes=res)
-    print(f"\nKeyframes-only protocol: {data.name}, {len(data.test)} whole test clips, {data.fps:g} fps, "
-          f"model {name} -> {out / 'benchmark.json'}")
+    write_benchmark(out / "benchmark.json", data.name, name, len(data.test), {}, dm.hparams.split, keyframes=res)
+    print(f"\nKeyframes-only protocol: {data.name}, split {dm.hparams.split}, {len(data.test)} whole test clips, "
+          f"{data.fps:g} fps, model {name} -> {out / 'benchmark.json'}")
     print(KF.format_table(res))
     return {f"{m}@{k}": float(v) for k, row in res.items() for m, v in row.items()}
 
