@@ -175,28 +175,23 @@ class LastCheckpoint(ModelCheckpoint):
             self._save_last_checkpoint(trainer, self._monitor_candidates(trainer))
 
 
-def trim_heap() -> bool:
-    """Give the C heap's free pages back to the OS (glibc ``malloc_trim``); ``False`` where there is no glibc.
 
-    Training allocates transients of many sizes (activations, validation batches); glibc keeps the freed heap, and
-    across epochs the fragmented remainder grows the process: the default synthetic run went from 1.27 GB after one
-    epoch to 1.71 GB after 15 without this, and stays at the first epoch's level with it (BENCHMARKS.md, Memory).
+M_MMAP_THRESHOLD = -3  # glibc's mallopt parameter number
+
+
+def map_large_allocations(threshold: int = 4 << 20) -> bool:
+    """Serve every allocation of ``threshold`` bytes or more by its own memory map (glibc ``mallopt``), so a freed
+    activation tensor goes back to the OS at once; ``False`` where there is no glibc.
+
+    By default glibc raises this threshold to 32 MB after the first large free, and the activations of a training
+    step (9-18 MB each for the default graph transformer) then live in the heap, which fragments and is never
+    returned: the default synthetic run's peak grew from 1.27 GB after one epoch to 1.71 GB after 15.  With a fixed
+    4 MB threshold the peak follows what is live (BENCHMARKS.md, "Memory").  Applies to later allocations only.
     """
     name = ctypes.util.find_library("c")
     if not name:
         return False
     libc = ctypes.CDLL(name)
-    if not hasattr(libc, "malloc_trim"):
+    if not hasattr(libc, "mallopt"):
         return False
-    libc.malloc_trim(0)
-    return True
-
-
-class TrimHeap(L.Callback):
-    """:func:`trim_heap` at each training epoch start and after each validation (milliseconds, once per stage)."""
-
-    def on_train_epoch_start(self, trainer, pl_module) -> None:
-        trim_heap()
-
-    def on_validation_epoch_end(self, trainer, pl_module) -> None:
-        trim_heap()
+    return bool(libc.mallopt(M_MMAP_THRESHOLD, int(threshold)))

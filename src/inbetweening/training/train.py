@@ -29,7 +29,7 @@ from inbetweening.training.callbacks import (
     NonFiniteError,
     NonFiniteGuard,
     ResumeState,
-    TrimHeap,
+    map_large_allocations,
 )
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
@@ -72,8 +72,8 @@ def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
     lgs = [instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else []
     if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
-    if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM,
-        cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # the heap trimmed between epochs
+    if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
+        cbs += [NonFiniteGuard(), ResumeState(),
                 InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]
     return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False, plugins=[AtomicCheckpointIO()])
 
@@ -133,6 +133,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
     """Fit (unless the model is a non-trainable baseline), then run the test benchmark with the best
     checkpoint and write ``benchmark.json``.  Returns the test metrics."""
     validate(cfg)
+    map_large_allocations()  # freed activations go back to the OS at once (peak memory = what is live)
     L.seed_everything(cfg.seed, workers=True)
     out = output_dir(cfg)
     dm = make_datamodule(cfg)
@@ -194,6 +195,7 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
     """Benchmark a checkpoint (``ckpt_path``) or a baseline (``model=zero_velocity|interpolation``) with the
     LAFAN1 protocol, or with ``protocol=keyframes`` (:func:`evaluate_keyframes`)."""
     validate(cfg)
+    map_large_allocations()
     if cfg.get("protocol", "lafan") == "keyframes":
         return evaluate_keyframes(cfg)
     out = output_dir(cfg)
