@@ -176,22 +176,42 @@ class LastCheckpoint(ModelCheckpoint):
 
 
 
-M_MMAP_THRESHOLD = -3  # glibc's mallopt parameter number
 
-
-def map_large_allocations(threshold: int = 4 << 20) -> bool:
-    """Serve every allocation of ``threshold`` bytes or more by its own memory map (glibc ``mallopt``), so a freed
-    activation tensor goes back to the OS at once; ``False`` where there is no glibc.
-
-    By default glibc raises this threshold to 32 MB after the first large free, and the activations of a training
-    step (9-18 MB each for the default graph transformer) then live in the heap, which fragments and is never
-    returned: the default synthetic run's peak grew from 1.27 GB after one epoch to 1.71 GB after 15.  With a fixed
-    4 MB threshold the peak follows what is live (BENCHMARKS.md, "Memory").  Applies to later allocations only.
-    """
+def trim_heap() -> bool:
+    """Give the C heap's free pages back to the OS (glibc ``malloc_trim``); ``False`` where there is no glibc."""
     name = ctypes.util.find_library("c")
     if not name:
         return False
     libc = ctypes.CDLL(name)
-    if not hasattr(libc, "mallopt"):
+    if not hasattr(libc, "malloc_trim"):
         return False
-    return bool(libc.mallopt(M_MMAP_THRESHOLD, int(threshold)))
+    libc.malloc_trim(0)
+    return True
+
+
+class TrimHeap(L.Callback):
+    """:func:`trim_heap` every ``every_n_steps`` training steps, at each epoch start, and before and after each
+    validation (whose batches have other shapes than the training steps').
+
+    glibc keeps the memory that a training step frees (activations of 9-18 MB each for the default graph
+    transformer) in a heap that fragments over steps of different shapes (training, validation); without trimming
+    the default synthetic run's peak grew from 1.27 GB after one epoch to 1.71 GB after 15.  A trim costs the page
+    faults of growing back once, so it runs every few dozen steps, not every step (serving large blocks by their own
+    memory maps instead made a step 50% slower).  BENCHMARKS.md, "Memory".
+    """
+
+    def __init__(self, every_n_steps: int = 25):
+        self.every = max(1, int(every_n_steps))
+
+    def on_train_epoch_start(self, trainer, pl_module) -> None:
+        trim_heap()
+
+    def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
+        if (batch_idx + 1) % self.every == 0:
+            trim_heap()
+
+    def on_validation_epoch_start(self, trainer, pl_module) -> None:
+        trim_heap()
+
+    def on_validation_epoch_end(self, trainer, pl_module) -> None:
+        trim_heap()

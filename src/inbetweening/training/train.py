@@ -29,7 +29,8 @@ from inbetweening.training.callbacks import (
     NonFiniteError,
     NonFiniteGuard,
     ResumeState,
-    map_large_allocations,
+    TrimHeap,
+    trim_heap,
 )
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
@@ -73,7 +74,7 @@ def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
     if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
     if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
-        cbs += [NonFiniteGuard(), ResumeState(),
+        cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # freed heap returned every 25 steps
                 InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]
     return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False, plugins=[AtomicCheckpointIO()])
 
@@ -133,7 +134,6 @@ def train(cfg: DictConfig) -> dict[str, float]:
     """Fit (unless the model is a non-trainable baseline), then run the test benchmark with the best
     checkpoint and write ``benchmark.json``.  Returns the test metrics."""
     validate(cfg)
-    map_large_allocations()  # freed activations go back to the OS at once (peak memory = what is live)
     L.seed_everything(cfg.seed, workers=True)
     out = output_dir(cfg)
     dm = make_datamodule(cfg)
@@ -155,6 +155,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
         best = getattr(trainer.checkpoint_callback, "best_model_path", None) or None
     metrics: dict[str, float] = {}
     if cfg.get("run_test", True):
+        trim_heap()  # the test batches start from the heap the training steps left
         test_trainer = make_trainer(cfg, callbacks=False, loggers=False)
         if best and Path(best).exists():
             module = load_module(best)
@@ -195,7 +196,6 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
     """Benchmark a checkpoint (``ckpt_path``) or a baseline (``model=zero_velocity|interpolation``) with the
     LAFAN1 protocol, or with ``protocol=keyframes`` (:func:`evaluate_keyframes`)."""
     validate(cfg)
-    map_large_allocations()
     if cfg.get("protocol", "lafan") == "keyframes":
         return evaluate_keyframes(cfg)
     out = output_dir(cfg)
