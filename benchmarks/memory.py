@@ -30,10 +30,11 @@ COMMANDS = {
 
 
 def measure(args: list[str], out: Path) -> tuple[float, float]:
-    """``(peak RSS in GB, wall seconds)`` of ``python <args> hydra.run.dir=<out>``."""
+    """``(peak RSS in GB, wall seconds)`` of ``python <args> hydra.run.dir=<out>`` (wall: quiet machine only)."""
     time_bin = shutil.which("time") or "/usr/bin/time"
     if not Path(time_bin).exists():
         raise SystemExit("benchmarks/memory.py needs GNU time: apt-get install time")
+    out.mkdir(parents=True, exist_ok=True)
     report = out / "time.txt"
     cmd = [time_bin, "-f", "%M %e", "-o", str(report), sys.executable, *args, f"hydra.run.dir={out}"]
     subprocess.run(cmd, cwd=ROOT, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
