@@ -17,13 +17,13 @@ import numpy as np
 import torch
 from torch import nn
 
+from inbetweening.evaluation.benchmark import N_PAST
 from inbetweening.geometry import canonical
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor.inference import centred_forward, check_centre, restore_frame
 from inbetweening.predictor.masks import MASK_NAMES, apply_mask, transition_known
 from inbetweening.predictor.representation import DEFAULT_REPRESENTATION, build_representation
 
-N_PAST = 10  # context frames of the benchmark protocol (inbetweening.evaluation.benchmark.N_PAST)
 LEGACY_CENTRE = "window"  # what checkpoints made before the ``centre`` option did
 
 # the predictor's hyper-parameters, as InbetweenModule records them
