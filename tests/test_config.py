@@ -40,7 +40,7 @@ BAD = [
     (["data.synthetic.min_frames=30"], r"^data.synthetic.min_frames/max_frames: need 66 <= min <= max"),
     (["data.path=/nonexistent"], r"^data.path: data=synthetic generates its clips and reads no path"),
     (["optim.optimizer.lr=0"], r"^optim.optimizer.lr: must be > 0"),
-    (["centre=middle"], r"^centre: must be 'known' or 'window'"),
+    (["centre=middle"], r"^centre: must be one of \['window', 'known', 'last'\]"),
     (["mask.name=blur"], r"^mask.name: unknown mask 'blur'"),
     (["+optim.lr=1e-3"], r"^optim.lr: not a setting of optim; set optim.optimizer.\* \(e.g. optim.optimizer.lr\)"),
     (["optim=sgd", "+optim.optimizer.betas=[0.9,0.99]"], r"^optim.optimizer.betas: not an argument of torch.optim.SGD"),

@@ -77,7 +77,7 @@ def test_known_centre_shift_hand_derived_per_joint_std():
 
 
 @pytest.mark.parametrize("mask", ["lerp", "zero"])
-def test_known_centring_is_leak_free_and_window_centring_is_not(mask):
+def test_known_and_last_centring_are_leak_free_and_window_centring_is_not(mask):
     """Change ONLY the ground truth of the frames to predict: with centre=known the prediction is unchanged;
     with centre=window (features built from whole-window-centred benchmark windows) it changes."""
     n_past, n = 10, 8
@@ -88,7 +88,7 @@ def test_known_centring_is_leak_free_and_window_centring_is_not(mask):
     other_q[:, n_past : n_past + n] = q[:, :1]
     model = net(2)
     preds = {}
-    for centre in ("known", "window"):
+    for centre in ("known", "last", "window"):
         outs = []
         for r, qq in ((root, q), (other_root, other_q)):
             Xn, Qn = B.centre_and_rotate(SK.local_positions(r), qq, PARENTS, forward_axis=(0.0, 0.0, 1.0))
@@ -102,8 +102,10 @@ def test_known_centring_is_leak_free_and_window_centring_is_not(mask):
         preds[centre] = outs
     # the whole-window centring moved every known frame too; compare after undoing it via the first root
     known_equal = np.abs(preds["known"][0] - preds["known"][1]).max()
+    last_equal = np.abs(preds["last"][0] - preds["last"][1]).max()
     window_change = np.abs(preds["window"][0] - preds["window"][1]).max()
     assert known_equal < 1e-9, known_equal
+    assert last_equal < 1e-9, last_equal
     assert window_change > 1e-3, window_change
 
 
@@ -118,7 +120,7 @@ def test_masked_forward_target_is_in_the_prediction_frame():
     assert pred.requires_grad
     _, _, same = masked_forward(model, "lerp", feats, known, "window", STD)
     assert torch.equal(same, feats)
-    with pytest.raises(ValueError, match=r"centre must be one of \['window', 'known'\], got 'middle'"):
+    with pytest.raises(ValueError, match=r"centre must be one of \['window', 'known', 'last'\], got 'middle'"):
         masked_forward(model, "lerp", feats, known, "middle", STD)
 
 

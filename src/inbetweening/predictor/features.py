@@ -15,7 +15,7 @@ from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor.representation import Representation, register_representation
 
 __all__ = ["FEATURES", "POS", "QUAT", "GlobalPosLocalQuat", "decode", "encode", "global_positions",
-           "known_centre_shift", "qnormalize"]
+           "known_centre_shift", "anchor_xz", "qnormalize"]
 
 FEATURES = 7
 POS = slice(0, 3)
@@ -49,16 +49,39 @@ def global_positions(feat: torch.Tensor, mean, std) -> torch.Tensor:
     return feat[..., POS] * s + m
 
 
-def known_centre_shift(feats: torch.Tensor, known: torch.Tensor, std) -> torch.Tensor:
-    """Feature-space shift that moves the mean root XZ of the KNOWN frames to the origin.  ``-> (B, 1, J, 7)``.
+def anchor_xz(feats: torch.Tensor, known: torch.Tensor, how: str = "known") -> torch.Tensor:
+    """The root XZ a window is re-centred on, in the root's feature units.  ``(B, T, J, F), (B, T, J) -> (B, 2)``.
+
+    ``how="known"``: the mean over the root's known frames; ``how="last"``: the root at the last context frame (the
+    last known frame before the first unknown one; the first known frame when the window starts unknown).  Unknown
+    values are never read (NaN is fine); with no known frame at all the anchor is 0."""
+    k = known[:, :, 0]
+    if how == "known":
+        return masked_mean(feats[:, :, 0, [0, 2]], k)[:, 0]
+    if how != "last":
+        raise ValueError(f"centre: unknown anchor {how!r}; choose 'known' or 'last'")
+    t = k.shape[1]
+    idx = torch.arange(t, device=k.device)[None, :].expand_as(k)
+    first_unknown = torch.where(~k, idx, torch.full_like(idx, t)).min(dim=1).values
+    first_known = torch.where(k, idx, torch.full_like(idx, t)).min(dim=1).values
+    frame = torch.where(first_unknown > 0, first_unknown - 1, first_known).clamp(max=t - 1)
+    safe = torch.where(k[..., None], feats[:, :, 0, :][..., [0, 2]], torch.zeros((), dtype=feats.dtype,
+                                                                                   device=feats.device))
+    return torch.gather(safe, 1, frame[:, None, None].expand(-1, 1, 2))[:, 0]
+
+
+def known_centre_shift(feats: torch.Tensor, known: torch.Tensor, std, how: str = "known") -> torch.Tensor:
+    """Feature-space shift that moves the root XZ anchor of the KNOWN frames (:func:`anchor_xz`) to the origin.
+    ``-> (B, 1, J, 7)``.
 
     Benchmark windows are centred on the mean root XZ over all their frames, including the ones to be
     predicted, so absolute positions leak where the transition goes.  Subtracting this shift (and adding
-    it back to the prediction) makes the network see only what is known: ``centre="known"``.  The root's
-    known frames decide (per-joint masks included); unknown values are never read (NaN is fine).
+    it back to the prediction) makes the network see only what is known: ``centre="known"`` (mean of the known
+    frames) or ``centre="last"`` (the last context frame, as TST and the delta-interpolator feed their inputs).
+    The root's known frames decide (per-joint masks included); unknown values are never read (NaN is fine).
     """
     s = torch.as_tensor(std, dtype=feats.dtype, device=feats.device).reshape(-1, 3)
-    xz = masked_mean(feats[:, :, 0, [0, 2]], known[:, :, 0])[:, 0]  # (B, 2) in the root's feature units
+    xz = anchor_xz(feats, known, how)  # (B, 2) in the root's feature units
     shift = torch.zeros(feats.shape[0], 1, feats.shape[2], feats.shape[3], dtype=feats.dtype, device=feats.device)
     # positions are z-scored per joint coordinate: a world shift d is d / std_j in each joint's features
     shift[:, 0, :, 0] = xz[:, None, 0] * s[0, 0] / s[:, 0]
@@ -85,5 +108,5 @@ class GlobalPosLocalQuat(Representation):
     def global_positions(self, feats):
         return global_positions(feats, self.mean, self.std)
 
-    def centre_shift(self, feats, known):
-        return known_centre_shift(feats, known, self.std)
+    def centre_shift(self, feats, known, how="known"):
+        return known_centre_shift(feats, known, self.std, how)

@@ -6,7 +6,6 @@ The centring mode has no default anywhere: every caller passes the checkpoint's 
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import partial
 
 import numpy as np
 import torch
@@ -19,10 +18,15 @@ from inbetweening.predictor.masks import apply_mask
 __all__ = ["CENTRES", "centred_forward", "check_centre", "known_centre_shift", "masked_forward", "predict_features",
            "predict_transitions", "window_features"]
 
-CENTRES = ("window", "known")
+CENTRES = ("window", "known", "last")
 
-# (features (B, T, J, F), known (B, T, J)) -> feature-space shift (B, 1, J, F) of the known frames' root XZ
+# (features (B, T, J, F), known (B, T, J), how) -> feature-space shift (B, 1, J, F) of the known frames' root XZ
 ShiftFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
+
+
+def _shift_with(std) -> ShiftFn:
+    """The z-scored position features' centring shift with these statistics."""
+    return lambda feats, known, how: known_centre_shift(feats, known, std, how)
 
 
 def check_centre(centre: str) -> str:
@@ -41,12 +45,12 @@ def window_features(root, local_q, skeleton: Skeleton, mean, std, dtype=torch.fl
 
 
 def centred_forward(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str, shift_fn: ShiftFn):
-    """``(pred, interp, target, shift)``: mask -> (``centre="known"``: subtract the known frames' root XZ shift)
-    -> ``net(x, known, interp)``.  ``target`` is ``feats`` in the prediction's frame; ``shift`` is ``None`` for
+    """``(pred, interp, target, shift)``: mask -> (``centre="known"``/``"last"``: subtract the known frames' root XZ
+    shift, :func:`~inbetweening.predictor.features.anchor_xz`) -> ``net(x, known, interp)``.  ``target`` is ``feats`` in the prediction's frame; ``shift`` is ``None`` for
     ``centre="window"``.  Shapes ``(B, T, J, F)``, ``known (B, T, J)``."""
     shift = None
-    if check_centre(centre) == "known":
-        shift = shift_fn(feats, known)
+    if check_centre(centre) != "window":
+        shift = shift_fn(feats, known, centre)
         feats = feats - shift
     x, interp = apply_mask(mask, feats, known)
     return net(x, known, interp), interp, feats, shift
@@ -62,7 +66,7 @@ def restore_frame(feats, known, pred, interp, shift) -> tuple[torch.Tensor, torc
 
 def masked_forward(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str, std):
     """:func:`centred_forward` with the z-scored position features: ``(pred, interp, target)``, with gradients."""
-    return centred_forward(net, mask, feats, known, centre, partial(known_centre_shift, std=std))[:3]
+    return centred_forward(net, mask, feats, known, centre, _shift_with(std))[:3]
 
 
 @torch.no_grad()
@@ -70,7 +74,7 @@ def predict_features(net, mask: str, feats: torch.Tensor, known: torch.Tensor, c
                      std) -> tuple[torch.Tensor, torch.Tensor]:
     """Masked input -> network -> ``(prediction, interpolation)``, both ``(B, T, J, 7)`` in the input's frame;
     known values are returned bit-exactly; unknown input values are never read (they may be NaN)."""
-    pred, interp, _, shift = centred_forward(net, mask, feats, known, centre, partial(known_centre_shift, std=std))
+    pred, interp, _, shift = centred_forward(net, mask, feats, known, centre, _shift_with(std))
     return restore_frame(feats, known, pred, interp, shift)
 
 

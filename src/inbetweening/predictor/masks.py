@@ -22,12 +22,13 @@ MASK_NAMES = ("zero", "lerp", "joints")
 def transition_known(batch: int, frames: int, joints: int, n_past: int, n_trans, device=None) -> torch.Tensor:
     """Whole-frame mask ``(B, T, J)``: frames ``< n_past`` and frame ``n_past + n_trans`` are known.
 
-    ``n_trans`` is an int or a ``(B,)`` tensor (per-sample lengths); frames after the target are marked
-    known too (callers fill them with copies of the target and leave them out of the loss).
+    ``n_past`` and ``n_trans`` are ints or ``(B,)`` tensors (per-sample context and transition lengths); frames after
+    the target are marked known too (callers fill them with copies of the target and leave them out of the loss).
     """
     t = torch.arange(frames, device=device)[None, :]
     n = torch.as_tensor(n_trans, device=device).reshape(-1, 1).expand(batch, 1)
-    known = (t < n_past) | (t >= n_past + n)
+    p = torch.as_tensor(n_past, device=device).reshape(-1, 1).expand(batch, 1)
+    known = (t < p) | (t >= p + n)
     return known[:, :, None].expand(batch, frames, joints).clone()
 
 

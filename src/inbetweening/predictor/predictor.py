@@ -20,7 +20,7 @@ from torch import nn
 from inbetweening.evaluation.benchmark import N_PAST
 from inbetweening.geometry import canonical
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.predictor.inference import centred_forward, check_centre, restore_frame
+from inbetweening.predictor.inference import CENTRES, centred_forward, check_centre, restore_frame
 from inbetweening.predictor.masks import MASK_NAMES, apply_mask, transition_known
 from inbetweening.predictor.representation import DEFAULT_REPRESENTATION, build_representation
 
@@ -48,7 +48,8 @@ class Predictor(nn.Module):
         skeleton: the training data's skeleton.
         pos_mean, pos_std: training statistics of global positions, ``J*3`` floats each.
         mask: ``zero`` | ``lerp`` | ``joints`` (what the network sees in place of unknown values).
-        centre: ``known`` (re-centre on the known frames' root XZ) or ``window`` (as given); required.
+        centre: ``known`` (re-centre on the known frames' mean root XZ), ``last`` (on the last context frame's root
+            XZ) or ``window`` (as given); required.
         n_past: context frames before a transition.
         forward_axis: the root's forward direction in its local frame (window canonicalisation).
         representation: name of the feature representation (:mod:`inbetweening.predictor.representation`).
@@ -82,7 +83,7 @@ class Predictor(nn.Module):
         from inbetweening.models import build_network
 
         if "centre" not in hp:
-            raise ValueError("centre: required, one of ['window', 'known'] (older checkpoints: see upgrade_hparams)")
+            raise ValueError(f"centre: required, one of {list(CENTRES)} (older checkpoints: see upgrade_hparams)")
         skeleton = Skeleton.from_dict(hp["skeleton"])
         kw = {k: hp[k] for k in HPARAMS[4:] if k in hp and hp[k] is not None}
         kw.setdefault("mask", "lerp")

@@ -47,9 +47,10 @@ class Representation:
         """Global joint positions the features carry.  ``(..., J, F) -> (..., J, 3)``."""
         raise NotImplementedError
 
-    def centre_shift(self, feats: torch.Tensor, known: torch.Tensor) -> torch.Tensor:
-        """Feature-space shift that moves the mean root XZ of the known frames to the origin (subtract it from
-        the features; add it back to the prediction).  ``(B, T, J, F), (B, T, J) -> (B, 1, J, F)``."""
+    def centre_shift(self, feats: torch.Tensor, known: torch.Tensor, how: str = "known") -> torch.Tensor:
+        """Feature-space shift that moves the root XZ anchor of the known frames to the origin (subtract it from
+        the features; add it back to the prediction): ``how="known"`` their mean, ``"last"`` the last context
+        frame.  ``(B, T, J, F), (B, T, J) -> (B, 1, J, F)``."""
         raise NotImplementedError
 
     def metadata(self) -> dict:

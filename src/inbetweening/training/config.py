@@ -7,6 +7,7 @@ from omegaconf import DictConfig
 
 from inbetweening.data.specs import DATASETS, DEFAULT_SPLIT
 from inbetweening.evaluation.benchmark import N_PAST
+from inbetweening.predictor.inference import CENTRES
 from inbetweening.predictor.masks import MASK_NAMES
 from inbetweening.training.losses import LOSS_TERMS
 
@@ -207,9 +208,10 @@ def validate(cfg: DictConfig) -> None:
             raise ConfigError(
                 f"data.transition_max: {hi} + {N_PAST} context + 1 target exceeds data.train_window={window}"
             )
+    _check_task(cfg)
     centre = _get(cfg, "centre", "known")
-    if centre not in ("known", "window"):
-        raise ConfigError(f"centre: must be 'known' or 'window', got {centre!r}")
+    if centre not in CENTRES:
+        raise ConfigError(f"centre: must be one of {list(CENTRES)}, got {centre!r}")
     per = _get(cfg, "data.transition_per", "batch")
     if per not in ("batch", "sample"):
         raise ConfigError(f"data.transition_per: must be 'batch' or 'sample', got {per!r}")
@@ -220,3 +222,20 @@ def validate(cfg: DictConfig) -> None:
             raise ConfigError(f"loss.{k}: weight must be >= 0, got {v}")
     _check_optim(cfg)
     _check_protocol(cfg)
+
+
+def _check_task(cfg: DictConfig) -> None:
+    """The training task's options: sampling, context range, intermediate keyframes, mirroring."""
+    sampling = _get(cfg, "data.sampling", "windows")
+    if sampling not in ("windows", "clips"):
+        raise ConfigError(f"data.sampling: must be 'windows' or 'clips', got {sampling!r}")
+    cmin, cmax = int(_get(cfg, "data.context_min", N_PAST)), int(_get(cfg, "data.context_max", N_PAST))
+    if not 1 <= cmin <= cmax <= N_PAST:
+        raise ConfigError(f"data.context_min/max: need 1 <= min <= max <= {N_PAST}, got {cmin}..{cmax}")
+    if int(_get(cfg, "data.keyframes_max", 0)) < 0:
+        raise ConfigError(f"data.keyframes_max: must be >= 0, got {_get(cfg, 'data.keyframes_max')}")
+    prob = float(_get(cfg, "data.keyframe_prob", 0.0))
+    if not 0.0 <= prob <= 1.0:
+        raise ConfigError(f"data.keyframe_prob: must be in [0, 1], got {prob}")
+    if _get(cfg, "data.mirror", False) and sampling != "clips":
+        raise ConfigError("data.mirror: mirroring needs data.sampling=clips (windows are mirrored before normalising)")

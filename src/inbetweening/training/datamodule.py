@@ -20,7 +20,8 @@ from torch.utils.data import DataLoader, Dataset, Sampler
 from inbetweening.data.datasets import MotionData, load_dataset
 from inbetweening.evaluation import benchmark as B
 from inbetweening.predictor.inference import window_features
-from inbetweening.predictor.masks import joints_known, transition_known
+from inbetweening.predictor.masks import joints_known
+from inbetweening.training.windows import ClipWindows, draw_task, task_window
 
 
 class _Index(Dataset):
@@ -163,6 +164,14 @@ class InbetweenDataModule(L.LightningDataModule):
         transition_min, transition_max, transition_per: transition lengths drawn for training batches
             (per ``batch`` or per ``sample``).
         train_window, train_offset: training windows (frames, stride).
+        sampling: ``windows`` (cut once and encoded into one tensor) or ``clips`` (cut from the clips per batch:
+            any stride without the memory of a window tensor; needed for ``mirror``).
+        context_min, context_max: context frames per training sample (``10, 10``: the benchmark's; ``1, 10``
+            trains for keyframes alone too).
+        keyframes_max, keyframe_prob: with probability ``keyframe_prob`` a sample gets ``1..keyframes_max`` extra
+            known frames inside its transition.
+        mirror: mirror each training window left/right with probability 0.5 (the dataset's mirror map; ``sampling:
+            clips``).
         val_lengths, test_lengths: transition lengths the validation and test benchmarks score (passed on to
             the LightningModule by :meth:`model_kwargs`).
         max_train_windows, max_eval_windows, max_val_windows: caps for quick runs (``None``: all windows;
@@ -190,6 +199,12 @@ class InbetweenDataModule(L.LightningDataModule):
         transition_per: str,
         train_window: int,
         train_offset: int,
+        sampling: str,
+        context_min: int,
+        context_max: int,
+        keyframes_max: int,
+        keyframe_prob: float,
+        mirror: bool,
         val_lengths: list[int],
         test_lengths: list[int],
         max_train_windows: int | None,
@@ -203,6 +218,7 @@ class InbetweenDataModule(L.LightningDataModule):
         self.save_hyperparameters(logger=False)  # the module logs the resolved data conventions
         self.data: MotionData | None = None
         self.train_feats: torch.Tensor | None = None
+        self.clip_windows: ClipWindows | None = None
 
     # ------------------------------------------------------------------ setup
     def _load(self) -> MotionData:
@@ -220,19 +236,29 @@ class InbetweenDataModule(L.LightningDataModule):
         if self.data is None:
             self.data = data = self._load()
             self.test_set = _Windows(data.test_X[: h.max_eval_windows], data.test_Q[: h.max_eval_windows])
-        if stage in (None, "fit", "validate") and self.train_feats is None:
+        if stage in (None, "fit", "validate") and self.train_feats is None and self.clip_windows is None:
             self._setup_fit()
 
     def _setup_fit(self) -> None:
         h, data = self.hparams, self.data
         sk, axis = data.skeleton, data.forward_axis
         train_clips, val_clips = split_train_val(data.train, h.val_fraction)
-        X, Q = B.prepare_windows(train_clips, sk, h.train_window, h.train_offset, axis)
-        if h.max_train_windows:
-            X, Q = X[: h.max_train_windows], Q[: h.max_train_windows]
-        if len(X) == 0:
+        if h.sampling == "clips":
+            cw = ClipWindows(train_clips, sk, h.train_window, h.train_offset, axis, data.mirror if h.mirror else None)
+            if h.max_train_windows:
+                cw.starts = cw.starts[: h.max_train_windows]
+            n = len(cw)
+        else:
+            X, Q = B.prepare_windows(train_clips, sk, h.train_window, h.train_offset, axis)
+            if h.max_train_windows:
+                X, Q = X[: h.max_train_windows], Q[: h.max_train_windows]
+            n = len(X)
+        if n == 0:
             raise ValueError(f"data: no training window of {h.train_window} frames in dataset {h.name!r}")
-        self.train_feats = self._encode_in_chunks(X[:, :, 0], Q)
+        if h.sampling == "clips":
+            self.clip_windows = cw
+        else:
+            self.train_feats = self._encode_in_chunks(X[:, :, 0], Q)
         vX, vQ = B.prepare_windows(val_clips or train_clips[:1], sk, B.TEST_WINDOW, B.TEST_OFFSET, axis)
         vlim = h.max_val_windows or h.max_eval_windows
         self.val_set = _Windows(vX[:vlim], vQ[:vlim])
@@ -277,39 +303,44 @@ class InbetweenDataModule(L.LightningDataModule):
             idx = [i for _, _, i in items]
         else:
             gen, idx = None, list(items)
-        gt = self.train_feats[torch.as_tensor(idx)]
+        gt = self._train_features(idx, gen)
         b, w, j, _ = gt.shape
         if h.mask == "joints":
             jm = dict(h.joint_mask or {})
             known = joints_known(b, w, j, int(jm.get("gap_min", 10)), int(jm.get("gap_max", 200)),
                                  float(jm.get("frac_min", 0.1)), float(jm.get("frac_max", 0.3)), generator=gen)
             return {"gt": gt, "known": known, "loss_mask": ~known}
-        lo, hi = int(h.transition_min), int(h.transition_max)
-        if h.transition_per == "sample":
-            n = torch.randint(lo, hi + 1, (b,), generator=gen)
-        else:
-            n = torch.randint(lo, hi + 1, (1,), generator=gen).expand(b)
-        t = B.N_PAST + int(n.max()) + 1
-        gt = gt[:, :t].clone()
-        target = B.N_PAST + n
-        if h.transition_per == "sample":  # frames after each target repeat the target (known, not scored)
-            tt = torch.arange(t)[None, :]
-            src = torch.minimum(tt, target[:, None])
-            gt = torch.gather(gt, 1, src[:, :, None, None].expand_as(gt))
-        known = transition_known(b, t, j, B.N_PAST, n)
+        c, n, keys = draw_task(gen, b, (int(h.transition_min), int(h.transition_max)), h.transition_per == "sample",
+                               (int(h.context_min), int(h.context_max)), int(h.keyframes_max), float(h.keyframe_prob))
+        gt, known = task_window(gt, c, n, keys)
         return {"gt": gt, "known": known, "loss_mask": ~known, "n_trans": n}
+
+    def _train_features(self, idx: list[int], gen: torch.Generator | None) -> torch.Tensor:
+        """Features ``(B, W, J, F)`` of training windows ``idx``: gathered from the encoded windows, or (``sampling:
+        clips``) cut from the clips now, each mirrored with probability 0.5 when ``mirror`` is on."""
+        if self.clip_windows is None:
+            return self.train_feats[torch.as_tensor(idx)]
+        flip = None
+        if self.hparams.mirror:
+            flip = (torch.rand(len(idx), generator=gen) < 0.5).numpy()
+        root, q = self.clip_windows.windows(idx, flip)
+        d = self.data
+        return window_features(root, q, d.skeleton, d.pos_mean, d.pos_std)
+
+    def _n_train(self) -> int:
+        return len(self.clip_windows) if self.clip_windows is not None else len(self.train_feats)
 
     def train_dataloader(self) -> DataLoader:
         h = self.hparams
-        sampler = EpochPermutation(len(self.train_feats), h.seed, *_rank_world())
-        return ResumableLoader(_Index(len(self.train_feats)), batch_sampler=ResumableBatchSampler(sampler, h.batch_size),
+        sampler = EpochPermutation(self._n_train(), h.seed, *_rank_world())
+        return ResumableLoader(_Index(self._n_train()), batch_sampler=ResumableBatchSampler(sampler, h.batch_size),
                                collate_fn=self.collate_train, num_workers=h.num_workers,
                                persistent_workers=h.num_workers > 0, progress=self._epoch_progress,
                                generator=self._loader_generator(1))
 
     def steps_per_epoch(self, world_size: int = 1) -> int:
         """Training batches per epoch and process (the length of :meth:`train_dataloader`)."""
-        return -(-(len(self.train_feats) // world_size) // int(self.hparams.batch_size))
+        return -(-(self._n_train() // world_size) // int(self.hparams.batch_size))
 
     def _epoch_progress(self) -> int:
         """Training batches completed in the current epoch (what a checkpoint written now has trained)."""

@@ -1,0 +1,182 @@
+"""Training windows and tasks: clip sampling, mirroring, variable context, intermediate keyframes, last-frame centring."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from conftest import TINY, compose_cfg
+from inbetweening.data.datasets import load_dataset
+from inbetweening.data.mirror import fit_mirror_frames, mirror_motion, mirror_permutation
+from inbetweening.evaluation import benchmark as B
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.predictor.features import anchor_xz, known_centre_shift
+from inbetweening.training.config import ConfigError, validate
+from inbetweening.training.train import make_datamodule
+from inbetweening.training.windows import ClipWindows, draw_task, task_window
+
+DATA = [o for o in TINY if o.startswith("data.")]
+SHARED_BN2 = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared/datasets/bandai-namco-2.zip"
+
+
+def _dm(tmp_path, cache_dir, *extra):
+    cfg = compose_cfg("train", [*DATA, *extra], tmp_path, cache_dir)
+    dm = make_datamodule(cfg)
+    dm.setup("fit")
+    return dm
+
+
+def _old_task(gt, n, per_sample):
+    """The training task as it was cut before context/keyframe options existed (kept here as the reference)."""
+    t = B.N_PAST + int(n.max()) + 1
+    gt = gt[:, :t].clone()
+    if per_sample:
+        tt = torch.arange(t)[None, :]
+        src = torch.minimum(tt, (B.N_PAST + n)[:, None])
+        gt = torch.gather(gt, 1, src[:, :, None, None].expand_as(gt))
+    return gt
+
+
+# ------------------------------------------------------------------------------------------ tasks
+@pytest.mark.parametrize("per_sample", [False, True])
+def test_default_task_draws_and_cuts_what_it_did_before(per_sample):
+    gt = torch.randn(6, 50, 5, 7)
+    g1, g2 = torch.Generator().manual_seed(3), torch.Generator().manual_seed(3)
+    c, n, keys = draw_task(g1, 6, (5, 30), per_sample, (10, 10), 0, 0.0)
+    old_n = torch.randint(5, 31, (6,) if per_sample else (1,), generator=g2).expand(6)
+    assert torch.equal(n, old_n) and keys is None and (c == 10).all()
+    out, known = task_window(gt, c, n)
+    assert torch.equal(out, _old_task(gt, n, per_sample))
+    assert known[:, :10].all() and not known[0, 10 : 10 + int(n[0])].any() and known[0, 10 + int(n[0])].all()
+
+
+def test_variable_context_keeps_the_last_context_frame_and_the_target():
+    gt = torch.arange(50.0)[None, :, None, None].expand(8, 50, 3, 7).clone()
+    c, n, _ = draw_task(torch.Generator().manual_seed(0), 8, (5, 20), True, (1, 10), 0, 0.0)
+    assert c.min() >= 1 and c.max() <= 10 and len(set(c.tolist())) > 1
+    out, known = task_window(gt, c, n)
+    assert out.shape[1] == int((c + n).max()) + 1
+    for b in range(8):
+        cb, nb = int(c[b]), int(n[b])
+        assert out[b, cb - 1, 0, 0] == B.N_PAST - 1  # the last context frame is the window's frame 9
+        assert out[b, 0, 0, 0] == B.N_PAST - cb  # no frame before the context
+        assert out[b, cb + nb, 0, 0] == B.N_PAST + nb  # the target keyframe
+        assert (out[b, cb + nb :, 0, 0] == B.N_PAST + nb).all()  # padding repeats the target
+        assert known[b, :cb].all() and not known[b, cb : cb + nb].any() and known[b, cb + nb :].all()
+
+
+def test_intermediate_keyframes_lie_inside_the_transition_and_leave_frames_to_predict():
+    c, n, keys = draw_task(torch.Generator().manual_seed(1), 64, (2, 30), True, (1, 10), 4, 0.5)
+    gt = torch.zeros(64, 50, 3, 7)
+    _, known = task_window(gt, c, n, keys)
+    counts = keys.sum(1)
+    assert 0 < (counts > 0).float().mean() < 1  # about half the samples get keyframes
+    assert counts.max() <= 4
+    for b in range(64):
+        cb, nb = int(c[b]), int(n[b])
+        inside = keys[b].nonzero().flatten()
+        assert ((inside >= cb) & (inside < cb + nb)).all()
+        assert (~known[b, cb : cb + nb, 0]).sum() >= 1  # something is left to predict
+        assert known[b, inside].all()
+
+
+# ------------------------------------------------------------------------------------------ clip windows
+def test_clip_windows_at_the_benchmark_stride_are_the_prepared_windows(cache_dir):
+    d = load_dataset("synthetic", cache_dir=cache_dir, synthetic={"num_clips": 6, "min_frames": 120, "max_frames": 160})
+    X, Q = B.prepare_windows(d.train, d.skeleton, 50, 20, d.forward_axis)
+    cw = ClipWindows(d.train, d.skeleton, 50, 20, d.forward_axis)
+    assert len(cw) == len(X)
+    root, q = cw.windows(np.arange(len(cw)))
+    np.testing.assert_array_equal(root, X[:, :, 0])
+    np.testing.assert_array_equal(q, Q)
+    assert len(ClipWindows(d.train, d.skeleton, 50, 2, d.forward_axis)) > 8 * len(X)  # dense sampling
+
+
+def _dcc_skeleton() -> Skeleton:
+    """Joint frames as DCC tools export them (Bandai-Namco): bones along local +X on the left, -X on the right."""
+    names = ("Hips", "Spine", "Head", "UpperLeg_L", "LowerLeg_L", "UpperLeg_R", "LowerLeg_R")
+    parents = (-1, 0, 1, 0, 3, 0, 5)
+    offsets = np.array([[0, 90, 0], [15, 0, 0], [6, 0, 0], [-2, -6.5, 0], [39, 0, 0], [-2, 6.5, 0], [-39, 0, 0.0]])
+    return Skeleton(names, parents, offsets)
+
+
+@pytest.mark.parametrize("skeleton", ["synthetic", "dcc"])
+def test_fk_of_a_mirrored_clip_is_the_mirrored_fk(skeleton, cache_dir):
+    if skeleton == "synthetic":
+        d = load_dataset("synthetic", cache_dir=cache_dir, synthetic={"num_clips": 5, "min_frames": 100, "max_frames": 120})
+        sk, pairs, q, root = d.skeleton, d.mirror, d.train[0].local_q, d.train[0].root_pos
+    else:
+        sk = _dcc_skeleton()
+        pairs = (("UpperLeg_L", "UpperLeg_R"), ("LowerLeg_L", "LowerLeg_R"))
+        rng = np.random.default_rng(0)
+        q = np.array([1.0, 0, 0, 0]) + 0.4 * rng.normal(size=(200, 7, 4))
+        q /= np.linalg.norm(q, axis=-1, keepdims=True)
+        root = rng.normal(size=(200, 3)) * 30
+    perm = mirror_permutation(pairs, sk.names)
+    frames, asym = fit_mirror_frames(sk.offsets, sk.parents, perm, q)
+    assert asym < 1e-9
+    r2, q2 = mirror_motion(root, q, perm, frames, sk.parents)
+    _, gp = sk.pose(root, q)
+    _, gp2 = sk.pose(r2, q2)
+    np.testing.assert_allclose(gp2, gp[:, perm] * np.array([-1.0, 1.0, 1.0]), atol=1e-9)
+    r3, q3 = mirror_motion(r2, q2, perm, frames, sk.parents)  # mirroring twice gives the motion back
+    np.testing.assert_allclose(r3, root, atol=1e-12)
+    np.testing.assert_allclose(np.abs((q3 * q).sum(-1)), 1.0, atol=1e-12)
+
+
+@pytest.mark.skipif(not SHARED_BN2.exists(), reason="Bandai-Namco-2 not found")
+def test_bandai_namco_mirror_is_exact_to_a_tenth_of_a_millimetre(cache_dir):
+    d = load_dataset("bandai_namco", path=SHARED_BN2, cache_dir=cache_dir)
+    sk, perm = d.skeleton, mirror_permutation(d.mirror, d.skeleton.names)
+    frames, asym = fit_mirror_frames(sk.offsets, sk.parents, perm, np.concatenate([c.local_q for c in d.train[:50]]))
+    c = d.train[0]
+    r2, q2 = mirror_motion(c.root_pos, c.local_q, perm, frames, sk.parents)
+    err = np.abs(sk.pose(r2, q2)[1] - sk.pose(c.root_pos, c.local_q)[1][:, perm] * np.array([-1.0, 1, 1])).max()
+    assert asym < 1e-3 and err < 0.1  # cm: the release's skeleton is symmetric to ~0.04 cm
+
+
+def test_clip_sampling_data_module_mirrors_about_half_the_windows(tmp_path, cache_dir):
+    dm = _dm(tmp_path, cache_dir, "data.sampling=clips", "data.train_offset=5", "data.mirror=true",
+             "data.context_min=1", "data.keyframes_max=3", "data.keyframe_prob=0.5")
+    plain = _dm(tmp_path, cache_dir, "data.sampling=clips", "data.train_offset=5")
+    assert dm.train_feats is None and len(dm.clip_windows) == len(plain.clip_windows) > 0
+    loader = dm.train_dataloader()
+    batch = next(iter(loader))
+    again = next(iter(dm.train_dataloader()))
+    assert all(torch.equal(batch[k], again[k]) for k in batch)  # a pure function of seed, epoch, batch
+    assert batch["gt"].shape[:3] == batch["known"].shape and torch.equal(batch["loss_mask"], ~batch["known"])
+    idx = [i for *_, i in next(iter(loader.batch_sampler))]
+    g = torch.Generator().manual_seed(0)
+    feats_plain = plain._train_features(idx, None)
+    feats_mirror = dm._train_features(idx, g)
+    same = [torch.allclose(a, b) for a, b in zip(feats_plain, feats_mirror)]
+    assert 0 < sum(same) < len(same)
+
+
+# ------------------------------------------------------------------------------------------ centring on the last frame
+def test_last_frame_anchor_is_the_root_at_the_last_context_frame():
+    feats = torch.randn(3, 12, 4, 7)
+    known = torch.zeros(3, 12, 4, dtype=torch.bool)
+    known[0, :5] = True
+    known[0, 11] = True
+    known[1, 3:7] = True  # starts unknown: the last known frame of its first known block
+    known[2, 0] = True
+    feats[~known] = float("nan")  # never read
+    xz = anchor_xz(feats, known, "last")
+    torch.testing.assert_close(xz[0], feats[0, 4, 0, [0, 2]])
+    torch.testing.assert_close(xz[1], feats[1, 3, 0, [0, 2]])
+    torch.testing.assert_close(xz[2], feats[2, 0, 0, [0, 2]])
+    std = torch.ones(12)
+    assert torch.isfinite(known_centre_shift(feats, known, std, "last")).all()
+
+
+def test_config_rejects_bad_task_options(tmp_path, cache_dir):
+    for extra, match in [(["data.context_min=0"], "data.context_min/max"),
+                         (["data.context_min=5", "data.context_max=11"], "data.context_min/max"),
+                         (["data.keyframe_prob=1.5"], "data.keyframe_prob"),
+                         (["data.mirror=true"], "data.mirror"),
+                         (["data.sampling=random"], "data.sampling"),
+                         (["centre=middle"], "centre")]:
+        cfg = compose_cfg("train", [*DATA, *extra], tmp_path, cache_dir)
+        with pytest.raises(ConfigError, match=match):
+            validate(cfg)
