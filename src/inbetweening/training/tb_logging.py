@@ -167,11 +167,14 @@ class RunLogger(TensorBoardLogger):
         exp = hp_summary.hparams_config_pb([hp_summary.HParam(k) for k in hparams],
                                            [hp_summary.Metric(m) for m in metrics])
         config = exp.value[0]
-        from tensorboard.plugins.hparams import metadata
+        from tensorboard.plugins.hparams import api_pb2, metadata
 
         data = metadata.parse_experiment_plugin_data(config.metadata.plugin_data.content)
         for info in data.hparam_infos:
             info.differs = info.name in shown  # the dashboard sorts these first and shows the first 5
+            v = hparams[info.name]  # typed columns: numbers get an interval axis in the parallel coordinates
+            info.type = (api_pb2.DATA_TYPE_BOOL if isinstance(v, bool) else api_pb2.DATA_TYPE_FLOAT64
+                         if isinstance(v, (int, float)) else api_pb2.DATA_TYPE_STRING)
         config.metadata.CopyFrom(metadata.create_summary_metadata(metadata.plugin_data_pb2.HParamsPluginData(
             experiment=data, version=metadata.PLUGIN_DATA_VERSION)))
         self._write(exp)
