@@ -59,6 +59,11 @@ def test_curated_hparams_put_swept_keys_first_with_the_budget(tmp_path, cache_di
     assert not any(k.startswith(("hydra", "ckpt_path", "paths")) for k in hp)
     assert all(isinstance(v, (bool, int, float, str)) for v in hp.values())
     assert run_label(cfg, ["model.depth=2", "hydra.run.dir=/x", "data.path=/a/b"]) == "graph_transformer model.depth=2"
+    # in a sweep: the swept keys come first, are the ones shown, and name the run
+    hp, shown = curated_hparams(cfg, ["model.depth=2", "mask=zero", "seed=3"], swept=["seed"])
+    assert list(hp)[0] == "seed" and shown == ["seed", "model/name", "trainer/max_epochs", "trainer/max_steps",
+                                                 "mask/name"]
+    assert run_label(cfg, ["model.depth=2", "seed=3"], swept=["seed"]) == "graph_transformer seed=3"
     assert hparams_metrics([5, 45], [5])[:3] == ["val/l2p_mean_best", "test/l2p_ratio@5", "test/l2p_ratio@45"]
 
 
@@ -189,6 +194,7 @@ def test_tensorboard_server_shows_groups_hparams_and_figures(tmp_path, cache_dir
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1"}
     tiny = [o for o in FIT if not o.startswith("model.depth")]
     sweep = subprocess.run([sys.executable, "train.py", "-m", "model.depth=1,2", *tiny, f"hydra.sweep.dir={tmp_path}/logs/sweep",
+                            "hydra.sweep.subdir=${hydra.job.num}",
                             f"paths.cache_dir={cache_dir}"], cwd=ROOT, capture_output=True, text=True, env=env, timeout=900)
     assert sweep.returncode == 0, sweep.stderr[-3000:]
     single = subprocess.run([sys.executable, "train.py", *tiny, "run_test=false", f"hydra.run.dir={tmp_path}/logs/fit_only",
@@ -207,8 +213,9 @@ def test_tensorboard_server_shows_groups_hparams_and_figures(tmp_path, cache_dir
             except OSError:
                 pass
             time.sleep(1)
-        assert sorted(r.rsplit("/", 1)[-1] for r in runs) == [
-            "graph_transformer", "graph_transformer model.depth=1", "graph_transformer model.depth=2"], runs
+        names = sorted(r.rsplit("/", 1)[-1] for r in runs)
+        assert names[1:] == ["graph_transformer model.depth=1", "graph_transformer model.depth=2"], runs
+        assert names[0].startswith("graph_transformer ") and "data.batch_size=8" in names[0]  # the overrides
         tags = _get(port, "/data/plugin/scalars/tags")
         groups = {t.split("/")[0] for run_tags in tags.values() for t in run_tags}
         assert groups == {"train", "val", "test"}, groups

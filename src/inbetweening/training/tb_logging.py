@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import re
+import sys
 import time
 from collections.abc import Mapping, Sequence
 
@@ -74,6 +75,35 @@ def task_overrides() -> list[str]:
         return []
 
 
+_SWEEP = re.compile(r"^(range|choice|glob|interval|tag|shuffle|sort)\(|,")
+
+
+def swept_keys(argv: Sequence[str] | None = None) -> list[str]:
+    """The keys this Hydra multirun sweeps: those the command line gives several values (``model.depth=2,4``,
+    ``choice(...)``, ``range(...)``) and those of ``hydra.sweeper.params`` (``ablation=...``).  ``[]`` for a single
+    run or outside Hydra."""
+    try:
+        from hydra.core.hydra_config import HydraConfig
+        from hydra.types import RunMode
+
+        hc = HydraConfig.get()
+    except ValueError:
+        return []
+    if hc.mode != RunMode.MULTIRUN:
+        return []
+    keys = [str(k) for k in (hc.sweeper.get("params") or {})]
+    for arg in sys.argv[1:] if argv is None else argv:
+        key, eq, val = arg.lstrip("+~").partition("=")
+        if eq and not key.startswith("-") and _SWEEP.search(val) and not val.startswith(("[", "{")):
+            keys.append(key)
+    return list(dict.fromkeys(keys))
+
+
+def _swept_first(overrides: Sequence[str], swept: Sequence[str]) -> list[str]:
+    key = lambda o: o.lstrip("+~").partition("=")[0]  # noqa: E731
+    return [o for o in overrides if key(o) in swept] + [o for o in overrides if key(o) not in swept]
+
+
 def _value(v):
     if isinstance(v, (bool, int, float, str)):
         return v
@@ -82,13 +112,13 @@ def _value(v):
     return str(OmegaConf.to_container(v, resolve=True) if OmegaConf.is_config(v) else v)
 
 
-def curated_hparams(cfg: DictConfig, overrides: Sequence[str] = ()) -> tuple[dict, list[str]]:
-    """``(hparams, shown)``: the curated hyper-parameters (the keys ``overrides`` set first, then
-    :data:`ESSENTIALS` and the non-zero loss weights) and the names shown by default (the swept keys, filled up
-    to 5 from :data:`SHOWN`)."""
+def curated_hparams(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[str] = ()) -> tuple[dict, list[str]]:
+    """``(hparams, shown)``: the curated hyper-parameters (the keys ``overrides`` set, the ``swept`` ones first,
+    then :data:`ESSENTIALS` and the non-zero loss weights) and the names the HParams dashboard shows by default:
+    the swept keys (all overrides when none is swept), filled up to 5 from :data:`SHOWN`."""
     hp: dict = {}
-    swept = []
-    for o in overrides:
+    set_keys = []
+    for o in _swept_first(overrides, swept):
         key, _, val = o.lstrip("+~").partition("=")
         if not val or _NOT_HPARAMS.match(key):
             continue
@@ -97,7 +127,7 @@ def curated_hparams(cfg: DictConfig, overrides: Sequence[str] = ()) -> tuple[dic
         if OmegaConf.is_dict(node):  # a group choice (model=unet1d): the chosen option's name
             name, node = (f"{name}/name", node.get("name")) if "name" in node else (name, val)
         hp[name] = _value(node)
-        swept.append(name)
+        set_keys.append((name, key in swept))
     for name, key in ESSENTIALS:
         node = OmegaConf.select(cfg, key, default="__missing__")
         if name not in hp and node != "__missing__":
@@ -105,17 +135,20 @@ def curated_hparams(cfg: DictConfig, overrides: Sequence[str] = ()) -> tuple[dic
     for k, v in (cfg.get("loss") or {}).items():
         if v:
             hp.setdefault(f"loss/{k}", _value(v))
-    shown = list(swept)
+    shown = [name for name, was_swept in set_keys if was_swept or not swept]
     shown += [k for k in SHOWN if k in hp and k not in shown][: max(0, 5 - len(shown))]
-    return hp, shown
+    return hp, shown[: max(5, sum(w for _, w in set_keys))]
 
 
-def run_label(cfg: DictConfig, overrides: Sequence[str] = ()) -> str:
-    """The run's name in TensorBoard: the model and the command line's overrides (``graph_transformer
-    model.depth=2``), a path-safe string."""
-    parts = [cfg.model.name] + sorted(o for o in overrides if not _NOT_HPARAMS.match(o.lstrip("+~"))
-                                      and not o.startswith(("data.path", "data.cache_dir")))
-    label = " ".join(dict.fromkeys(parts))
+def run_label(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[str] = ()) -> str:
+    """The run's name in TensorBoard, a path-safe string: the model and the swept keys' values in a multirun
+    (``graph_transformer model.depth=2``), else the model and the command line's overrides (at most 150
+    characters)."""
+    keep = [o for o in overrides if not _NOT_HPARAMS.match(o.lstrip("+~"))
+            and not o.startswith(("data.path", "data.cache_dir"))]
+    if swept:
+        keep = [o for o in keep if o.lstrip("+~").partition("=")[0] in swept]
+    label = " ".join(dict.fromkeys([cfg.model.name, *sorted(keep)]))
     return re.sub(r"[^\w.=,@+\- ]", "_", label)[:150]
 
 

@@ -36,7 +36,7 @@ from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.module import InbetweenModule
 from inbetweening.training.tb_logging import HParamsSession, RunLogger, TrainStats, curated_hparams, run_label, \
-    task_overrides
+    swept_keys, task_overrides
 
 log = logging.getLogger("inbetweening")
 
@@ -74,7 +74,7 @@ def _make_logger(cfg: DictConfig, node: DictConfig):
     """A logger from its config; a :class:`RunLogger` without a ``version`` is named after the run's configuration
     (:func:`~inbetweening.training.tb_logging.run_label`)."""
     if str(node.get("_target_", "")).endswith("RunLogger") and node.get("version") is None:
-        return instantiate(node, version=run_label(cfg, task_overrides()))
+        return instantiate(node, version=run_label(cfg, task_overrides(), swept_keys()))
     return instantiate(node)
 
 
@@ -84,7 +84,7 @@ def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
     if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
     elif callbacks:  # TensorBoard: throughput, epoch time, gradient norm; the HParams session from the fit's start
-        hp, shown = curated_hparams(cfg, task_overrides())
+        hp, shown = curated_hparams(cfg, task_overrides(), swept_keys())
         cbs += [TrainStats(), HParamsSession(hp, shown, cfg.data.val_lengths, cfg.data.test_lengths,
                                              end_at_fit_end=not cfg.get("run_test", True))]
     if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
