@@ -174,6 +174,24 @@ def test_logging_leaves_the_results_and_the_rng_alone(tmp_path, cache_dir, fitte
     assert train(quiet) == metrics
 
 
+def test_resume_with_logging_equals_the_uninterrupted_run(tmp_path, cache_dir):
+    """With every TensorBoard output on (figures each epoch), 1 epoch + resume = 2 epochs at once: same weights
+    (nothing logged draws from the RNG), and the resumed run keeps the best ``val/l2p_mean`` of its first part."""
+    over = [o for o in FIT if not o.startswith(("trainer.max_epochs", "callbacks.skeleton_figure"))] + [
+        "callbacks.skeleton_figure.every_n_epochs=1", "run_test=false", "model.dropout=0.1"]
+    train(compose_cfg("train", over + ["trainer.max_epochs=2"], tmp_path / "full", cache_dir))
+    train(compose_cfg("train", over + ["trainer.max_epochs=1"], tmp_path / "part", cache_dir))
+    last = tmp_path / "part" / "checkpoints" / "last.ckpt"
+    first_best = torch.load(last, map_location="cpu", weights_only=True)["val_l2p_mean_best"]
+    assert first_best is not None
+    train(compose_cfg("train", over + ["trainer.max_epochs=2", f"ckpt_path={last}"], tmp_path / "part", cache_dir))
+    a, b = (torch.load(d / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=True)
+            for d in (tmp_path / "full", tmp_path / "part"))
+    assert a["state_dict"].keys() == b["state_dict"].keys()
+    assert all(torch.equal(a["state_dict"][k], b["state_dict"][k]) for k in a["state_dict"])
+    assert b["val_l2p_mean_best"] == a["val_l2p_mean_best"] <= first_best
+
+
 # ------------------------------------------------------------------ the TensorBoard server, as the browser reads it
 def _free_port() -> int:
     with socket.socket() as s:
