@@ -61,8 +61,7 @@ def test_curated_hparams_put_swept_keys_first_with_the_budget(tmp_path, cache_di
     assert run_label(cfg, ["model.depth=2", "hydra.run.dir=/x", "data.path=/a/b"]) == "graph_transformer model.depth=2"
     # in a sweep: the swept keys come first, are the ones shown, and name the run
     hp, shown = curated_hparams(cfg, ["model.depth=2", "mask=zero", "seed=3"], swept=["seed"])
-    assert list(hp)[0] == "seed" and shown == ["seed", "model/name", "trainer/max_epochs", "trainer/max_steps",
-                                                 "mask/name"]
+    assert list(hp)[0] == "seed" and shown == ["seed", "model/name", "trainer/max_epochs", "data/name", "mask/name"]
     assert run_label(cfg, ["model.depth=2", "seed=3"], swept=["seed"]) == "graph_transformer seed=3"
     assert hparams_metrics([5, 45], [5])[:3] == ["val/l2p_mean_best", "test/l2p_ratio@5", "test/l2p_ratio@45"]
 

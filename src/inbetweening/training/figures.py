@@ -74,8 +74,8 @@ def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, pare
     gt, pred, interp = (np.asarray(a, np.float64) for a in (gt, pred, interp))
     frames = [int(t) for t in frames]
     fwd = 0 if up_axis != 0 else 2
-    fig = _figure(1.6 * len(frames), 4.4)
-    grid = fig.add_gridspec(2, len(frames), height_ratios=[2.4, 1.0], hspace=0.22, wspace=0.05)
+    fig = _figure(1.6 * len(frames), 3.9)
+    grid = fig.add_gridspec(2, len(frames), height_ratios=[1.7, 1.0], hspace=0.2, wspace=0.05)
     height = float(np.ptp(gt[..., up_axis])) or 1.0
     half = 0.65 * height
     bones = _bones(parents)

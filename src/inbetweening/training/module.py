@@ -197,9 +197,9 @@ class InbetweenModule(L.LightningModule):
             losses.append(total_loss(pred, feats, unknown, {"l1": 1.0}, sk, self.mean, self.std)[0])
             sl = slice(self.n_past, self.n_past + n)
             gt_gq, gt_gp = sk.pose(root[:, :t], q[:, :t])
-            outputs = [(pred, bench, joint, per_len[f"m{n}"])]
+            outputs = [(pred, bench, joint, per_len[f"m{n}"] if f"m{n}" in per_len else None)]
             if with_interp:
-                outputs.append((interp, interp_bench, None, per_len[f"i{n}"]))
+                outputs.append((interp, interp_bench, None, per_len[f"i{n}"] if f"i{n}" in per_len else None))
             for out, metric, pooled, by_len in outputs:
                 pr_root, pr_q = pr.decode(out)
                 metric.update(n, pr_root[:, sl], pr_q[:, sl], root[:, sl], q[:, sl])

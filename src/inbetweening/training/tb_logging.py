@@ -23,7 +23,7 @@ from omegaconf import DictConfig, OmegaConf
 
 METRICS = ("l2p", "l2q", "npss")
 #: Hyper-parameters shown by default after the swept keys (TensorBoard's HParams dashboard shows 5 at first).
-SHOWN = ("model/name", "trainer/max_epochs", "trainer/max_steps", "mask/name", "data/name", "model/depth")
+SHOWN = ("model/name", "trainer/max_epochs", "data/name", "mask/name", "trainer/max_steps", "model/depth")
 #: The curated hyper-parameters after the swept keys: ``(name, config key)``.
 ESSENTIALS = (
     ("model/name", "model.name"), ("model/depth", "model.depth"), ("model/heads", "model.heads"),

@@ -227,8 +227,9 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
                 f"({module.hparams.dataset}), data {dm.data.name!r} has {dm.skeleton.num_joints} joints"
             )
         # scored with the dataset's own training statistics (the benchmark protocol)
-        module.test_bench = type(module.test_bench)(module.skeleton, dm.data.pos_mean, dm.data.pos_std,
-                                                    cfg.data.test_lengths)
+        for name in ("test_bench", "test_interp"):
+            setattr(module, name, type(module.test_bench)(module.skeleton, dm.data.pos_mean, dm.data.pos_std,
+                                                          cfg.data.test_lengths))
         trainer = make_trainer(cfg, callbacks=False, loggers=False)
         trainer.test(module, datamodule=dm, verbose=False)
         metrics, dataset, n = dict(module.test_results), dm.data.name, len(dm.test_set)
