@@ -85,7 +85,8 @@ def landing(port: int, out: Path) -> None:
                 ref = tag.replace("val/", "val/interp_")
                 for r in runs:
                     if ref in tags[r]:
-                        pts = np.array(get(port, f"/data/plugin/scalars/scalars?{urllib.parse.urlencode({'run': r, 'tag': ref})}"))
+                        q = urllib.parse.urlencode({"run": r, "tag": ref})
+                        pts = np.array(get(port, f"/data/plugin/scalars/scalars?{q}"))
                         ax.plot(pts[:, 1], pts[:, 2], "--", color="0.5", lw=1)
                         break
             ax.set_title(tag, fontsize=9, loc="left")
@@ -98,7 +99,7 @@ def landing(port: int, out: Path) -> None:
                bbox_to_anchor=(0.01, 0.975), ncol=len(runs), fontsize=8, frameon=False)
     fig.suptitle("TensorBoard Time Series (re-drawn from its scalars API): its three groups, first charts of each; "
                  "dashed grey = interpolation", fontsize=10, y=0.998, x=0.01, ha="left")
-    fig.subplots_adjust(left=0.09, right=0.99, top=0.87, bottom=0.05, hspace=0.6, wspace=0.35)
+    fig.subplots_adjust(left=0.1, right=0.99, top=0.87, bottom=0.05, hspace=0.6, wspace=0.35)
     save(fig, out / "landing.png")
 
 
@@ -115,7 +116,8 @@ def hparams(port: int, out: Path) -> None:
     rows = []
     for g in get(port, "/data/plugin/hparams/session_groups", req)["sessionGroups"]:
         vals = {m["name"]["tag"]: m["value"] for m in g.get("metricValues", [])}
-        rows.append([g["name"].split("/")[-1].replace("graph_transformer ", "")[-34:]] + [str(g["hparams"].get(h, "")) for h in shown]
+        run = g["name"].split("/")[-1].replace("graph_transformer ", "")[-34:]
+        rows.append([run] + [str(g["hparams"].get(h, "")) for h in shown]
                     + [f"{vals[m]:.3f}" if m in vals else "" for m in metrics])
     fig = Figure(figsize=(13, 0.6 + 0.32 * (len(rows) + 1)), dpi=80)
     FigureCanvasAgg(fig)

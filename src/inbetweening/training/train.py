@@ -35,8 +35,15 @@ from inbetweening.training.callbacks import (
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.module import InbetweenModule
-from inbetweening.training.tb_logging import HParamsSession, RunLogger, TrainStats, curated_hparams, run_label, \
-    swept_keys, task_overrides
+from inbetweening.training.tb_logging import (
+    HParamsSession,
+    RunLogger,
+    TrainStats,
+    curated_hparams,
+    run_label,
+    swept_keys,
+    task_overrides,
+)
 
 log = logging.getLogger("inbetweening")
 
