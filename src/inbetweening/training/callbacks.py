@@ -1,4 +1,4 @@
-"""Lightning callbacks and plugins of the project: the TensorBoard skeleton figure, the non-finite guard, the
+"""Lightning callbacks and plugins of the project (the TensorBoard figures: :mod:`.figures`): the non-finite guard, the
 resume state (RNG), the interrupt checkpoint and atomic checkpoint writes."""
 from __future__ import annotations
 
@@ -10,47 +10,7 @@ import torch
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.plugins.io import TorchCheckpointIO
 
-from inbetweening.predictor.masks import transition_known
-from inbetweening.tools.render import draw_sequences
-
-
-class SkeletonFigure(L.Callback):
-    """Every ``every_n_epochs`` epochs, draw ground truth vs prediction vs interpolation for one fixed
-    validation window (transition length ``n``) and log it to TensorBoard as ``val/skeleton``."""
-
-    def __init__(self, every_n_epochs: int = 5, window: int = 0, n: int = 30, frames: int = 6):
-        self.every = max(1, int(every_n_epochs))
-        self.window, self.n, self.frames = int(window), int(n), int(frames)
-
-    def sequences(self, pl_module, root: torch.Tensor, q: torch.Tensor) -> dict:
-        """Global positions ``(T, J, 3)`` of ground truth, prediction and interpolation for one window."""
-        pr, n = pl_module.predictor, self.n
-        t = pr.n_past + n + 1
-        known = pr.transition_known(1, t, n, device=pl_module.device)
-        feats, pred, interp = pr.predict_windows(root[None, :t], q[None, :t], known)
-        labelled = (("ground truth", feats), ("prediction", pred), ("interpolation", interp))
-        return {label: pr.skeleton.pose(*pr.decode(f.cpu()))[1][0].numpy() for label, f in labelled}
-
-    def on_validation_epoch_end(self, trainer: L.Trainer, pl_module) -> None:
-        if trainer.sanity_checking or trainer.current_epoch % self.every or not trainer.loggers:
-            return
-        ds = trainer.datamodule.val_set if trainer.datamodule is not None else None
-        if ds is None or len(ds) == 0:
-            return
-        item = ds[min(self.window, len(ds) - 1)]
-        was_training = pl_module.training
-        pl_module.eval()
-        seqs = self.sequences(pl_module, item["root"], item["q"])
-        pl_module.train(was_training)
-        t = next(iter(seqs.values())).shape[0]
-        frames = sorted({round(i * (t - 1) / max(self.frames - 1, 1)) for i in range(self.frames)})
-        highlight = transition_known(1, t, 1, pl_module.n_past, self.n)[0, :, 0].numpy()
-        fig = draw_sequences(seqs, pl_module.skeleton.parents, frames=frames, highlight=highlight,
-                             title=f"epoch {trainer.current_epoch}: transition of {self.n} frames")
-        for logger in trainer.loggers:
-            exp = getattr(logger, "experiment", None)
-            if hasattr(exp, "add_figure"):
-                exp.add_figure("val/skeleton", fig, global_step=trainer.global_step)
+from inbetweening.training.figures import SkeletonFigure  # noqa: F401  (its old home; configs name it here too)
 
 
 class NonFiniteError(RuntimeError):

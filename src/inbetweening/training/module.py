@@ -21,6 +21,7 @@ from inbetweening.predictor.predictor import LEGACY_CENTRE, Predictor
 from inbetweening.predictor.representation import DEFAULT_REPRESENTATION
 from inbetweening.training.losses import total_loss
 from inbetweening.training.schedules import build_optimizers, upgrade_optim
+from inbetweening.training.tb_logging import tb_scalars
 
 
 class InbetweenModule(L.LightningModule):
@@ -79,6 +80,18 @@ class InbetweenModule(L.LightningModule):
         self.test_bench = BenchmarkMetric(self.skeleton, self.mean, self.std, test_lengths)
         self.val_joint = PerJointError(j)
         self.test_joint = PerJointError(j)
+        # TensorBoard references: interpolation scored on the same windows (validation: once per fit, cached),
+        # and per-joint errors per transition length for the per-joint figure
+        self.val_interp = BenchmarkMetric(self.skeleton, self.mean, self.std, val_lengths)
+        self.test_interp = BenchmarkMetric(self.skeleton, self.mean, self.std, test_lengths)
+        self.val_joint_len = torch.nn.ModuleDict({f"{k}{n}": PerJointError(j) for n in val_lengths for k in "mi"})
+        self.test_joint_len = torch.nn.ModuleDict({f"{k}{n}": PerJointError(j) for n in test_lengths for k in "mi"})
+        self.val_interp_cache: dict | None = None  # (interp metrics, interp per-joint) of this fit's validation set
+        self.val_l2p_mean_best: float | None = None
+        self.val_improved = False
+        self.joint_errors: dict[str, dict] = {}
+        self.test_interp_results: dict[str, float] = {}
+        self.stage_logs: dict[str, dict[str, float]] = {}  # the scalars last logged per stage (test: for train.py)
         self.test_results: dict[str, float] = {}
         self.joint_mask = {k: v for k, v in (joint_mask or {}).items() if k != "name"}
         self.val_recovery = PerJointError(j)
@@ -95,6 +108,13 @@ class InbetweenModule(L.LightningModule):
     def on_load_checkpoint(self, checkpoint: dict) -> None:
         """Older state dicts (``net.*``) are renamed to today's layout (``predictor.net.*``)."""
         checkpoint["state_dict"] = upgrade_module_state(checkpoint["state_dict"])
+        self.val_l2p_mean_best = checkpoint.get("val_l2p_mean_best")
+
+    def on_save_checkpoint(self, checkpoint: dict) -> None:
+        checkpoint["val_l2p_mean_best"] = self.val_l2p_mean_best  # the best so far survives a resume
+
+    def on_fit_start(self) -> None:
+        self.val_interp_cache = None  # the validation windows may differ from a previous fit's
 
     # ------------------------------------------------------------------ the predictor's settings
     @property
@@ -153,29 +173,43 @@ class InbetweenModule(L.LightningModule):
 
     def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
         loss = self._step_loss(batch, "train")
-        if "n_trans" in batch:
-            self.log("train/n_trans", batch["n_trans"].float().mean(), batch_size=batch["gt"].shape[0])
+        if "n_trans" in batch:  # the sampled transition length (frames), not a metric
+            self.log("train/sampled_transition_frames", batch["n_trans"].float().mean(), batch_size=batch["gt"].shape[0])
         return loss
 
     # ------------------------------------------------------------------ benchmark windows
-    def _bench_step(self, batch: dict, bench: BenchmarkMetric, joint: PerJointError, stage: str) -> None:
-        """Score the benchmark windows of a batch at each transition length (same path as eval.py)."""
+    def _bench_step(self, batch: dict, stage: str) -> None:
+        """Score the benchmark windows of a batch at each transition length (same path as eval.py), and the
+        interpolation the predictor returns alongside (validation: the first epoch of a fit only, then cached).
+        Lengths longer than the windows allow are skipped."""
+        bench, joint = getattr(self, f"{stage}_bench"), getattr(self, f"{stage}_joint")
+        interp_bench, per_len = getattr(self, f"{stage}_interp"), getattr(self, f"{stage}_joint_len")
+        with_interp = stage == "test" or self.val_interp_cache is None
         root, q = batch["root"], batch["q"]  # (B, W, 3), (B, W, J, 4) float64, normalised windows
         pr, sk, losses = self.predictor, self.skeleton, []
         for n in bench.lengths:
             t = self.n_past + n + 1
+            if t > root.shape[1]:
+                continue
             known = pr.transition_known(root.shape[0], t, n, device=root.device)
-            feats, pred, _ = pr.predict_windows(root[:, :t], q[:, :t], known)
+            feats, pred, interp = pr.predict_windows(root[:, :t], q[:, :t], known)
             unknown = ~known
             losses.append(total_loss(pred, feats, unknown, {"l1": 1.0}, sk, self.mean, self.std)[0])
-            pr_root, pr_q = pr.decode(pred)
             sl = slice(self.n_past, self.n_past + n)
-            bench.update(n, pr_root[:, sl], pr_q[:, sl], root[:, sl], q[:, sl])
-            pr_gq, pr_gp = sk.pose(pr_root, pr_q)
             gt_gq, gt_gp = sk.pose(root[:, :t], q[:, :t])
-            joint.update(pr_gp, gt_gp, pr_gq, gt_gq, unknown)
-        self.log(f"{stage}/loss", torch.stack(losses).mean(), prog_bar=True, batch_size=root.shape[0],
-                 sync_dist=self._distributed)
+            outputs = [(pred, bench, joint, per_len[f"m{n}"] if f"m{n}" in per_len else None)]
+            if with_interp:
+                outputs.append((interp, interp_bench, None, per_len[f"i{n}"] if f"i{n}" in per_len else None))
+            for out, metric, pooled, by_len in outputs:
+                pr_root, pr_q = pr.decode(out)
+                metric.update(n, pr_root[:, sl], pr_q[:, sl], root[:, sl], q[:, sl])
+                pr_gq, pr_gp = sk.pose(pr_root, pr_q)
+                for m in (pooled, by_len):
+                    if m is not None:
+                        m.update(pr_gp, gt_gp, pr_gq, gt_gq, unknown)
+        if losses:
+            self.log(f"{stage}/loss", torch.stack(losses).mean(), prog_bar=True, batch_size=root.shape[0],
+                     sync_dist=self._distributed)
 
     def _recovery_step(self, batch: dict, batch_idx: int, metric: PerJointError) -> None:
         """Mocap recovery: random joints missing over random gaps of the whole window (seeded per batch)."""
@@ -193,28 +227,50 @@ class InbetweenModule(L.LightningModule):
         metric.update(self.predictor.global_positions(pred), gt_gp, pr_gq, gt_gq, ~known)
 
     def validation_step(self, batch: dict, batch_idx: int) -> None:
-        self._bench_step(batch, self.val_bench, self.val_joint, "val")
+        self._bench_step(batch, "val")
         if self.mask_name == "joints":
             self._recovery_step(batch, batch_idx, self.val_recovery)
 
     def test_step(self, batch: dict, batch_idx: int) -> None:
-        self._bench_step(batch, self.test_bench, self.test_joint, "test")
+        self._bench_step(batch, "test")
         if self.mask_name == "joints":
             self._recovery_step(batch, batch_idx, self.test_recovery)
 
-    def _log_epoch(self, bench: BenchmarkMetric, joint: PerJointError, stage: str) -> dict[str, float]:
-        res = bench.compute()
+    def _log_epoch(self, stage: str) -> dict[str, float]:
+        """Compute (and reset) the stage's metrics; log the model's numbers, interpolation's on the same windows
+        (``{stage}/interp_l2p@15``) and their ratios (``{stage}/l2p_ratio@15``); keep the per-joint errors per
+        length for the per-joint figure.  Returns the model's benchmark metrics."""
+        bench, joint, per_len = (getattr(self, f"{stage}_{k}") for k in ("bench", "joint", "joint_len"))
+        res, per_joint = bench.compute(), joint.compute()
         bench.reset()
-        per_joint = joint.compute()
         joint.reset()
-        logs = {f"{stage}/{k}": float(v) for k, v in res.items()}
-        l2p = [v for k, v in res.items() if k.startswith("l2p@")]
-        if l2p:
-            logs[f"{stage}/l2p_mean"] = float(np.mean(l2p))
-        logs[f"{stage}/pos_rmse"] = float(per_joint["rmse"])
-        for i, name in enumerate(self.skeleton.names):
-            logs[f"{stage}_joint_pos/{name}"] = float(per_joint["pos"][i])
-            logs[f"{stage}_joint_rot/{name}"] = float(per_joint["rot"][i])
+        cached = stage == "val" and self.val_interp_cache is not None
+        if cached:
+            interp, interp_joint = self.val_interp_cache
+        else:
+            interp = getattr(self, f"{stage}_interp").compute()
+            getattr(self, f"{stage}_interp").reset()
+            interp_joint = {}
+        model_joint = {}
+        for key, metric in per_len.items():
+            n = int(key[1:])
+            if key[0] == "m" or not cached:
+                if (metric.count.sum() > 0 or self._distributed) and f"l2p@{n}" in res:
+                    out = {k: v.cpu().numpy() for k, v in metric.compute().items()}
+                    (model_joint if key[0] == "m" else interp_joint)[n] = out
+                metric.reset()
+        if stage == "val" and not cached and not self.trainer.sanity_checking and self.trainer.state.fn == "fit":
+            self.val_interp_cache = (interp, interp_joint)
+        self.joint_errors[stage] = {"model": model_joint, "interp": interp_joint}
+        logs = tb_scalars(stage, res, interp, float(per_joint["rmse"]))
+        if stage == "val" and "val/l2p_mean" in logs and not self.trainer.sanity_checking:
+            self.val_improved = self.val_l2p_mean_best is None or logs["val/l2p_mean"] < self.val_l2p_mean_best
+            if self.val_improved:
+                self.val_l2p_mean_best = logs["val/l2p_mean"]
+            logs["val/l2p_mean_best"] = self.val_l2p_mean_best
+        if stage == "test":
+            self.test_interp_results = dict(interp)
+        self.stage_logs[stage] = logs
         self.log_dict(logs, sync_dist=self._distributed)  # values are already synced: identical on every rank
         return {k: v for k, v in res.items()}
 
@@ -230,11 +286,11 @@ class InbetweenModule(L.LightningModule):
         return {"recovery_rmse": logs[f"{stage}/recovery_rmse"]}
 
     def on_validation_epoch_end(self) -> None:
-        self._log_epoch(self.val_bench, self.val_joint, "val")
+        self._log_epoch("val")
         self._log_recovery(self.val_recovery, "val")
 
     def on_test_epoch_end(self) -> None:
-        self.test_results = self._log_epoch(self.test_bench, self.test_joint, "test")
+        self.test_results = self._log_epoch("test")
         self.test_results.update(self._log_recovery(self.test_recovery, "test"))
 
     # ------------------------------------------------------------------ optimisation

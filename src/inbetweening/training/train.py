@@ -35,6 +35,15 @@ from inbetweening.training.callbacks import (
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.module import InbetweenModule
+from inbetweening.training.tb_logging import (
+    HParamsSession,
+    RunLogger,
+    TrainStats,
+    curated_hparams,
+    run_label,
+    swept_keys,
+    task_overrides,
+)
 
 log = logging.getLogger("inbetweening")
 
@@ -68,11 +77,23 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
                            **mask_settings(cfg), **dm.model_kwargs())
 
 
+def _make_logger(cfg: DictConfig, node: DictConfig):
+    """A logger from its config; a :class:`RunLogger` without a ``version`` is named after the run's configuration
+    (:func:`~inbetweening.training.tb_logging.run_label`)."""
+    if str(node.get("_target_", "")).endswith("RunLogger") and node.get("version") is None:
+        return instantiate(node, version=run_label(cfg, task_overrides(), swept_keys()))
+    return instantiate(node)
+
+
 def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
     cbs = [instantiate(c) for c in (cfg.get("callbacks") or {}).values() if c is not None] if callbacks else []
-    lgs = [instantiate(c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else []
+    lgs = [_make_logger(cfg, c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else []
     if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
+    elif callbacks:  # TensorBoard: throughput, epoch time, gradient norm; the HParams session from the fit's start
+        hp, shown = curated_hparams(cfg, task_overrides(), swept_keys())
+        cbs += [TrainStats(), HParamsSession(hp, shown, cfg.data.val_lengths, cfg.data.test_lengths,
+                                             end_at_fit_end=not cfg.get("run_test", True))]
     if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
         cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # freed heap returned every 25 steps
                 InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]
@@ -110,23 +131,6 @@ def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metric
                              f"{path} was not written")
     write_text(path, json.dumps(res, indent=2, allow_nan=False))
     return res
-
-
-def _flat_hparams(cfg: DictConfig) -> dict:
-    keep = {"model": cfg.model, "mask": cfg.mask, "optim": cfg.optim, "loss": cfg.loss,
-            "data": {k: cfg.data.get(k) for k in ("name", "batch_size", "transition_min", "transition_max")},
-            "seed": cfg.seed}
-    flat: dict = {}
-
-    def walk(prefix: str, node) -> None:
-        if isinstance(node, dict):
-            for k, v in node.items():
-                walk(f"{prefix}/{k}" if prefix else str(k), v)
-        else:
-            flat[prefix] = node if isinstance(node, (int, float, str, bool)) else str(node)
-
-    walk("", OmegaConf.to_container(OmegaConf.create(keep), resolve=True))
-    return flat
 
 
 # ------------------------------------------------------------------------------------------
@@ -170,11 +174,21 @@ def train(cfg: DictConfig) -> dict[str, float]:
         print(B.format_table(with_baselines(name, metrics, dm, cfg.data.test_lengths), cfg.data.test_lengths))
         if "recovery_rmse" in metrics:
             print(f"mocap recovery: RMSE of recovered joint positions = {metrics['recovery_rmse']:.3f}")
-        for lg in trainer.loggers:
-            if hasattr(lg, "log_hyperparams"):
-                lg.log_hyperparams(_flat_hparams(cfg), metrics={f"hp/{k}": v for k, v in metrics.items()})
-                lg.finalize("success")
+        log_test(trainer, module)
     return metrics
+
+
+def log_test(trainer: L.Trainer, module: InbetweenModule) -> None:
+    """The test scalars (``test/l2p@15``, ``test/interp_l2p@15``, ``test/l2p_ratio@15``, ...) into the fit's
+    TensorBoard run at its last step, and its HParams session marked ended."""
+    for cb in trainer.callbacks:
+        if isinstance(cb, HParamsSession):
+            cb.start(trainer)  # a baseline was not fitted: its session starts here
+    for lg in trainer.loggers:
+        if isinstance(lg, RunLogger):
+            lg.log_metrics(module.stage_logs.get("test", {}), step=trainer.global_step)
+            lg.end_session("success")
+        lg.finalize("success")
 
 
 def with_baselines(name: str, metrics: dict, dm: InbetweenDataModule, lengths) -> dict[str, dict[str, float]]:
@@ -220,8 +234,9 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
                 f"({module.hparams.dataset}), data {dm.data.name!r} has {dm.skeleton.num_joints} joints"
             )
         # scored with the dataset's own training statistics (the benchmark protocol)
-        module.test_bench = type(module.test_bench)(module.skeleton, dm.data.pos_mean, dm.data.pos_std,
-                                                    cfg.data.test_lengths)
+        for name in ("test_bench", "test_interp"):
+            setattr(module, name, type(module.test_bench)(module.skeleton, dm.data.pos_mean, dm.data.pos_std,
+                                                          cfg.data.test_lengths))
         trainer = make_trainer(cfg, callbacks=False, loggers=False)
         trainer.test(module, datamodule=dm, verbose=False)
         metrics, dataset, n = dict(module.test_results), dm.data.name, len(dm.test_set)
