@@ -248,3 +248,13 @@ def test_old_checkpoint_loads_and_trains_with_the_upgraded_optimiser():
     assert module.hparams.optim["scheduler"]["warmup_steps"] == old["warmup_steps"] == 200
     out = module.configure_optimizers()  # no trainer: one total step
     assert type(out["optimizer"]) is torch.optim.AdamW and out["optimizer"].param_groups[0]["weight_decay"] == 1e-4
+
+
+def test_experiments_and_ablations_override_the_top_level_defaults(tmp_path, cache_dir):
+    """train.yaml's own values come first in its defaults list: an experiment's ``task_name``/``centre``/``threads``
+    win (they were silently replaced by train.yaml's when ``_self_`` came last)."""
+    cfg = compose_cfg("train", ["experiment=bn2_reference"], tmp_path, cache_dir)
+    assert cfg.task_name == "bn2_reference"
+    cfg = compose_cfg("train", ["ablation=recipe", "+recipe=last"], tmp_path, cache_dir)
+    assert (cfg.task_name, cfg.centre, cfg.threads, list(cfg.test_keyframes)) == ("recipe_ablation", "last", 1, [15, 30])
+    assert cfg.data.sampling == "clips" and cfg.data.mirror and cfg.data.context_min == 1

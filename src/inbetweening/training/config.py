@@ -182,6 +182,16 @@ def _check_protocol(cfg) -> None:
         raise ConfigError(f"keyframe_intervals: an interval is listed twice in {list(ks)}")
 
 
+def _check_train_extras(cfg) -> None:
+    """``threads`` (>= 1 or null) and ``test_keyframes`` (train.py: integers >= 2)."""
+    threads = _get(cfg, "threads")
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
+        raise ConfigError(f"threads: must be an integer >= 1 or null, got {threads!r}")
+    for k in _get(cfg, "test_keyframes") or []:
+        if isinstance(k, bool) or not isinstance(k, int) or k < 2:
+            raise ConfigError(f"test_keyframes: intervals must be integers >= 2 (a keyframe every K frames), got {k!r}")
+
+
 def validate(cfg: DictConfig) -> None:
     """Raise :class:`ConfigError` naming the first invalid key."""
     mask = _get(cfg, "mask.name")
@@ -209,6 +219,7 @@ def validate(cfg: DictConfig) -> None:
                 f"data.transition_max: {hi} + {N_PAST} context + 1 target exceeds data.train_window={window}"
             )
     _check_task(cfg)
+    _check_train_extras(cfg)
     centre = _get(cfg, "centre", "known")
     if centre not in CENTRES:
         raise ConfigError(f"centre: must be one of {list(CENTRES)}, got {centre!r}")

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import lightning as L
+import torch
 from hydra.utils import instantiate
 from lightning.pytorch.utilities.exceptions import SIGTERMException
 from omegaconf import DictConfig, OmegaConf
@@ -138,6 +139,8 @@ def train(cfg: DictConfig) -> dict[str, float]:
     """Fit (unless the model is a non-trainable baseline), then run the test benchmark with the best
     checkpoint and write ``benchmark.json``.  Returns the test metrics."""
     validate(cfg)
+    if cfg.get("threads"):
+        torch.set_num_threads(int(cfg.threads))
     L.seed_everything(cfg.seed, workers=True)
     out = output_dir(cfg)
     dm = make_datamodule(cfg)
@@ -168,12 +171,20 @@ def train(cfg: DictConfig) -> dict[str, float]:
         name = cfg.model.name
         if not test_trainer.is_global_zero:  # DDP: metrics are synced; rank 0 alone writes and prints
             return metrics
-        write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split)
+        kf = None
+        if cfg.get("test_keyframes"):  # the keyframes-only protocol on the whole test clips, through the animator path
+            kf = score_keyframes(module.predictor, dm.data, list(cfg.test_keyframes))
+        write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split,
+                        keyframes=kf)
         print(f"\nTest benchmark ({dm.data.name}, split {dm.hparams.split}, {len(dm.test_set)} windows, "
               f"checkpoint: {best or 'final weights'})")
         print(B.format_table(with_baselines(name, metrics, dm, cfg.data.test_lengths), cfg.data.test_lengths))
         if "recovery_rmse" in metrics:
             print(f"mocap recovery: RMSE of recovered joint positions = {metrics['recovery_rmse']:.3f}")
+        if kf is not None:
+            from inbetweening.evaluation.keyframes import format_table
+
+            print(f"\nKeyframes-only protocol ({len(dm.data.test)} whole test clips)\n" + format_table(kf))
         log_test(trainer, module)
     return metrics
 
@@ -270,15 +281,24 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
         raise ConfigError(f"ckpt_path: required for model {name!r} (or use model=zero_velocity|interpolation)")
     elif name == "zero_velocity":
         fill = KF.hold_keyframes
-    feet = KF.foot_spec(data.skeleton, get_spec(data.name))
-    res = KF.evaluate_clips(data.test, data.skeleton, fill, list(cfg.keyframe_intervals), data.fps, feet,
-                            progress=log.info)
+    res = score_keyframes(fill, data, list(cfg.keyframe_intervals))
     out = output_dir(cfg)
     write_benchmark(out / "benchmark.json", data.name, name, len(data.test), {}, dm.hparams.split, keyframes=res)
     print(f"\nKeyframes-only protocol: {data.name}, split {dm.hparams.split}, {len(data.test)} whole test clips, "
           f"{data.fps:g} fps, model {name} -> {out / 'benchmark.json'}")
     print(KF.format_table(res))
     return {f"{m}@{k}": float(v) for k, row in res.items() for m, v in row.items()}
+
+
+def score_keyframes(model, data, intervals: list[int]) -> dict:
+    """The keyframes-only figures of ``model`` (a predictor, through the animator path, or a fill function; ``None``:
+    interpolation) on the whole test clips of ``data``: ``{K: {figure: value}}``."""
+    from inbetweening.evaluation import keyframes as KF
+    from inbetweening.tools.inbetweener import Inbetweener
+
+    fill = Inbetweener(model).fill_arrays if isinstance(model, torch.nn.Module) else model
+    feet = KF.foot_spec(data.skeleton, get_spec(data.name))
+    return KF.evaluate_clips(data.test, data.skeleton, fill, intervals, data.fps, feet, progress=log.info)
 
 
 def run_cli(job: Callable[[DictConfig], dict], cfg: DictConfig) -> float | None:
