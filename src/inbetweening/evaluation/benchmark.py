@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from inbetweening.geometry.canonical import canonicalise_windows
+from inbetweening.geometry.fastkin import fk_np
 from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.quaternion import Array
 from inbetweening.geometry.skeleton import Skeleton, fk
@@ -54,16 +55,19 @@ def extract_windows(clips: Sequence, skeleton: Skeleton, window: int, offset: in
     Returns local positions ``X (N, window, J, 3)`` (root from the data, other joints = offsets)
     and local quaternions ``Q (N, window, J, 4)``, float64.
     """
-    xs, qs = [], []
-    for clip in clips:
-        for s in window_starts(len(clip.root_pos), window, offset):
-            qs.append(clip.local_q[s : s + window])
-            xs.append(clip.root_pos[s : s + window])
     j = skeleton.num_joints
-    if not qs:
+    used, first, base = [], [], 0
+    for clip in clips:  # per clip only its start frames; the windows are gathered in one indexing operation
+        s = window_starts(len(clip.root_pos), window, offset)
+        if s:
+            used.append(clip)
+            first.append(base + np.asarray(s, dtype=np.int64))
+            base += len(clip.root_pos)
+    if not used:
         return np.zeros((0, window, j, 3)), np.zeros((0, window, j, 4))
-    q = np.asarray(np.stack(qs), dtype=np.float64)
-    x = skeleton.local_positions(np.asarray(np.stack(xs), dtype=np.float64))
+    rows = np.concatenate(first)[:, None] + np.arange(window)[None, :]  # (N, window) rows of the concatenation
+    q = np.concatenate([np.asarray(c.local_q, dtype=np.float64) for c in used])[rows]
+    x = skeleton.local_positions(np.concatenate([np.asarray(c.root_pos, dtype=np.float64) for c in used])[rows])
     return x, q
 
 
@@ -94,7 +98,7 @@ def prepare_windows(
 
 def position_stats(X: np.ndarray, Q: np.ndarray, parents: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
     """Mean and std ``(J*3,)`` of global joint positions over all windows and frames (per coordinate)."""
-    _, gp = fk(Q, X, parents)
+    gp = fk_np(Q, X, parents, positions_only=True)  # skeleton.fk's arithmetic, bit for bit, cache-sized chunks
     flat = gp.reshape(-1, gp.shape[-2] * 3)
     return flat.mean(axis=0), flat.std(axis=0)
 
