@@ -18,7 +18,7 @@ import numpy as np
 
 CHUNK_FRAMES = 4096  # frames per chunk: ~2 MB of components per chunk for a 22-joint skeleton
 
-__all__ = ["CHUNK_FRAMES", "canonicalise_windows_np", "fk_np"]
+__all__ = ["CHUNK_FRAMES", "canonical_positions_np", "canonicalise_windows_np", "fk_np"]
 
 
 def _cross(a, b):
@@ -77,10 +77,13 @@ def _ik_chunk(gq, gp, parents: Sequence[int]):
 
 
 def _store(out: np.ndarray, joints) -> None:
-    """Write per-joint component tuples into ``out`` (``(..., J, C)`` view of the chunk)."""
+    """Write per-joint component tuples into ``out`` (``(..., J, C)`` view of the chunk): contiguous writes into a
+    component-major buffer, then one transposing copy."""
+    buf = np.empty((len(joints), len(joints[0])) + out.shape[:-2], dtype=out.dtype)
     for j, comps in enumerate(joints):
         for c, v in enumerate(comps):
-            out[..., j, c] = v
+            buf[j, c] = v
+    out[...] = np.moveaxis(buf, (0, 1), (-2, -1))
 
 
 def _chunks(n: int, frames_per_item: int):
@@ -108,11 +111,25 @@ def fk_np(local_q: np.ndarray, local_p: np.ndarray, parents: Sequence[int], posi
     return gp_out if positions_only else (gq_out.reshape(shape + (4,)), gp_out)
 
 
+def _canonical_chunk(x: np.ndarray, q: np.ndarray, xz: np.ndarray, parents: Sequence[int],
+                     forward_axis: Sequence[float], frame: int):
+    """One chunk of :func:`canonicalise_windows_np`: ``x (b, T, J, 3)`` (modified: root XZ centred on ``xz``),
+    ``q (b, T, J, 4)`` -> local ``(rotations, positions)`` as per-joint component tuples of ``(b, T)`` arrays."""
+    from inbetweening.geometry.canonical import facing_rotation
+
+    x[:, :, 0, 0] = x[:, :, 0, 0] - xz[..., 0]
+    x[:, :, 0, 2] = x[:, :, 0, 2] - xz[..., 1]
+    gq, gp = _fk_chunk(_components(q), _components(x), parents)  # components (b, T)
+    root = np.stack([c[:, frame : frame + 1] for c in gq[0]], axis=-1)[:, :, None, :]  # (b, 1, 1, 4)
+    inv = _qinv(tuple(np.ascontiguousarray(facing_rotation(root, forward_axis)[:, :, 0, c]) for c in range(4)))
+    return _ik_chunk([_qmul(inv, g) for g in gq], [_qrot(inv, g) for g in gp], parents)
+
+
 def canonicalise_windows_np(X: np.ndarray, Q: np.ndarray, parents: Sequence[int], forward_axis: Sequence[float],
                             frame: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`inbetweening.geometry.canonical.canonicalise_windows` of numpy windows ``(B, T, J, 3), (B, T, J, 4)``,
     bit-identical, chunk by chunk of windows."""
-    from inbetweening.geometry.canonical import facing_rotation, masked_mean
+    from inbetweening.geometry.canonical import masked_mean
 
     X = np.asarray(X)
     Q = np.asarray(Q)
@@ -120,15 +137,36 @@ def canonicalise_windows_np(X: np.ndarray, Q: np.ndarray, parents: Sequence[int]
     out_x = np.empty(np.broadcast_shapes(X.shape[:-1], Q.shape[:-1]) + (3,), dtype=np.result_type(X, Q))
     out_q = np.empty(out_x.shape[:-1] + (4,), dtype=out_x.dtype)
     for s, e in _chunks(len(X), X.shape[1]):
-        x = np.array(X[s:e], copy=True)
-        x[:, :, 0, 0] = x[:, :, 0, 0] - xz[s:e, ..., 0]
-        x[:, :, 0, 2] = x[:, :, 0, 2] - xz[s:e, ..., 1]
-        gq, gp = _fk_chunk(_components(Q[s:e]), _components(x), parents)  # components (b, T)
-        root = np.stack([c[:, frame : frame + 1] for c in gq[0]], axis=-1)[:, :, None, :]  # (b, 1, 1, 4)
-        inv = _qinv(tuple(np.ascontiguousarray(facing_rotation(root, forward_axis)[:, :, 0, c]) for c in range(4)))
-        rq = [_qmul(inv, g) for g in gq]
-        rp = [_qrot(inv, g) for g in gp]
-        lq, lp = _ik_chunk(rq, rp, parents)
+        lq, lp = _canonical_chunk(np.array(X[s:e], copy=True), Q[s:e], xz[s:e], parents, forward_axis, frame)
         _store(out_q[s:e], lq)
         _store(out_x[s:e], lp)
     return out_x, out_q
+
+
+def canonical_positions_np(root: np.ndarray, rows: np.ndarray, local_q: np.ndarray, offsets: np.ndarray,
+                           parents: Sequence[int], forward_axis: Sequence[float], frame: int) -> np.ndarray:
+    """Global joint positions ``(N, T, J, 3)`` of the canonicalised windows ``rows (N, T)`` (frame indices) of the
+    frames ``root (F, 3), local_q (F, J, 4)`` with bone ``offsets (J, 3)``: the same numbers as
+    ``fk(*canonicalise_windows(X, Q)[::-1])[1]`` of the gathered windows, without materialising them."""
+    from inbetweening.geometry.canonical import masked_mean
+
+    r = root[rows]  # (N, T, 3)
+    xz = masked_mean(r[:, :, 0::2])
+    out = np.empty(rows.shape + offsets.shape, dtype=np.result_type(root, local_q, offsets))
+    for s, e in _chunks(len(rows), rows.shape[1]):
+        x = np.broadcast_to(offsets, (e - s, rows.shape[1]) + offsets.shape).copy()
+        x[:, :, 0] = r[s:e]
+        lq, lp = _canonical_chunk(x, local_q[rows[s:e]], xz[s:e], parents, forward_axis, frame)
+        _store(out[s:e], _fk_chunk_tuples(lq, lp, parents))
+    return out
+
+
+def _fk_chunk_tuples(lq, lp, parents: Sequence[int]):
+    """:func:`_fk_chunk` positions from per-joint component tuples."""
+    gq, gp = [lq[0]], [lp[0]]
+    for j in range(1, len(parents)):
+        par = parents[j]
+        rot = _qrot(gq[par], lp[j])
+        gp.append(tuple(rot[i] + gp[par][i] for i in range(3)))
+        gq.append(_qmul(gq[par], lq[j]))
+    return gp
