@@ -91,7 +91,7 @@ def test_fill_many_is_fill_arrays_clip_by_clip(predictor):
         root[unknown], q[unknown] = np.nan, np.nan
         clips.append((root, q, keys))
     pseudo = [[], [], []]
-    many = ib.fill_many(clips, _pseudo=pseudo)
+    many = ib.fill_many(clips, _pseudo=pseudo, batch_size=2)  # the first gaps: a batch of 2, then one of 1
     assert pseudo[2] and not pseudo[0]
     for (root, q, keys), (mr, mq) in zip(clips, many):
         one_r, one_q = ib.fill_arrays(root, q, keys)
@@ -106,3 +106,5 @@ def test_fill_many_checks_every_clip_before_generating(predictor):
     root, q = _motion(np.random.default_rng(3), 40, predictor.skeleton.num_joints)
     with pytest.raises(InbetweenError, match="known_frames must start at frame 0"):
         ib.fill_many([(root, q, [0, 39]), (root, q, [3, 39])])
+    with pytest.raises(InbetweenError, match="batch_size must be a positive integer"):
+        ib.fill_many([(root, q, [0, 39])], batch_size=0)

@@ -183,16 +183,20 @@ class Inbetweener:
         return self.fill_many([(root, local_q, known_frames)], max_gap=max_gap, segment=segment,
                               _pseudo=None if _pseudo is None else [_pseudo])[0]
 
-    def fill_many(self, clips, *, max_gap: int | None = None, segment: bool | None = None,
+    def fill_many(self, clips, *, max_gap: int | None = None, segment: bool | None = None, batch_size: int = 4,
                   _pseudo: list[list[int]] | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
         """:meth:`fill_arrays` of many clips at once: ``clips`` is a sequence of ``(root, local_q, known_frames)``;
         returns one ``(root, local_q)`` per clip, the same numbers as :meth:`fill_arrays` clip by clip (up to float
         rounding of the batched network).
 
         Gaps are still filled left to right within a clip (a gap's context is the previous gap's output), but the
-        k-th gap of every clip is generated in one forward pass per distinct gap length.  Every clip is checked
-        before anything is generated.
+        k-th gap of every clip is generated together: one :meth:`Predictor.fill_windows` forward pass per
+        ``batch_size`` gaps of the same length (default 4: on the 2-core CPU it was measured on, batches of about 4
+        windows run fastest per transition and much larger ones fall out of the cache; BENCHMARKS.md, "Inference
+        latency").  Every clip is checked before anything is generated.
         """
+        if isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
+            raise InbetweenError(f"batch_size must be a positive integer, got {batch_size!r}")
         limit = self._check_max_gap(max_gap) if max_gap is not None else self.max_gap
         seg = self.segment if segment is None else bool(segment)
         plans = [self._plan(r, q, k, limit, seg, None if _pseudo is None else _pseudo[i])
@@ -204,7 +208,8 @@ class Inbetweener:
                     a, b = plan[2][step]
                     groups.setdefault(b - a, []).append((plan, a, b))
             for items in groups.values():
-                self._generate(items)
+                for i in range(0, len(items), batch_size):
+                    self._generate(items[i : i + batch_size])
         out = []
         for root, q, _, known, exact_r, exact_q in plans:
             root[known], q[known] = exact_r, exact_q
