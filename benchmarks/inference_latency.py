@@ -139,6 +139,15 @@ def main() -> None:
             f"{tps[('fill_many', args.clips)] / tps[('fill_many', 1)]:.2f}× (large batches fall out of the CPU "
             f"cache, hence `fill_many`'s default forward batch of 4).  ORT vs PyTorch max abs diff "
             f"{info['max_abs_diff']:.1e}.")
+    cfg = pred.model_cfg
+    d, depth = int(cfg.get("d_model", 64)), int(cfg.get("depth", 6))
+    ffn = int(cfg.get("ffn_dim") or 2 * d)
+    gflop = 2 * depth * (pred.n_past + GAP + 1) * j * (8 * d * d + 2 * d * ffn) / 1e9
+    note += (f"  Why one transition stays far above 5 ms: the network's matrix products alone are {gflop:.2f} GFLOP per "
+             f"window ({depth} layers × {(pred.n_past + GAP + 1) * j} joint tokens × (8·d² + 2·d·ffn) multiply-adds), "
+             f"i.e. {gflop / med['network']:.0f} GFLOP/s at the eager median above, and the eager network is "
+             f"{med['network'] / med['fill_arrays']:.0%} of the end-to-end time; what was around it (float64 torch FK, "
+             "per-call statistics tensors) is gone, the rest needs a smaller or lower-precision network.")
     cmd = "python benchmarks/inference_latency.py" + "".join(
         f" --{k} {getattr(args, k)}" for k in ("repeats", "clips") if getattr(args, k) != ap.get_default(k))
     header = (f"Date: {_dt.date.today().isoformat()}; command: `{cmd}`; 2-core AMD EPYC dev machine, torch "
