@@ -6,7 +6,10 @@ joint into its child where the spec names one (:func:`fold_static_root`).
 """
 from __future__ import annotations
 
+import multiprocessing
+import os
 from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -15,7 +18,7 @@ import numpy as np
 
 from inbetweening.data.bvh import BVH, parse_bvh
 from inbetweening.data.errors import DatasetError
-from inbetweening.data.sources import iter_bvh_sources
+from inbetweening.data.sources import list_bvh_sources, read_bvh_sources
 from inbetweening.evaluation import benchmark as B
 from inbetweening.geometry.quaternion import qmul, qrot, remove_discontinuities
 from inbetweening.geometry.skeleton import Skeleton
@@ -110,16 +113,56 @@ def check_skeleton(ref: Skeleton | None, skel: Skeleton, name: str) -> Skeleton:
     return ref
 
 
+PARALLEL_MIN_FILES = 64  # fewer files are read in this process (starting workers would cost more than it saves)
+
+
+def read_workers() -> int:
+    """Processes the default reader uses: ``$INBETWEENING_WORKERS`` if set, else the CPUs this process may use."""
+    env = os.environ.get("INBETWEENING_WORKERS", "").strip()
+    if env:
+        return max(1, int(env))
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _clip_of(spec: DatasetSpec, fname: str, raw: bytes) -> tuple[str, Clip, Skeleton, float | None]:
+    bvh = parse_bvh(raw, source=fname)
+    stem = fname.rsplit(".", 1)[0]
+    clip, skel = fold_static_root(bvh, stem, spec.fold_root) if spec.fold_root else clip_from_bvh(bvh, stem)
+    return fname, clip, skel, 1.0 / bvh.frame_time
+
+
+_WORKER_SPEC: DatasetSpec | None = None
+
+
+def _init_worker(spec: DatasetSpec) -> None:
+    global _WORKER_SPEC
+    _WORKER_SPEC = spec
+
+
+def _read_part(path: str, files: list[tuple[str, str]]) -> list[tuple[str, Clip, Skeleton, float | None]]:
+    return [_clip_of(_WORKER_SPEC, name, raw) for name, raw in read_bvh_sources(path, files)]
+
+
 def read_bvh_clips(spec: DatasetSpec, path: Path) -> Iterator[tuple[str, Clip, Skeleton, float | None]]:
     """The default reader: ``(file name, clip, skeleton, frames per second)`` per BVH file of ``path``.
 
     Files are those matching ``spec.pattern``, sorted by name; a file no split rule of the spec uses is
-    skipped before it is parsed.  The clip is named after the file without its extension.
+    skipped before it is parsed.  The clip is named after the file without its extension.  With many files and
+    more than one CPU (:func:`read_workers`), contiguous runs of files are inflated and parsed by a standard
+    library process pool (forked workers) and the clips come back in the same order.
     """
-    for fname, raw in iter_bvh_sources(path, spec.pattern):
-        if not spec.reads(fname):
-            continue
-        bvh = parse_bvh(raw, source=fname)
-        stem = fname.rsplit(".", 1)[0]
-        clip, skel = fold_static_root(bvh, stem, spec.fold_root) if spec.fold_root else clip_from_bvh(bvh, stem)
-        yield fname, clip, skel, 1.0 / bvh.frame_time
+    files = [(name, key) for name, key in list_bvh_sources(path, spec.pattern) if spec.reads(name)]
+    workers = min(read_workers(), len(files) // PARALLEL_MIN_FILES)
+    if workers < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        for name, raw in read_bvh_sources(path, files):
+            yield _clip_of(spec, name, raw)
+        return
+    step = -(-len(files) // (4 * workers))  # a few parts per worker: the pool balances uneven files
+    parts = [files[i : i + step] for i in range(0, len(files), step)]
+    ctx = multiprocessing.get_context("fork")  # workers inherit the spec (its rules need not be picklable)
+    with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker, initargs=(spec,)) as pool:
+        for part in pool.map(_read_part, [str(path)] * len(parts), parts):
+            yield from part

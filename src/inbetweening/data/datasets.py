@@ -112,10 +112,10 @@ def prepare(spec: DatasetSpec, path: Path, forward_axis, split: str = DEFAULT_SP
     """Read every file, split (by the spec's split ``split``), cut/normalise the benchmark windows, compute
     training statistics."""
     skel, fps, splits = _read_clips(spec, path, spec.split_rule(split))
-    trX, trQ = B.prepare_windows(splits["train"], skel, B.TRAIN_WINDOW, B.TRAIN_OFFSET, forward_axis)
-    if len(trX) == 0:
+    stats = B.training_stats(splits["train"], skel, B.TRAIN_WINDOW, B.TRAIN_OFFSET, forward_axis)
+    if stats is None:
         raise DatasetError(f"{path}: no training window of {B.TRAIN_WINDOW} frames could be cut")
-    mean, std = B.position_stats(trX, trQ, skel.parents)
+    mean, std = stats
     teX, teQ = B.prepare_windows(splits["test"], skel, B.TEST_WINDOW, B.TEST_OFFSET, forward_axis)
     return MotionData(spec.name, skel, fps, tuple(float(a) for a in forward_axis), splits["train"], splits["test"],
                       mean, std, teX, teQ, str(path), split=split)

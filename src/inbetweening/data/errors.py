@@ -13,6 +13,9 @@ class BVHError(ValueError):
         where = f"{source}:{line}" if line is not None else source
         super().__init__(f"{where}: {reason}")
 
+    def __reduce__(self):  # pickled whole (a worker process of the parallel reader raises it in the parent)
+        return type(self), (self.reason, self.source, self.line)
+
 
 class DatasetError(RuntimeError):
     """A dataset could not be found or prepared; the message says which path and what to do."""

@@ -23,9 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from inbetweening.geometry.canonical import canonicalise_windows
+from inbetweening.geometry.fastkin import canonical_positions_np, fk_np
 from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.quaternion import Array
-from inbetweening.geometry.skeleton import Skeleton, fk
+from inbetweening.geometry.skeleton import Skeleton
 
 N_PAST = 10
 N_FUTURE = 10
@@ -54,17 +55,28 @@ def extract_windows(clips: Sequence, skeleton: Skeleton, window: int, offset: in
     Returns local positions ``X (N, window, J, 3)`` (root from the data, other joints = offsets)
     and local quaternions ``Q (N, window, J, 4)``, float64.
     """
-    xs, qs = [], []
-    for clip in clips:
-        for s in window_starts(len(clip.root_pos), window, offset):
-            qs.append(clip.local_q[s : s + window])
-            xs.append(clip.root_pos[s : s + window])
     j = skeleton.num_joints
-    if not qs:
+    rows, root, q = window_rows(clips, window, offset)
+    if not len(rows):
         return np.zeros((0, window, j, 3)), np.zeros((0, window, j, 4))
-    q = np.asarray(np.stack(qs), dtype=np.float64)
-    x = skeleton.local_positions(np.asarray(np.stack(xs), dtype=np.float64))
-    return x, q
+    return skeleton.local_positions(root[rows]), q[rows]
+
+
+def window_rows(clips: Sequence, window: int, offset: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The windows of :func:`extract_windows` as frame indices: ``(rows (N, window), root (F, 3), local_q (F, J, 4))``
+    with ``root``/``local_q`` the clips that hold a window, concatenated (float64), and ``rows`` indexing them."""
+    used, first, base = [], [], 0
+    for clip in clips:  # per clip only its start frames; the windows are gathered in one indexing operation
+        s = window_starts(len(clip.root_pos), window, offset)
+        if s:
+            used.append(clip)
+            first.append(base + np.asarray(s, dtype=np.int64))
+            base += len(clip.root_pos)
+    if not used:
+        return np.zeros((0, window), dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 0, 4))
+    rows = np.concatenate(first)[:, None] + np.arange(window)[None, :]
+    root = np.concatenate([np.asarray(c.root_pos, dtype=np.float64) for c in used])
+    return rows, root, np.concatenate([np.asarray(c.local_q, dtype=np.float64) for c in used])
 
 
 def centre_and_rotate(
@@ -94,7 +106,19 @@ def prepare_windows(
 
 def position_stats(X: np.ndarray, Q: np.ndarray, parents: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
     """Mean and std ``(J*3,)`` of global joint positions over all windows and frames (per coordinate)."""
-    _, gp = fk(Q, X, parents)
+    gp = fk_np(Q, X, parents, positions_only=True)  # skeleton.fk's arithmetic, bit for bit, cache-sized chunks
+    flat = gp.reshape(-1, gp.shape[-2] * 3)
+    return flat.mean(axis=0), flat.std(axis=0)
+
+
+def training_stats(clips: Sequence, skeleton: Skeleton, window: int, offset: int, forward_axis: Sequence[float],
+                   n_past: int = N_PAST) -> tuple[np.ndarray, np.ndarray] | None:
+    """``position_stats(*prepare_windows(clips, ...), skeleton.parents)``, bit for bit, without materialising the
+    windows (chunk by chunk); ``None`` when no window can be cut."""
+    rows, root, q = window_rows(clips, window, offset)
+    if not len(rows):
+        return None
+    gp = canonical_positions_np(root, rows, q, skeleton.offsets, skeleton.parents, forward_axis, n_past - 1)
     flat = gp.reshape(-1, gp.shape[-2] * 3)
     return flat.mean(axis=0), flat.std(axis=0)
 

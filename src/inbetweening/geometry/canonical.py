@@ -111,7 +111,19 @@ def canonicalise_windows(X: Array, Q: Array, parents: Sequence[int], forward_axi
 
     ``X``/``Q`` are local positions / rotations.  The root XZ is centred on its mean over the whole window, then
     global rotations and positions (FK) are turned so the root faces +X at ``frame`` and taken back to local (IK).
+    Numpy windows take :func:`inbetweening.geometry.fastkin.canonicalise_windows_np` (the same arithmetic,
+    bit-identical, in cache-sized chunks); torch tensors the generic path below.
     """
+    if not _is_torch(X) and not _is_torch(Q):
+        from inbetweening.geometry.fastkin import canonicalise_windows_np
+
+        return canonicalise_windows_np(X, Q, parents, forward_axis, frame)
+    return _canonicalise_windows_generic(X, Q, parents, forward_axis, frame)
+
+
+def _canonicalise_windows_generic(X: Array, Q: Array, parents: Sequence[int], forward_axis: Sequence[float],
+                                  frame: int) -> tuple[Array, Array]:
+    """:func:`canonicalise_windows` written once for numpy and torch (the definition the fast path is tested against)."""
     X = X.clone() if _is_torch(X) else np.array(X, copy=True)
     xz = masked_mean(X[:, :, 0, 0::2])  # (B, 1, 2)
     X[:, :, 0, 0] = X[:, :, 0, 0] - xz[..., 0]

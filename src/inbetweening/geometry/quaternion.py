@@ -12,7 +12,6 @@ check them against each other.
 from __future__ import annotations
 
 import numpy as np
-import roma
 import torch
 
 Array = np.ndarray | torch.Tensor
@@ -145,6 +144,8 @@ def euler_to_quat_np(angles: np.ndarray, order: str, degrees: bool = True) -> np
 
 def euler_to_quat_torch(angles: torch.Tensor, order: str, degrees: bool = True) -> torch.Tensor:
     """Torch twin of :func:`euler_to_quat_np`, through ``roma`` (intrinsic convention = uppercase)."""
+    import roma  # imported where used: it imports torch._dynamo (seconds of start-up)
+
     xyzw = roma.euler_to_unitquat(order.upper(), angles, degrees=degrees)
     return xyzw_to_wxyz(xyzw)
 
@@ -242,6 +243,8 @@ def slerp_roma(q0: torch.Tensor, q1: torch.Tensor, steps: torch.Tensor) -> torch
 
     Used by the tests as an independent implementation to check :func:`slerp_torch` against.
     """
+    import roma
+
     out = roma.unitquat_slerp(wxyz_to_xyzw(qnormalize(q0)), wxyz_to_xyzw(qnormalize(q1)), steps, shortest_arc=True)
     return xyzw_to_wxyz(out)
 

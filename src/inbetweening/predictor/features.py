@@ -7,9 +7,11 @@ local quaternions normalised).  Positions are z-scored with the training statist
 """
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from inbetweening.geometry.canonical import masked_mean
+from inbetweening.geometry.fastkin import fk_np
 from inbetweening.geometry.quaternion import qnormalize
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor.representation import Representation, register_representation
@@ -99,11 +101,30 @@ class GlobalPosLocalQuat(Representation):
     quat = QUAT
     description = "per joint [(p - pos_mean) / pos_std (xyz, global position), local quaternion wxyz]"
 
+    def __init__(self, skeleton: Skeleton, mean, std):
+        super().__init__(skeleton, mean, std)
+        j = skeleton.num_joints
+        self._mean_np, self._std_np = self.mean.reshape(j, 3), self.std.reshape(j, 3)
+        self._tensors: dict = {}  # (dtype, device) -> (mean, std) tensors, built once
+
+    def _stats(self, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        key = (like.dtype, like.device)
+        if key not in self._tensors:
+            self._tensors[key] = _stats(self.mean, self.std, like, self.skeleton.num_joints)
+        return self._tensors[key]
+
     def encode(self, root, local_q):
         return encode(root, local_q, self.skeleton, self.mean, self.std)
 
+    def encode_np(self, root, local_q):
+        """FK in float64 numpy (:func:`inbetweening.geometry.fastkin.fk_np`, the torch path's arithmetic, bit for
+        bit), z-scored: the same features as :meth:`encode`."""
+        gp = fk_np(local_q, self.skeleton.local_positions(root), self.skeleton.parents, positions_only=True)
+        return np.concatenate([(gp - self._mean_np) / self._std_np, local_q], axis=-1)
+
     def decode(self, feats):
-        return decode(feats, self.mean, self.std)
+        m, s = self._stats(feats)
+        return feats[..., 0, POS] * s[0] + m[0], qnormalize(feats[..., QUAT])
 
     def global_positions(self, feats):
         return global_positions(feats, self.mean, self.std)

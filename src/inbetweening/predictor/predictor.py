@@ -171,18 +171,38 @@ class Predictor(nn.Module):
         (never read) and the target.  The window is canonicalised like the training windows (XZ centred on the
         known frames' root, the root facing +X at the last context frame), predicted, and taken back.
         Returns the ``n`` predicted frames ``root (n, 3), local_q (n, J, 4)``, float64, unit quaternions.
+        This is :meth:`fill_windows` of a batch of one.
         """
-        p, t = self.n_past, len(root)
+        pr, pq = self.fill_windows(np.asarray(root)[None], np.asarray(local_q)[None])
+        return pr[0], pq[0]
+
+    def fill_windows(self, root: np.ndarray, local_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`fill_window` of ``B`` windows of the same length in one forward pass.
+
+        ``root (B, T, 3), local_q (B, T, J, 4)`` -> ``root (B, n, 3), local_q (B, n, J, 4)``, ``n = T - n_past - 1``.
+        Each window is canonicalised on its own; the windows do not interact (the same numbers as one at a time,
+        up to float rounding of the batched network).
+        """
+        root = np.asarray(root, dtype=np.float64)
+        local_q = np.asarray(local_q, dtype=np.float64)
+        p, j = self.n_past, self.skeleton.num_joints
+        if root.ndim != 3 or root.shape[-1] != 3 or local_q.shape != root.shape[:2] + (j, 4):
+            raise ValueError(f"fill_windows: expected root (B, T, 3) and local_q (B, T, {j}, 4), got {root.shape} "
+                             f"and {local_q.shape}")
+        b, t = root.shape[:2]
         n = t - p - 1
+        if n < 1:
+            raise ValueError(f"fill_windows: {t} frames leave no transition after {p} context frames and the target")
         known_t = np.zeros(t, dtype=bool)
         known_t[:p] = True
         known_t[-1] = True
         centre, rot = canonical.canonical_frame(root, local_q, self.forward_axis, p - 1, known_t)
         wr, wq = canonical.canonicalise(root, local_q, centre, rot)
-        known = self.transition_known(1, t, n, device=self.device)
-        _, pred, _ = self.predict_windows(wr[None], wq[None], known)
-        pr, pq = self.decode(pred)
-        pr, pq = pr[0, p : p + n].cpu().numpy(), pq[0, p : p + n].cpu().numpy()
+        known = self.transition_known(b, t, n, device=self.device)
+        with torch.inference_mode():
+            _, pred, _ = self.predict_windows(wr, wq, known)
+            pr, pq = self.decode(pred[:, p : p + n])
+        pr, pq = pr.cpu().numpy(), pq.cpu().numpy()
         pq /= np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit (decode's normalisation has an epsilon)
         return canonical.uncanonicalise(pr, pq, centre, rot)
 

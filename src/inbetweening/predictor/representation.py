@@ -35,9 +35,17 @@ class Representation:
     def encode_windows(self, root, local_q, dtype=torch.float32, device=None) -> torch.Tensor:
         """:meth:`encode` of numpy or torch windows (any float): FK in float64, the result cast to ``dtype`` on
         ``device``.  NaN frames stay NaN (nothing downstream reads unknown values)."""
+        if not isinstance(root, torch.Tensor) and not isinstance(local_q, torch.Tensor):
+            feats = self.encode_np(np.asarray(root, dtype=np.float64), np.asarray(local_q, dtype=np.float64))
+            if feats is not None:
+                return torch.from_numpy(feats).to(dtype=dtype, device=device)
         r = torch.as_tensor(root).double()
         q = torch.as_tensor(local_q).double()
         return self.encode(r, q).to(dtype=dtype, device=device)
+
+    def encode_np(self, root: np.ndarray, local_q: np.ndarray) -> np.ndarray | None:
+        """:meth:`encode` of float64 numpy windows, the same numbers (``None``: not implemented, use torch)."""
+        return None
 
     def decode(self, feats: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``features (..., T, J, F) -> root (..., T, 3), local_q (..., T, J, 4)`` (unit quaternions)."""

@@ -180,6 +180,45 @@ class Inbetweener:
         Returns:
             ``root (F, 3), local_q (F, J, 4)`` float64; known frames equal the input exactly.
         """
+        return self.fill_many([(root, local_q, known_frames)], max_gap=max_gap, segment=segment,
+                              _pseudo=None if _pseudo is None else [_pseudo])[0]
+
+    def fill_many(self, clips, *, max_gap: int | None = None, segment: bool | None = None, batch_size: int = 4,
+                  _pseudo: list[list[int]] | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+        """:meth:`fill_arrays` of many clips at once: ``clips`` is a sequence of ``(root, local_q, known_frames)``;
+        returns one ``(root, local_q)`` per clip, the same numbers as :meth:`fill_arrays` clip by clip (up to float
+        rounding of the batched network).
+
+        Gaps are still filled left to right within a clip (a gap's context is the previous gap's output), but the
+        k-th gap of every clip is generated together: one :meth:`Predictor.fill_windows` forward pass per
+        ``batch_size`` gaps of the same length (default 4: on the 2-core CPU it was measured on, batches of about 4
+        windows run fastest per transition and much larger ones fall out of the cache; BENCHMARKS.md, "Inference
+        latency").  Every clip is checked before anything is generated.
+        """
+        if isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
+            raise InbetweenError(f"batch_size must be a positive integer, got {batch_size!r}")
+        limit = self._check_max_gap(max_gap) if max_gap is not None else self.max_gap
+        seg = self.segment if segment is None else bool(segment)
+        plans = [self._plan(r, q, k, limit, seg, None if _pseudo is None else _pseudo[i])
+                 for i, (r, q, k) in enumerate(clips)]
+        for step in range(max((len(p[2]) for p in plans), default=0)):
+            groups: dict[int, list] = {}
+            for plan in plans:
+                if step < len(plan[2]):
+                    a, b = plan[2][step]
+                    groups.setdefault(b - a, []).append((plan, a, b))
+            for items in groups.values():
+                for i in range(0, len(items), batch_size):
+                    self._generate(items[i : i + batch_size])
+        out = []
+        for root, q, _, known, exact_r, exact_q in plans:
+            root[known], q[known] = exact_r, exact_q
+            out.append((root, q))
+        return out
+
+    def _plan(self, root, local_q, known_frames, limit: int, seg: bool, pseudo: list[int] | None):
+        """Check one clip and lay out its segments: ``(root, q, [(a, b), ...], known, exact root, exact q)``;
+        pseudo-keyframes of long gaps are interpolated into ``root``/``q`` here."""
         root = np.array(root, dtype=np.float64)
         q = np.array(local_q, dtype=np.float64)
         j = self.skeleton.num_joints
@@ -193,10 +232,9 @@ class Inbetweener:
                                  f"is filled), got {known[0]}..{known[-1]}")
         if not (np.isfinite(root[known]).all() and np.isfinite(q[known]).all()):
             raise InbetweenError("fill_arrays: known frames contain NaN or infinite values")
-        limit = self._check_max_gap(max_gap) if max_gap is not None else self.max_gap
-        seg = self.segment if segment is None else bool(segment)
+        exact_r, exact_q = root[known].copy(), q[known].copy()
         q[known] = qnormalize(q[known])
-        exact_r, exact_q = root[known].copy(), np.array(local_q, dtype=np.float64)[known]
+        segments = []
         for a, b in itertools.pairwise(known):
             gap = b - a - 1
             if gap == 0:
@@ -210,23 +248,25 @@ class Inbetweener:
             if m > 1:
                 w = (np.array(points[1:-1]) - a) / (b - a)
                 root[points[1:-1]], q[points[1:-1]] = interpolate_pose(root[a], q[a], root[b], q[b], w)
-                if _pseudo is not None:
-                    _pseudo.extend(points[1:-1])
-            for s, e in itertools.pairwise(points):
-                if e - s > 1:
-                    self._generate(root, q, s, e)
-        root[known], q[known] = exact_r, exact_q
-        return root, q
+                if pseudo is not None:
+                    pseudo.extend(points[1:-1])
+            segments += [(s, e) for s, e in itertools.pairwise(points) if e - s > 1]
+        return root, q, segments, known, exact_r, exact_q
 
-    def _generate(self, root: np.ndarray, q: np.ndarray, a: int, b: int) -> None:
-        """Fill frames ``a+1 .. b-1`` of ``root``/``q`` in place from context ending at ``a`` and target ``b``."""
-        n, p = b - a - 1, self.n_past
-        ctx = np.clip(np.arange(a - p + 1, a + 1), 0, None)
-        idx = np.concatenate([ctx, np.full(n, a), [b]])  # unknown frames hold frame a (never read by the model)
-        pr, pq = self.predictor.fill_window(root[idx].copy(), _continuous(q[idx].copy()))
-        # sign-continuous with frame a (cosmetic: every frame is written as Euler angles anyway)
-        pq = _continuous(np.concatenate([q[a : a + 1], pq]))[1:]
-        root[a + 1 : b], q[a + 1 : b] = pr, pq
+    def _generate(self, items) -> None:
+        """Fill frames ``a+1 .. b-1`` of each ``(plan, a, b)`` in place (all gaps of one length, one forward pass)
+        from context ending at ``a`` and target ``b``."""
+        wr, wq = [], []
+        for (root, q, *_), a, b in items:
+            n, p = b - a - 1, self.n_past
+            ctx = np.clip(np.arange(a - p + 1, a + 1), 0, None)
+            idx = np.concatenate([ctx, np.full(n, a), [b]])  # unknown frames hold frame a (never read by the model)
+            wr.append(root[idx])
+            wq.append(_continuous(q[idx]))
+        prs, pqs = self.predictor.fill_windows(np.stack(wr), np.stack(wq))
+        for ((root, q, *_), a, b), pr, pq in zip(items, prs, pqs):
+            # sign-continuous with frame a (cosmetic: every frame is written as Euler angles anyway)
+            root[a + 1 : b], q[a + 1 : b] = pr, _continuous(np.concatenate([q[a : a + 1], pq]))[1:]
 
     # ------------------------------------------------------------------ BVH level
     def fill(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,

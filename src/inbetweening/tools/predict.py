@@ -52,6 +52,8 @@ options:
                         same keyframes, keyframes drawn in red
   render_dpi=N          GIF resolution (default 80)
   device=cpu|cuda       where the model runs (default cpu)
+  threads=N             CPU threads of the network (default 1: one transition is too small to share between
+                        threads, and spare threads only wait on each other on a busy machine)
   --force               allow output (or render) to be the input file itself (refused otherwise)
   -h, --help            show this help
 
@@ -65,6 +67,7 @@ examples:
 OPTIONS = {
     "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "gap": int, "max_gap": int,
     "segment": parse_bool, "render": str, "render_dpi": int, "device": str, "force": parse_bool,
+    "threads": int,
 }
 ALIASES = {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "in": "input", "out": "output", "o": "output",
            "keys": "keyframes"}
@@ -99,11 +102,7 @@ def run(argv: Sequence[str]) -> int:
         fail("give exactly one of keyframes=[...] (frames of the input to keep) or gap=N (frames to generate "
              "between consecutive input frames); see --help")
 
-    from inbetweening.checkpoint import CheckpointError
-    from inbetweening.data.bvh import BVHError, read_bvh, write_bvh
-    from inbetweening.tools.inbetweener import Inbetweener, InbetweenError
-
-    if not Path(args["input"]).is_file():
+    if not Path(args["input"]).is_file():  # checked before torch is imported: a typo costs no start-up
         fail(f"input: {args['input']} does not exist")
     from inbetweening.atomic import same_file
 
@@ -112,11 +111,18 @@ def run(argv: Sequence[str]) -> int:
             if key in args and same_file(args[src], args[key]) and not args.get("force", False):
                 fail(f"{key}: {args[key]} is the {src} file; writing it would destroy the {src} "
                      f"(choose another {key}, or --force to overwrite)")
+    if args.get("threads", 1) < 1:
+        fail(f"threads: must be >= 1, got {args['threads']}")
     device = args.get("device", "cpu")
     import torch
 
+    from inbetweening.checkpoint import CheckpointError
+    from inbetweening.data.bvh import BVHError, read_bvh, write_bvh
+    from inbetweening.tools.inbetweener import Inbetweener, InbetweenError
+
     if str(device).startswith("cuda") and not torch.cuda.is_available():
         fail(f"device: {device} requested but CUDA is not available (use device=cpu)")
+    torch.set_num_threads(args.get("threads", 1))
     t0 = time.perf_counter()
     try:
         clip = read_bvh(args["input"])
