@@ -69,3 +69,20 @@ def test_heap_is_trimmed_while_training(tmp_path, monkeypatch):
     for i in range(60):
         trim[0].on_train_batch_end(None, None, None, None, i)
     assert len(calls) == 60 // trim[0].every == 2
+
+
+def test_heap_is_trimmed_when_a_step_leaves_it_grown(monkeypatch):
+    """Between the periodic trims, a step that leaves the process ``slack_mb`` above its size after the last trim
+    triggers one (the fragmentation that made the default run's peak grow epoch after epoch)."""
+    from inbetweening.training import callbacks as C
+
+    sizes = iter([400.0, 700.0, 950.0, 420.0, 600.0])
+    calls = []
+    monkeypatch.setattr(C, "trim_heap", lambda: calls.append(1) or True)
+    monkeypatch.setattr(C, "resident_mb", lambda: next(sizes))
+    cb = C.TrimHeap(every_n_steps=1000, slack_mb=512)
+    cb.on_train_epoch_start(None, None)  # trim; floor = 400
+    cb.on_train_batch_end(None, None, None, None, 0)  # 700 <= 912: no trim
+    cb.on_train_batch_end(None, None, None, None, 1)  # 950 > 912: trim, floor = 420
+    cb.on_train_batch_end(None, None, None, None, 2)  # 600 <= 932: no trim
+    assert len(calls) == 2 and cb.floor == 420.0

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import os
 
 import lightning as L
 import torch
@@ -149,29 +150,45 @@ def trim_heap() -> bool:
     return True
 
 
+def resident_mb() -> float:
+    """This process's resident set size in MB (``/proc/self/statm``; 0 where there is no procfs)."""
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
 class TrimHeap(L.Callback):
-    """:func:`trim_heap` every ``every_n_steps`` training steps, at each epoch start, and before and after each
-    validation (whose batches have other shapes than the training steps').
+    """:func:`trim_heap` every ``every_n_steps`` training steps, after any step that leaves the process more than
+    ``slack_mb`` above its size after the last trim, at each epoch start, and before and after each validation (whose
+    batches have other shapes than the training steps').
 
     glibc keeps the memory that a training step frees (activations of 9-18 MB each for the default graph
     transformer) in a heap that fragments over steps of different shapes (training, validation); without trimming
     the default synthetic run's peak grew from 1.27 GB after one epoch to 1.71 GB after 15.  A trim costs the page
-    faults of growing back once, so it runs every few dozen steps, not every step (serving large blocks by their own
-    memory maps instead made a step 50% slower).  BENCHMARKS.md, "Memory".
+    faults of growing back once, so it runs when the heap has grown, not after every step (trimming every step made
+    training 15% slower; serving large blocks by their own memory maps, 50%).  BENCHMARKS.md, "Memory".
     """
 
-    def __init__(self, every_n_steps: int = 25):
+    def __init__(self, every_n_steps: int = 25, slack_mb: float = 512.0):
         self.every = max(1, int(every_n_steps))
+        self.slack = float(slack_mb)
+        self.floor = float("inf")  # resident size right after the last trim (none yet)
+
+    def _trim(self) -> None:
+        trim_heap()
+        self.floor = resident_mb()
 
     def on_train_epoch_start(self, trainer, pl_module) -> None:
-        trim_heap()
+        self._trim()
 
     def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
-        if (batch_idx + 1) % self.every == 0:
-            trim_heap()
+        if (batch_idx + 1) % self.every == 0 or resident_mb() > self.floor + self.slack:
+            self._trim()
 
     def on_validation_epoch_start(self, trainer, pl_module) -> None:
-        trim_heap()
+        self._trim()
 
     def on_validation_epoch_end(self, trainer, pl_module) -> None:
-        trim_heap()
+        self._trim()

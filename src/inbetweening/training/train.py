@@ -96,7 +96,7 @@ def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
         cbs += [TrainStats(), HParamsSession(hp, shown, cfg.data.val_lengths, cfg.data.test_lengths,
                                              end_at_fit_end=not cfg.get("run_test", True))]
     if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
-        cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # freed heap returned every 25 steps
+        cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # freed heap returned when it has grown
                 InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]
     return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False, plugins=[AtomicCheckpointIO()])
 
