@@ -379,3 +379,21 @@ def test_ddp_trainer_config_builds_a_ddp_trainer(tmp_path, cache_dir):
         assert trainer.max_epochs == cfg.trainer.max_epochs
     default = instantiate(compose_cfg("train", [], tmp_path, cache_dir).trainer, logger=False)
     assert not isinstance(default.strategy, DDPStrategy)  # the comparison can fail: the cpu trainer is not DDP
+
+
+def test_recipe_levers_train_end_to_end_and_report_keyframes_and_ratios(tmp_path, cache_dir):
+    """Clip sampling every 2 frames, mirroring, 1-10 context frames, intermediate keyframes, centre=last: the run
+    trains, and benchmark.json holds the interpolation reference and the keyframes-only figures."""
+    over = BASE + MODEL_TINY["graph_transformer"] + [
+        "data.sampling=clips", "data.train_offset=2", "data.mirror=true", "data.context_min=1",
+        "data.keyframes_max=2", "data.keyframe_prob=0.5", "centre=last", "test_keyframes=[5]", "threads=1"]
+    threads = torch.get_num_threads()
+    try:
+        metrics, cfg = run_train(tmp_path, cache_dir, over)
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(threads)
+    res = json.loads((Path(cfg.paths.output_dir) / "benchmark.json").read_text())
+    assert set(res["interpolation"]) == set(res["metrics"]) and res["metrics"] == metrics
+    row = res["keyframes"]["5"]
+    assert row["model_cm"] > 0 and abs(row["ratio"] - row["model_cm"] / row["interp_cm"]) < 1e-9

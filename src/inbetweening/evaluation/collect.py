@@ -5,8 +5,11 @@
 One row per configuration: the run's Hydra overrides (``.hydra/overrides.yaml``) name it, rows are
 sorted by the chosen metric (ascending), and ``<out>.md`` / ``<out>.csv`` are written into the
 sweep directory (or ``--out`` path).  Runs whose ``benchmark.json`` records the dataset's split (``data.split``)
-get a ``split`` column; older files without it leave that cell empty.  Runs of ``eval.py protocol=keyframes`` add
-their figures as columns ``kf_<figure>@<K>`` (``kf_model_cm@15``, ``kf_ratio@15``, ``kf_skate_model@15``, ...).
+get a ``split`` column; older files without it leave that cell empty.  Runs of ``eval.py protocol=keyframes`` (or
+``train.py test_keyframes=[...]``) add their figures as columns ``kf_<figure>@<K>`` (``kf_model_cm@15``, ``kf_ratio@15``,
+``kf_skate_model@15``, ...); files that record the interpolation baseline add ``l2p_ratio@<n>`` (model / interpolation).
+
+``--seeds``: one row per configuration over its seeds (``seed=`` overrides), each figure as ``mean ± std`` (n runs).
 """
 from __future__ import annotations
 
@@ -18,7 +21,7 @@ from pathlib import Path
 
 import yaml
 
-METRIC_ORDER = ("l2q", "l2p", "npss", "kf_model_cm", "kf_interp_cm", "kf_ratio", "kf_skate_model", "kf_skate_interp",
+METRIC_ORDER = ("l2q", "l2p", "l2p_ratio", "npss", "kf_model_cm", "kf_interp_cm", "kf_ratio", "kf_skate_model", "kf_skate_interp",
                 "kf_skate_gt")
 KEYFRAME_FIGURES = tuple(m[3:] for m in METRIC_ORDER if m.startswith("kf_"))
 IGNORED = ("hydra.", "paths.", "seed=", "ckpt_path=", "trainer.max_steps=", "trainer.max_epochs=", "ablation=")
@@ -47,7 +50,7 @@ def collect(sweep_dir: str | Path, sort: str = "l2p@15") -> list[dict]:
         rows.append({"run": str(run.relative_to(root)) if run != root else ".", "config": run_label(run),
                      "dataset": res.get("dataset"), "split": res.get("split"), "model": res.get("model"),
                      "n_windows": res.get("n_windows"),
-                     **res.get("metrics", {}), **keyframe_columns(res)})
+                     **res.get("metrics", {}), **ratio_columns(res), **keyframe_columns(res)})
     if not rows:
         raise FileNotFoundError(f"no benchmark.json under {root}")
     # overrides shared by every run say nothing about a row: drop them from the labels
@@ -58,6 +61,31 @@ def collect(sweep_dir: str | Path, sort: str = "l2p@15") -> list[dict]:
     return rows
 
 
+def ratio_columns(res: dict) -> dict[str, float]:
+    """``{"l2p_ratio@<n>": model / interpolation}`` where the file records the interpolation baseline."""
+    ref, met = res.get("interpolation") or {}, res.get("metrics") or {}
+    return {f"l2p_ratio@{k[4:]}": met[k] / ref[k] for k in met if k.startswith("l2p@") and ref.get(k)}
+
+
+def by_seeds(rows: list[dict]) -> list[dict]:
+    """One row per (config, model, split): every figure's mean and sample std over the rows (seeds), ``n`` runs."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r["config"], r["model"], r.get("split")), []).append(r)
+    out = []
+    for (config, model, split), rs in groups.items():
+        row = {"config": config, "model": model, "split": split, "dataset": rs[0].get("dataset"), "n": len(rs),
+               "n_windows": rs[0].get("n_windows"), "run": " ".join(r["run"] for r in rs)}
+        for c in metric_columns(rs):
+            vals = [r[c] for r in rs if r.get(c) is not None]
+            if vals:
+                mean = sum(vals) / len(vals)
+                std = (sum((v - mean) ** 2 for v in vals) / (len(vals) - 1)) ** 0.5 if len(vals) > 1 else 0.0
+                row[c], row[c + "_std"] = mean, std
+        out.append(row)
+    return out
+
+
 def keyframe_columns(res: dict) -> dict[str, float]:
     """The ``keyframes`` figures of a ``benchmark.json`` (``protocol=keyframes``) as ``{"kf_<figure>@<K>": value}``."""
     return {f"kf_{m}@{k}": v for k, row in (res.get("keyframes") or {}).items() for m, v in row.items()
@@ -65,7 +93,7 @@ def keyframe_columns(res: dict) -> dict[str, float]:
 
 
 def metric_columns(rows: list[dict]) -> list[str]:
-    keys = {k for r in rows for k in r if "@" in k or k == "recovery_rmse"}
+    keys = {k for r in rows for k in r if ("@" in k or k == "recovery_rmse") and not k.endswith("_std")}
     def order(k: str):
         m, _, n = k.partition("@")
         return (METRIC_ORDER.index(m) if m in METRIC_ORDER else 9, int(n) if n.isdigit() else 0)
@@ -84,15 +112,27 @@ def to_markdown(rows: list[dict]) -> str:
     head = "| config | model | " + ("split | " if split else "") + " | ".join(c.upper() for c in cols) + " |"
     lines = [head, "|---|---|" + ("---|" if split else "") + "---:|" * len(cols)]
     for r in rows:
-        cells = [("" if r.get(c) is None else f"{r[c]:.4f}" if c.startswith("npss") else f"{r[c]:.3f}") for c in cols]
+        cells = [_cell(r, c) for c in cols]
         if split:
             cells.insert(0, r.get("split") or "")
         lines.append(f"| {r['config']} | {r['model']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
+def _cell(r: dict, c: str) -> str:
+    if r.get(c) is None:
+        return ""
+    fmt = ".4f" if c.startswith("npss") else ".3f"
+    if c + "_std" in r:
+        return f"{r[c]:{fmt}} ± {r[c + '_std']:{fmt}} ({r['n']})"
+    return f"{r[c]:{fmt}}"
+
+
 def write_csv(rows: list[dict], path: Path) -> None:
-    cols = ["config", "model", "dataset", *(["split"] if has_split(rows) else []), "n_windows", *metric_columns(rows), "run"]
+    metrics = metric_columns(rows)
+    stds = [c + "_std" for c in metrics if any(c + "_std" in r for r in rows)]
+    cols = ["config", "model", "dataset", *(["split"] if has_split(rows) else []), "n_windows",
+            *(["n"] if stds else []), *metrics, *stds, "run"]
     with open(path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
         w.writeheader()
@@ -104,9 +144,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("sweep_dir")
     ap.add_argument("--sort", default="l2p@15", help="metric to sort by (ascending), default l2p@15")
     ap.add_argument("--out", default=None, help="output path without extension (default <sweep_dir>/results)")
+    ap.add_argument("--seeds", action="store_true", help="one row per configuration: mean ± std over its seeds")
     args = ap.parse_args(argv)
     try:
         rows = collect(args.sweep_dir, args.sort)
+        if args.seeds:
+            rows = by_seeds(rows)
+            rows.sort(key=lambda r: (r.get(args.sort) is None, r.get(args.sort, 0.0)))
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

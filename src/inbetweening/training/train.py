@@ -114,14 +114,17 @@ def resume_command(cfg: DictConfig) -> str:
 
 
 def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metrics: dict,
-                    split: str | None = None, keyframes: dict | None = None) -> dict:
+                    split: str | None = None, keyframes: dict | None = None, interpolation: dict | None = None) -> dict:
     """Write ``benchmark.json`` (strict JSON, atomically); a non-finite metric is an error, never a number.
     ``split``: the dataset's split rule (``data.split``), recorded when given.  ``keyframes``: the
     ``protocol=keyframes`` figures ``{"<K>": {"model_cm": ..., "n_clips": ...}}``, written under the ``keyframes``
-    key (integers stay integers)."""
+    key (integers stay integers).  ``interpolation``: the interpolation baseline's metrics on the same windows
+    (the reference ratios are taken against), written under ``interpolation``."""
     res = {"dataset": dataset, **({"split": split} if split else {}), "model": model, "n_windows": int(n_windows),
            "metrics": {k: float(v) for k, v in metrics.items()}}
-    checked = dict(res["metrics"])
+    if interpolation is not None:
+        res["interpolation"] = {k: float(v) for k, v in interpolation.items()}
+    checked = {**res["metrics"], **{f"interpolation.{k}": v for k, v in res.get("interpolation", {}).items()}}
     if keyframes is not None:
         res["keyframes"] = {str(k): {m: (v if isinstance(v, int) else float(v)) for m, v in row.items()}
                             for k, row in keyframes.items()}
@@ -174,11 +177,12 @@ def train(cfg: DictConfig) -> dict[str, float]:
         kf = None
         if cfg.get("test_keyframes"):  # the keyframes-only protocol on the whole test clips, through the animator path
             kf = score_keyframes(module.predictor, dm.data, list(cfg.test_keyframes))
+        rows = with_baselines(name, metrics, dm, cfg.data.test_lengths)
         write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split,
-                        keyframes=kf)
+                        keyframes=kf, interpolation=rows.get("interpolation"))
         print(f"\nTest benchmark ({dm.data.name}, split {dm.hparams.split}, {len(dm.test_set)} windows, "
               f"checkpoint: {best or 'final weights'})")
-        print(B.format_table(with_baselines(name, metrics, dm, cfg.data.test_lengths), cfg.data.test_lengths))
+        print(B.format_table(rows, cfg.data.test_lengths))
         if "recovery_rmse" in metrics:
             print(f"mocap recovery: RMSE of recovered joint positions = {metrics['recovery_rmse']:.3f}")
         if kf is not None:
