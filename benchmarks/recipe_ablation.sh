@@ -1,22 +1,36 @@
 #!/usr/bin/env bash
 # The recipe ablation of RESULTS.md, as it was run: two 1-thread jobs side by side (xargs -P 2), each a
-# `python train.py ablation=recipe +recipe=<lever>` run with the step budget that <lever> reaches in 10 minutes on
-# this CPU (benchmarks/recipe_budget.py, two jobs side by side), then `python -m inbetweening.collect`.
-#   bash benchmarks/recipe_ablation.sh <out dir> <steps windows> <steps clips>
-# (`python train.py ablation=recipe` runs the standard-split grid through Hydra's joblib launcher instead.)
+# `python train.py ablation=recipe +recipe=<lever> model=<model>` run for the optimiser steps that this lever and model
+# reach in 10 minutes on this CPU with a second job beside it (benchmarks/recipe_budget.py), validated 4 times, then
+# `python -m inbetweening.collect --seeds`.
+#   bash benchmarks/recipe_ablation.sh <out dir>
+# (`python train.py ablation=recipe` runs the standard-split grid of the default model through Hydra's joblib launcher.)
 set -euo pipefail
-OUT=${1:?out dir}; SW=${2:?steps for base/task}; SC=${3:?steps for dense/mirror/last}
+OUT=${1:?out dir}
 mkdir -p "$OUT"
-steps() { case $1 in base|task) echo "$SW";; *) echo "$SC";; esac; }
+FT="model=frame_transformer"
+GT="model=graph_transformer model.checkpoint_layers=false"   # 1 thread: memory is no issue, recomputation is
+# steps in 10 min (s/step, 1 thread, two jobs side by side, benchmarks/recipe_budget.py, 2026-11-23):
+# frame_transformer base/task 0.550 -> 1091, dense/mirror/last 0.569 -> 1055; graph_transformer last 1.372 -> 437,
+# last with model.graph=none 1.328 -> 451
 jobs=(
-  "last 1" "base 1" "last 1 data.split=content" "base 1 data.split=content"
-  "task 1" "dense 1" "mirror 1" "last 1 model.graph=none"
-  "last 2" "base 2" "last 2 model.graph=none" "last 3"
-  "last 3 model.graph=none"
+  "ft_base_s1       base   1 1091 $FT"
+  "ft_last_s1       last   1 1055 $FT"
+  "ft_base_content  base   1 1091 $FT data.split=content"
+  "ft_last_content  last   1 1055 $FT data.split=content"
+  "ft_task_s1       task   1 1091 $FT"
+  "ft_dense_s1      dense  1 1055 $FT"
+  "ft_mirror_s1     mirror 1 1055 $FT"
+  "gt_M_s1          last   1 437  $GT"
+  "gt_none_s1       last   1 451  $GT model.graph=none"
+  "ft_base_s2       base   2 1091 $FT"
+  "ft_last_s2       last   2 1055 $FT"
+  "gt_M_s2          last   2 437  $GT"
+  "gt_none_s2       last   2 451  $GT model.graph=none"
 )
 for j in "${jobs[@]}"; do
-  set -- $j; r=$1; s=$2; shift 2
-  name="${r}_s${s}$(printf '_%s' "$@" | tr '=.' '--')"; name=${name%_}
-  echo "python train.py ablation=recipe +recipe=$r seed=$s trainer.max_steps=$(steps "$r") $* hydra.mode=RUN hydra.run.dir=$OUT/$name > $OUT/$name.log 2>&1"
+  set -- $j; name=$1; r=$2; s=$3; steps=$4; shift 4
+  v=$((steps / 4))
+  echo "python train.py ablation=recipe +recipe=$r seed=$s trainer.max_steps=$((v * 4)) trainer.val_check_interval=$v $* hydra.mode=RUN hydra.run.dir=$OUT/$name > $OUT/$name.log 2>&1"
 done | xargs -P 2 -I{} bash -c "{}"
 python -m inbetweening.collect "$OUT" --seeds --out "$OUT/recipe_ablation"
