@@ -1,28 +1,32 @@
-"""Training throughput (windows/s) and model FLOPs of the graph_transformer on this CPU.
+"""Training throughput (windows/s), FLOPs and share of the matmul rate of every model of the zoo on this CPU.
 
-    python benchmarks/train_throughput.py [--depths 6 12] [--steps 20] [--warmup 3] [--threads 2] [--write]
+    python benchmarks/train_throughput.py [--models graph_transformer frame_transformer] [--variants fp32 bf16 compile]
+        [--depths 6 12] [--steps 20] [--warmup 3] [--threads 2] [--write [--out BENCHMARKS.md]]
 
+* models: ``--models`` (default: every trainable model of ``inbetweening.models.MODELS``), each with its
+  ``conf/model/<name>.yaml`` defaults and the lerp mask; ``--depths`` also runs each depth of the models that have a
+  ``depth`` setting (default: the config's depth only);
+* variants: ``fp32`` (eager float32), ``bf16`` (``torch.autocast("cpu", dtype=torch.bfloat16)`` around forward + loss,
+  as ``trainer.precision=bf16-mixed`` does; backward and optimiser outside it, weights float32) and ``compile``
+  (the network's forward through ``torch.compile``, as ``compile=true`` does: :meth:`InbetweenModule.compile_network`;
+  compiled during the warm-up steps, the first step's time is reported);
 * data: the synthetic dataset through :class:`InbetweenDataModule` (cache in ``$INBETWEENING_CACHE`` or a temporary
-  directory), batch size 32, transition length fixed at 30 frames (``transition_min = transition_max = 30``), so
-  every batch is ``gt (32, 41, 22, 7)`` (10 context + 30 + 1 target frames) and runs are comparable;
-* model: the default ``conf/model/graph_transformer.yaml`` (d_model 64, heads 4, graph multiply, dropout 0.1) with
-  the lerp mask, at each depth of ``--depths``;
+  directory), batch size 32, transition length fixed at 30 frames, so every batch is ``gt (32, 41, 22, 7)``;
 * throughput: full optimisation steps, ``zero_grad -> module.training_step(batch) (mask + network + L1 loss) ->
-  backward -> AdamW step (+ LR scheduler step)``, driven by a plain loop: no Lightning ``Trainer`` (so no
-  logging, callbacks, progress bar or dataloader overhead; ``self.log`` is a no-op without a trainer).  Batches
-  are gathered before timing.  ``--warmup`` untimed steps, then the median over ``--steps`` timed steps;
-* FLOPs: ``torch.utils.flop_counter.FlopCounterMode`` over one training step's forward (mask + network + loss)
-  and over forward + backward, divided by the batch size.  It counts matrix products (mm/addmm/bmm, einsum,
-  attention) only; softmax, norms, GELU, dropout and other element-wise work are not counted;
-* reference: a 1024 x 1024 float32 ``torch.matmul`` on the same threads (median of repeats), and the achieved
-  training rate ``fwd+bwd FLOPs/window x windows/s`` as a share of it.
+  backward -> AdamW step (+ LR scheduler step)``, driven by a plain loop: no Lightning ``Trainer``.  Batches are
+  gathered before timing.  ``--warmup`` untimed steps, then the median over ``--steps`` timed steps;
+* FLOPs: ``torch.utils.flop_counter.FlopCounterMode`` over one eager float32 training step's forward and over
+  forward + backward, divided by the batch size (matrix products only: element-wise work is not counted);
+* reference: a 1024 x 1024 float32 ``torch.matmul`` on the same threads, sampled between the timed steps (so it sees
+  the same load), and the achieved rate ``fwd+bwd FLOPs/window x windows/s`` as a share of it.
 
 Prints a markdown table; with ``--write`` it also (re)writes the "## Training throughput and FLOPs" section of
-``BENCHMARKS.md`` (every other section is kept).
+``--out`` (default ``BENCHMARKS.md``; every other section is kept).
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as _dt
 import os
 import platform
@@ -41,6 +45,7 @@ from hydra.core.global_hydra import GlobalHydra
 from omegaconf import open_dict
 from torch.utils.flop_counter import FlopCounterMode
 
+from inbetweening.models import MODELS
 from inbetweening.training.train import make_datamodule, make_module
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -48,13 +53,16 @@ CONF_DIR = str(ROOT / "conf")
 SECTION = "## Training throughput and FLOPs"
 N_TRANS = 30
 BATCH = 32
+VARIANTS = ("fp32", "bf16", "compile")
+TRAINABLE = [name for name, cls in MODELS.items() if cls.trainable]
 
 
-def compose_cfg(depth: int, cache: str, out: str):
-    """The training config as ``python train.py model.depth=<depth> ...`` would compose it."""
+def compose_cfg(model: str, depth: int | None, cache: str, out: str):
+    """The training config as ``python train.py model=<model> [model.depth=<depth>] ...`` would compose it."""
     overrides = [
-        "model=graph_transformer", "mask=lerp", "optim=adamw", f"model.depth={depth}",
-        f"data.batch_size={BATCH}", f"data.transition_min={N_TRANS}", f"data.transition_max={N_TRANS}",
+        f"model={model}", "mask=lerp", "optim=adamw", f"data.batch_size={BATCH}",
+        f"data.transition_min={N_TRANS}", f"data.transition_max={N_TRANS}",
+        *([f"model.depth={depth}"] if depth is not None else []),
     ]
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
@@ -105,8 +113,9 @@ def count_flops(module, batch: dict) -> tuple[float, float, dict]:
 # self-CPU-time groups of one profiled step
 PROFILE_GROUPS = (
     ("matrix products (mm/addmm/bmm)", ("aten::mm", "aten::addmm", "aten::bmm", "aten::baddbmm", "aten::addbmm")),
-    ("layout copies (copy_, the spatial <-> temporal transposes)", ("aten::copy_",)),
-    ("dropout RNG (bernoulli_)", ("aten::bernoulli_",)),
+    ("layout copies (copy_)", ("aten::copy_",)),
+    ("fused attention (SDPA)", ("aten::_scaled_dot_product_flash_attention_for_cpu",
+                                "aten::_scaled_dot_product_flash_attention_for_cpu_backward")),
     ("AdamW (_foreach_*)", ()),
 )
 
@@ -145,37 +154,52 @@ class MatmulReference:
         return self.flops / med / 1e9
 
 
-def bench_depth(depth: int, cache: str, steps: int, warmup: int, ref: MatmulReference, profile: bool) -> dict:
+def gather(model: str, depth: int | None, cache: str, n: int):
+    """The composed config, the set-up data module and ``n`` full training batches."""
     with tempfile.TemporaryDirectory() as out:
-        cfg = compose_cfg(depth, cache, out)
+        cfg = compose_cfg(model, depth, cache, out)
         L.seed_everything(0, workers=True, verbose=False)
         dm = make_datamodule(cfg)
         dm.prepare_data()
         dm.setup("fit")
-        module = make_module(cfg, dm)
-    module.train()
-    opt_cfg = module.configure_optimizers()
-    opt = opt_cfg["optimizer"] if isinstance(opt_cfg, dict) else opt_cfg
-    sched = opt_cfg["lr_scheduler"]["scheduler"] if isinstance(opt_cfg, dict) else None
     batches: list[dict] = []
-    while len(batches) < warmup + steps + 1:  # full batches only (drop a short last batch)
+    while len(batches) < n:  # full batches only (drop a short last batch)
         batches += [b for b in dm.train_dataloader() if b["gt"].shape[0] == BATCH]
+    return cfg, dm, batches[:n]
+
+
+def bench(cfg, dm, batches: list[dict], variant: str, steps: int, warmup: int, ref: MatmulReference,
+          profile: bool) -> dict:
+    """One (model, variant): a fresh module (same seed), FLOPs of an eager float32 step, then the timed steps."""
+    L.seed_everything(0, workers=True, verbose=False)
+    module = make_module(cfg, dm)
+    module.train()
     shape = tuple(batches[0]["gt"].shape)
     if shape[1] != module.n_past + N_TRANS + 1:
         raise RuntimeError(f"expected {module.n_past + N_TRANS + 1} frames per window, got batch shape {shape}")
-
     fwd, both, ops = count_flops(module, batches[0])
+    module.compile_network(variant == "compile")
+    opt_cfg = module.configure_optimizers()
+    opt = opt_cfg["optimizer"] if isinstance(opt_cfg, dict) else opt_cfg
+    sched = opt_cfg["lr_scheduler"]["scheduler"] if isinstance(opt_cfg, dict) else None
+
+    def autocast():
+        return torch.autocast("cpu", dtype=torch.bfloat16) if variant == "bf16" else contextlib.nullcontext()
 
     def step(batch: dict) -> None:
         opt.zero_grad(set_to_none=True)
-        loss = module.training_step(batch, 0)
+        with autocast():
+            loss = module.training_step(batch, 0)
         loss.backward()
         opt.step()
         if sched is not None:
             sched.step()
 
+    first = None
     for b in batches[:warmup]:
+        t = time.perf_counter()
         step(b)
+        first = first if first is not None else time.perf_counter() - t
     ts, refs = [], [ref.sample()]
     for b in batches[warmup:warmup + steps]:
         t = time.perf_counter()
@@ -184,9 +208,13 @@ def bench_depth(depth: int, cache: str, steps: int, warmup: int, ref: MatmulRefe
         refs.append(ref.sample())
     prof = profile_step(step, batches[warmup + steps]) if profile else None
     med = statistics.median(ts)
+    module.compile_network(False)
+    if variant == "compile":
+        torch._dynamo.reset()  # the next model compiles from scratch
     return {
-        "depth": depth, "params": sum(p.numel() for p in module.net.parameters() if p.requires_grad),
-        "shape": shape, "n_windows": len(dm.train_feats), "fwd": fwd / BATCH, "both": both / BATCH, "ops": ops,
+        "model": cfg.model.name, "depth": cfg.model.get("depth"), "variant": variant, "cfg": cfg.model,
+        "params": sum(p.numel() for p in module.net.parameters() if p.requires_grad), "shape": shape,
+        "n_windows": len(dm.train_feats), "fwd": fwd / BATCH, "both": both / BATCH, "ops": ops, "first_s": first,
         "step_s": med, "step_min": min(ts), "step_max": max(ts), "wps": BATCH / med,
         "ref": statistics.median(refs), "ref_min": min(refs), "ref_max": max(refs), "profile": prof,
     }
@@ -200,7 +228,47 @@ def load() -> str:
     return ", ".join(f"{v:.2f}" for v in os.getloadavg())
 
 
-def run(args) -> tuple:
+def label(r: dict, with_depth: bool) -> str:
+    return f"{r['model']} (depth {r['depth']})" if with_depth and r["depth"] is not None else r["model"]
+
+
+def table(results: list[dict], with_depth: bool) -> str:
+    """The markdown table: one row per (model, depth, variant); speed-up against the same model's fp32 row."""
+    base = {(r["model"], r["depth"]): r["wps"] for r in results if r["variant"] == "fp32"}
+    lines = ["| model | variant | params | FLOPs/window fwd+bwd | first step (s) | median step (ms) | windows/s "
+             "| vs fp32 | achieved GFLOP/s | matmul GFLOP/s | % of matmul |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in results:
+        ach = r["both"] * r["wps"] / 1e9
+        fp32 = base.get((r["model"], r["depth"]))
+        first = f"{r['first_s']:.1f}" if r["first_s"] is not None else "-"
+        speed = f"{r['wps'] / fp32:.2f}×" if fp32 else "-"
+        lines.append(f"| {label(r, with_depth)} | {r['variant']} | {r['params']:,} | {fmt_flops(r['both'])} | {first} "
+                     f"| {r['step_s'] * 1e3:,.0f} | {r['wps']:.2f} | {speed} "
+                     f"| {ach:.1f} | {r['ref']:.0f} | {100 * ach / r['ref']:.1f}% |")
+    return "\n".join(lines)
+
+
+def shapes_line(results: list[dict], ref: MatmulReference, repeats: int) -> str:
+    """The graph_transformer's own matrix shapes against the reference, measured back to back (if it was run)."""
+    r = next((r for r in results if r["model"] == "graph_transformer"), None)
+    if r is None:
+        return ""
+    b, t, j, _ = r["shape"]
+    d, heads = int(r["cfg"].d_model), int(r["cfg"].heads)
+    dh = d // heads
+    big = ref.sample(repeats)
+    lin = matmul_gflops(b * t * j, d, d, repeats)
+    sp = matmul_gflops(j, dh, j, repeats, batch=b * t * heads)
+    tp = matmul_gflops(t, dh, t, repeats, batch=b * j * heads)
+    big = statistics.median([big, ref.sample(repeats)])
+    return (f"Shapes of the graph_transformer, float32, measured back to back afterwards (1024 matmul then {big:.0f} "
+            f"GFLOP/s): token linear ({b * t * j:,} x {d}) @ ({d} x {d}) {lin:.0f} GFLOP/s; spatial attention scores, "
+            f"{b * t * heads:,} batched ({j} x {dh}) @ ({dh} x {j}) {sp:.1f} GFLOP/s; temporal, {b * j * heads:,} "
+            f"batched ({t} x {dh}) @ ({dh} x {t}) {tp:.1f} GFLOP/s.")
+
+
+def run(args) -> tuple[list[dict], str, str, str]:
     torch.set_num_threads(args.threads)
     warnings.filterwarnings("ignore", message=".*self.log.*")
     warnings.filterwarnings("ignore", category=UserWarning, module="lightning")
@@ -212,79 +280,27 @@ def run(args) -> tuple:
     load_start = load()
     ref = MatmulReference()
     results = []
-    for i, d in enumerate(args.depths):
-        r = bench_depth(d, cache, args.steps, args.warmup, ref, profile=not args.no_profile and i == 0)
-        print(f"depth {d}: median step {r['step_s'] * 1e3:.0f} ms (min {r['step_min'] * 1e3:.0f}, "
-              f"max {r['step_max'] * 1e3:.0f}) -> {r['wps']:.2f} windows/s; matmul {r['ref']:.1f} GFLOP/s "
-              f"({r['ref_min']:.1f}-{r['ref_max']:.1f}); load {load()}", file=sys.stderr)
-        results.append(r)
-    # the shapes the network actually multiplies (tokens x 64 x 64 linear; 22- and 41-token heads), vs the reference
-    b, t, j, _ = results[0]["shape"]
-    heads, dh = 4, 16
-    big = ref.sample(args.matmul_repeats)
-    lin = matmul_gflops(b * t * j, 64, 64, args.matmul_repeats)
-    sp = matmul_gflops(j, dh, j, args.matmul_repeats, batch=b * t * heads)
-    tp = matmul_gflops(t, dh, t, args.matmul_repeats, batch=b * j * heads)
-    big = statistics.median([big, ref.sample(args.matmul_repeats)])
+    for model in args.models:
+        depths = args.depths if args.depths and "depth" in MODELS[model].settings() else [None]
+        for depth in depths:
+            cfg, dm, batches = gather(model, depth, cache, args.warmup + args.steps + 1)
+            for variant in args.variants:
+                profile = not args.no_profile and not results
+                r = bench(cfg, dm, batches, variant, args.steps, args.warmup, ref, profile)
+                print(f"{label(r, True)} {variant}: median step {r['step_s'] * 1e3:.0f} ms (min "
+                      f"{r['step_min'] * 1e3:.0f}, max {r['step_max'] * 1e3:.0f}) -> {r['wps']:.2f} windows/s; "
+                      f"matmul {r['ref']:.1f} GFLOP/s ({r['ref_min']:.1f}-{r['ref_max']:.1f}); load {load()}",
+                      file=sys.stderr)
+                results.append(r)
+    shapes = shapes_line(results, ref, args.matmul_repeats)
     load_end = load()
     if tmp is not None:
         tmp.cleanup()
-
-    lines = [
-        ("| depth | params | FLOPs/window fwd | FLOPs/window fwd+bwd | median step (ms) | windows/s "
-         "| achieved GFLOP/s | matmul GFLOP/s | % of matmul GFLOP/s |"),
-        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
-    for r in results:
-        ach = r["both"] * r["wps"] / 1e9
-        lines.append(f"| {r['depth']} | {r['params']:,} | {fmt_flops(r['fwd'])} | {fmt_flops(r['both'])} "
-                     f"| {r['step_s'] * 1e3:,.0f} | {r['wps']:.2f} | {ach:.1f} | {r['ref']:.0f} "
-                     f"| {100 * ach / r['ref']:.1f}% |")
-    ops = results[0]["ops"]
-    tot = sum(ops.values()) or 1
-    op_share = ", ".join(f"{k} {100 * v / tot:.0f}%" for k, v in sorted(ops.items(), key=lambda kv: -kv[1]))
-    spread = "; ".join(f"depth {r['depth']}: steps {r['step_min'] * 1e3:,.0f}-{r['step_max'] * 1e3:,.0f} ms, "
-                       f"matmul {r['ref_min']:.0f}-{r['ref_max']:.0f} GFLOP/s" for r in results)
-    ref_line = (f"matmul GFLOP/s = 1024 x 1024 float32 `torch.matmul` on the same {args.threads} threads, sampled "
-                f"(median of 3) before and after every timed step of that depth, so it sees the same load; the "
-                f"column is the median of those samples.  Ranges over the timed steps: {spread}.  Shapes of this "
-                f"network, measured back to back afterwards (1024 matmul then {big:.0f} GFLOP/s): token linear "
-                f"({b * t * j:,} x 64) @ (64 x 64) {lin:.0f} GFLOP/s; spatial attention scores, {b * t * heads:,} "
-                f"batched (22 x 16) @ (16 x 22) {sp:.1f} GFLOP/s; temporal, {b * j * heads:,} batched "
-                f"(41 x 16) @ (16 x 41) {tp:.1f} GFLOP/s.")
-    prof = results[0]["profile"]
-    prof_line = ""
-    if prof:
-        prof_line = (f"Where one step's time goes (`torch.profiler`, self CPU time, depth {results[0]['depth']}): "
-                     + "; ".join(f"{label} {100 * share:.0f}%" if share >= 0.01 else f"{label} <1%"
-                                 for label, share in prof) + ".")
-    return "\n".join(lines), ref_line, prof_line, op_share, results, load_start, load_end
+    return results, shapes, load_start, load_end
 
 
-def write_section(path: Path, body: str) -> None:
-    """Add or replace this script's section of ``path``, keeping every other section."""
-    _report.write_section(path, SECTION, body)
-
-
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--depths", type=int, nargs="+", default=[6, 12])
-    ap.add_argument("--steps", type=int, default=20, help="timed optimisation steps per depth (median reported)")
-    ap.add_argument("--warmup", type=int, default=3, help="untimed steps first")
-    ap.add_argument("--threads", type=int, default=2, help="torch.set_num_threads")
-    ap.add_argument("--matmul-repeats", type=int, default=20, help="repeats of the per-shape matmul measurements")
-    ap.add_argument("--no-profile", action="store_true", help="skip the one profiled step (time breakdown)")
-    ap.add_argument("--write", action="store_true", help="write the section of BENCHMARKS.md")
-    args = ap.parse_args()
-
-    table, ref_line, prof_line, op_share, results, load_start, load_end = run(args)
-    opts = []
-    for k, v in vars(args).items():
-        if k in ("write", "no_profile") or v == ap.get_default(k):
-            continue
-        opts.append(f"--{k.replace('_', '-')} {' '.join(map(str, v)) if isinstance(v, list) else v}")
-    opts += [f for f, on in (("--no-profile", args.no_profile), ("--write", args.write)) if on]
-    cmd = " ".join(["/work/venv/bin/python benchmarks/train_throughput.py", *opts])
+def report(args, results: list[dict], shapes: str, load_start: str, load_end: str, cmd: str) -> str:
+    """The BENCHMARKS.md section: header, setup, table, reference and profile notes."""
     r0 = results[0]
     b, t, j, f = r0["shape"]
     header = (
@@ -294,35 +310,77 @@ def main() -> None:
         f"- Load average (1, 5, 15 min): {load_start} at the start, {load_end} at the end\n"
         f"- Command (from the repository root):\n\n```\n{cmd}\n```"
     )
+    ops = r0["ops"]
+    tot = sum(ops.values()) or 1
+    op_share = ", ".join(f"{k} {100 * v / tot:.0f}%" for k, v in sorted(ops.items(), key=lambda kv: -kv[1]))
     setup = (
-        f"Default graph_transformer (d_model 64, heads 4, ffn 128, graph multiply, dropout 0.1, lerp mask), "
-        f"synthetic dataset ({r0['n_windows']} training windows), batch {b}, transition fixed at {N_TRANS} frames: "
-        f"`gt ({b}, {t}, {j}, {f})`, i.e. {b * t:,} spatial sequences of {j} joint tokens and {b * j:,} temporal "
-        f"sequences of {t} frames per layer.  A step is `zero_grad -> module.training_step(batch)` (mask, network, "
-        f"L1 loss) `-> backward -> AdamW.step -> scheduler.step` in a plain loop, without the Lightning `Trainer` "
-        f"(no logging, callbacks, progress bar or dataloader in the timed region; batches are gathered first), so "
-        f"`trainer.fit` is somewhat slower.  {args.warmup} warm-up steps, then the median of {args.steps} steps.  "
-        f"FLOPs from `torch.utils.flop_counter.FlopCounterMode` (matrix products only: softmax, norms, GELU, "
-        f"dropout and the optimiser are not counted), per window = per batch / {b}; fwd+bwd FLOPs by op at depth "
-        f"{r0['depth']}: {op_share}.  Achieved GFLOP/s = fwd+bwd FLOPs/window x windows/s."
+        f"Each model with its `conf/model/<name>.yaml` defaults and the lerp mask, synthetic dataset ({r0['n_windows']} "
+        f"training windows), batch {b}, transition fixed at {N_TRANS} frames: `gt ({b}, {t}, {j}, {f})`.  A step is "
+        f"`zero_grad -> module.training_step(batch)` (mask, network, L1 loss) `-> backward -> AdamW.step -> "
+        f"scheduler.step` in a plain loop, without the Lightning `Trainer` (batches gathered first), so `trainer.fit` "
+        f"is somewhat slower.  Variants: `fp32` eager; `bf16` = `torch.autocast(\"cpu\", dtype=torch.bfloat16)` around "
+        f"forward + loss (what `trainer.precision=bf16-mixed` does; weights and optimiser float32); `compile` = the "
+        f"network's forward through `torch.compile` (what `compile=true` does; compiled in the first warm-up step, "
+        f"whose time is the \"first step\" column).  {args.warmup} warm-up steps, then the median of {args.steps} "
+        f"steps.  FLOPs from `torch.utils.flop_counter.FlopCounterMode` over an eager float32 step (matrix products "
+        f"only), per window = per batch / {b}; fwd+bwd FLOPs by op of {label(r0, True)}: {op_share}.  Achieved GFLOP/s "
+        f"= fwd+bwd FLOPs/window x windows/s, the same count for every variant."
     )
-    mm_share = next((share for label, share in (r0["profile"] or []) if label.startswith("matrix")), None)
-    mm_time = f"only about {100 * mm_share:.0f}% of the step time" if mm_share is not None else "a minority of it"
-    limits = (
-        "What limits the achieved rate: every counted FLOP is in small or thin matrix products — d_model-64 "
-        f"linears (K = 64) over {b * t * j:,} tokens and thousands of tiny batched attention products over "
-        f"{j}-joint and {t}-frame sequences with head dim 16 — which run at a fraction of the 1024 x 1024 matmul "
-        f"rate (per-shape rates above), and they take {mm_time}; the rest is uncounted (no matrix products), memory-bound work "
-        "launched as many small kernels per layer, forward and backward: layout copies between the spatial "
-        "(B·T, J, D) and temporal (B·J, T, D) orders, dropout masks, softmax and the M ⊙ probabilities product, "
-        "LayerNorm, GELU, bias-gradient sums.  The step is memory-/overhead-bound rather than FLOP-bound, so the "
-        "FLOP count predicts its time poorly on this CPU (depth scales it about linearly, though)."
-    )
-    text = "\n\n".join(p for p in (header, setup, table, ref_line, prof_line, limits) if p)
+    spread = "; ".join(f"{label(r, True)} {r['variant']}: steps {r['step_min'] * 1e3:,.0f}-{r['step_max'] * 1e3:,.0f}"
+                       f" ms, matmul {r['ref_min']:.0f}-{r['ref_max']:.0f}" for r in results)
+    ref_line = (f"matmul GFLOP/s = 1024 x 1024 float32 `torch.matmul` on the same {args.threads} threads, sampled "
+                f"(median of 3) before and after every timed step of that row, so it sees the same load; the column "
+                f"is the median of those samples.  Ranges over the timed steps: {spread}.  {shapes}")
+    prof = r0["profile"]
+    prof_line = ""
+    if prof:
+        prof_line = (f"Where one step's time goes (`torch.profiler`, self CPU time, {label(r0, True)} {r0['variant']}): "
+                     + "; ".join(f"{lab} {100 * share:.0f}%" if share >= 0.01 else f"{lab} <1%" for lab, share in prof)
+                     + ".")
+    with_depth = len({(r["model"], r["depth"]) for r in results}) > len({r["model"] for r in results})
+    return "\n\n".join(p for p in (header, setup, table(results, with_depth), ref_line, prof_line) if p)
+
+
+def write_section(path: Path, body: str) -> None:
+    """Add or replace this script's section of ``path``, keeping every other section."""
+    _report.write_section(path, SECTION, body)
+
+
+def command(ap: argparse.ArgumentParser, args) -> str:
+    """The command line that reproduces this run (options at their defaults left out)."""
+    opts = []
+    for k, v in vars(args).items():
+        if k in ("write", "no_profile", "out") or v == ap.get_default(k):
+            continue
+        opts.append(f"--{k.replace('_', '-')} {' '.join(map(str, v)) if isinstance(v, list) else v}")
+    opts += [f for f, on in (("--no-profile", args.no_profile), ("--write", args.write)) if on]
+    return " ".join(["/work/venv/bin/python benchmarks/train_throughput.py", *opts])
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--models", nargs="+", default=TRAINABLE, choices=TRAINABLE, metavar="MODEL",
+                    help=f"models of the registry (default: every trainable one: {' '.join(TRAINABLE)})")
+    ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
+    ap.add_argument("--depths", type=int, nargs="+", default=None,
+                    help="also run these depths of the models with a depth setting (default: the config's)")
+    ap.add_argument("--steps", type=int, default=20, help="timed optimisation steps per row (median reported)")
+    ap.add_argument("--warmup", type=int, default=3, help="untimed steps first (>= 1: compile happens there)")
+    ap.add_argument("--threads", type=int, default=2, help="torch.set_num_threads")
+    ap.add_argument("--matmul-repeats", type=int, default=20, help="repeats of the per-shape matmul measurements")
+    ap.add_argument("--no-profile", action="store_true", help="skip the one profiled step (time breakdown)")
+    ap.add_argument("--write", action="store_true", help="write the section of --out")
+    ap.add_argument("--out", type=Path, default=ROOT / "BENCHMARKS.md", help="the file --write updates")
+    args = ap.parse_args(argv)
+    if args.steps < 1 or args.warmup < 1:
+        ap.error("--steps and --warmup must be >= 1")
+
+    results, shapes, load_start, load_end = run(args)
+    text = report(args, results, shapes, load_start, load_end, command(ap, args))
     print(text)
     if args.write:
-        write_section(ROOT / "BENCHMARKS.md", text)
-        print(f"\nwrote the '{SECTION}' section of {ROOT / 'BENCHMARKS.md'}")
+        write_section(args.out, text)
+        print(f"\nwrote the '{SECTION}' section of {args.out}")
 
 
 if __name__ == "__main__":

@@ -213,7 +213,9 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
     def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
         """``x (B, T, J, F), known (B, T, J), interp (B, T, J, F) | None -> (B, T, J, F)``."""
         self.check_input(x, known, interp)
-        raw = self.network(x, known, interp)
+        # under autocast (bf16-mixed) the network may return bf16: the residual, the quaternion normalisation and the
+        # output stay in the input's dtype (float32), so the contract's unit quaternions hold at float32 precision
+        raw = self.network(x, known, interp).to(x.dtype)
         if self.residual_to_interpolation and interp is not None:
             raw = interp + raw
         return self.finalize(raw, x, known)

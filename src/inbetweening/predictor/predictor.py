@@ -128,10 +128,12 @@ class Predictor(nn.Module):
         return transition_known(batch, frames, self.skeleton.num_joints, self.n_past, n, device=device)
 
     # ------------------------------------------------------------------ forward / predict
-    def forward(self, feats: torch.Tensor, known: torch.Tensor):
+    def forward(self, feats: torch.Tensor, known: torch.Tensor, net=None):
         """Training forward (with gradients): ``(pred, interp, target)``, ``target`` being ``feats`` in the frame
-        the prediction lives in (the loss compares the two)."""
-        return centred_forward(self.net, self.mask_name, feats, known, self.centre, self.representation.centre_shift)[:3]
+        the prediction lives in (the loss compares the two).  ``net``: a callable run in place of ``self.net`` (its
+        compiled forward, see :meth:`InbetweenModule.compile_network`)."""
+        return centred_forward(net or self.net, self.mask_name, feats, known, self.centre,
+                               self.representation.centre_shift)[:3]
 
     @torch.no_grad()
     def predict(self, feats: torch.Tensor, known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

@@ -182,8 +182,23 @@ def _check_protocol(cfg) -> None:
         raise ConfigError(f"keyframe_intervals: an interval is listed twice in {list(ks)}")
 
 
+def _precisions() -> list[str]:
+    """The ``trainer.precision`` values Lightning accepts (``32-true``, ``bf16-mixed``, ... and their aliases)."""
+    from typing import get_args
+
+    from lightning.fabric.plugins.precision import precision as P
+
+    return list(dict.fromkeys(str(v) for lit in get_args(P._PRECISION_INPUT) for v in get_args(lit)))
+
+
 def _check_train_extras(cfg) -> None:
-    """``threads`` (>= 1 or null) and ``test_keyframes`` (train.py: integers >= 2)."""
+    """``threads`` (>= 1 or null), ``compile`` (true/false) and ``test_keyframes`` (train.py: integers >= 2)."""
+    compile_ = _get(cfg, "compile", False)
+    if not isinstance(compile_, bool):
+        raise ConfigError(f"compile: must be true or false, got {compile_!r}")
+    precision = _get(cfg, "trainer.precision")
+    if precision is not None and str(precision) not in _precisions():
+        raise ConfigError(f"trainer.precision: must be one of {_precisions()}, got {precision!r}")
     threads = _get(cfg, "threads")
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
         raise ConfigError(f"threads: must be an integer >= 1 or null, got {threads!r}")

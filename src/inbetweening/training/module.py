@@ -96,6 +96,13 @@ class InbetweenModule(L.LightningModule):
         self.joint_mask = {k: v for k, v in (joint_mask or {}).items() if k != "name"}
         self.val_recovery = PerJointError(j)
         self.test_recovery = PerJointError(j)
+        self._train_forward = None  # compile_network(): the network's compiled forward, for training steps only
+
+    def compile_network(self, on: bool = True) -> None:
+        """Training steps run the network's forward through ``torch.compile`` (``on``) or eagerly.  The compiled
+        function is not a module, so the state dict and its keys are unchanged; validation, test and prediction
+        stay eager.  Compilation happens at the first training step (and again for a new input shape)."""
+        self._train_forward = torch.compile(self.predictor.net.forward) if on else None
 
     # ------------------------------------------------------------------ checkpoints
     @classmethod
@@ -163,7 +170,8 @@ class InbetweenModule(L.LightningModule):
         return self.net(x, known, interp)
 
     def _step_loss(self, batch: dict, stage: str) -> torch.Tensor:
-        pred, _, gt = self.predictor(batch["gt"], batch["known"])
+        net = self._train_forward if stage == "train" else None
+        pred, _, gt = self.predictor(batch["gt"], batch["known"], net=net)
         loss, terms = total_loss(pred, gt, batch["loss_mask"], self.loss_weights, self.skeleton, self.mean, self.std)
         bs = gt.shape[0]
         self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=bs)

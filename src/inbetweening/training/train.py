@@ -150,6 +150,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
     dm.prepare_data()
     dm.setup("fit")
     module = make_module(cfg, dm)
+    module.compile_network(bool(cfg.get("compile", False)))
     trainer = make_trainer(cfg)
     ckpt_path = cfg.get("ckpt_path")
     if ckpt_path:
