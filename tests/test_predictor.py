@@ -74,7 +74,7 @@ def test_centring_is_required_and_checked():
         Predictor.from_hparams(hp)
     assert upgrade_hparams(hp)["centre"] == "window"  # what checkpoints made before the option did
     assert upgrade_hparams(hparams(centre="known"))["centre"] == "known"
-    with pytest.raises(ValueError, match=r"centre must be one of \['window', 'known'\], got 'middle'"):
+    with pytest.raises(ValueError, match=r"centre must be one of \['window', 'known', 'last'\], got 'middle'"):
         Predictor.from_hparams(hparams(centre="middle"))
     with pytest.raises(TypeError, match="centre"):
         Predictor(torch.nn.Identity(), SK, MEAN, STD, mask="lerp")
