@@ -15,3 +15,12 @@ def write_section(path: Path, section: str, body: str) -> None:
     else:
         text = text.rstrip("\n") + "\n\n" + block
     path.write_text(text.rstrip("\n") + "\n")
+
+
+def publish(text: str, section: str, write: bool, path: Path | None = None) -> None:
+    """Print a benchmark's section and, when ``write``, put it into BENCHMARKS.md (or ``path``)."""
+    print(text)
+    if write:
+        path = path or Path(__file__).resolve().parents[1] / "BENCHMARKS.md"
+        write_section(path, section, text)
+        print(f"\nwrote the '{section}' section of {path.name}")

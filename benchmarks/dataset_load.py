@@ -106,10 +106,7 @@ def main() -> None:
         "to a file re-hashes it.",
     ]
     text = "\n".join(lines)
-    print(text)
-    if not args.no_write:
-        _report.write_section(ROOT / "BENCHMARKS.md", SECTION, text)
-        print(f"\nwrote the '{SECTION}' section of BENCHMARKS.md")
+    _report.publish(text, SECTION, not args.no_write)
 
 
 if __name__ == "__main__":

@@ -156,10 +156,7 @@ def main() -> None:
               "their noise; the ratios are measured within the run, rounds interleaved.  Model: the shipped "
               f"`models/bn2_reference` ({sum(p.numel() for p in pred.net.parameters()):,} parameters, {j} joints).")
     text = header + "\n\n" + "\n".join(rows) + "\n\n" + note
-    print(text)
-    if not args.no_write:
-        _report.write_section(ROOT / "BENCHMARKS.md", SECTION, text)
-        print(f"\nwrote the '{SECTION}' section of BENCHMARKS.md")
+    _report.publish(text, SECTION, not args.no_write)
 
 
 if __name__ == "__main__":

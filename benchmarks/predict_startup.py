@@ -91,10 +91,7 @@ def main() -> None:
         "OmegaConf, matplotlib or roma (`tests/test_startup.py`); `--help` and a missing input answer before torch is "
         "imported.",
     ])
-    print(text)
-    if not args.no_write:
-        _report.write_section(ROOT / "BENCHMARKS.md", SECTION, text)
-        print(f"\nwrote the '{SECTION}' section of BENCHMARKS.md")
+    _report.publish(text, SECTION, not args.no_write)
 
 
 if __name__ == "__main__":
