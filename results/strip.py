@@ -1,0 +1,63 @@
+"""The picture of RESULTS.md section 7: one clip of a held-out content filled from keyframes alone, the model,
+interpolation and the ground truth side by side (a PNG strip of frames and a GIF).
+
+    python results/strip.py <checkpoint trained on the content split> [--clip NAME] [--every 30] [--out results/unseen]
+
+The clip comes from the content split's test clips (contents the checkpoint never saw); keys every ``--every``
+frames, nothing else known, filled through ``Inbetweener.fill_arrays`` as in ``eval.py protocol=keyframes``.
+Prints the clip's mean joint error (cm) of the model and of interpolation over the generated frames."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("ckpt")
+    ap.add_argument("--clip", default="dataset-2_run_active_010", help="test clip name (content split)")
+    ap.add_argument("--every", type=int, default=30, help="a keyframe every N frames")
+    ap.add_argument("--frames", type=int, default=91, help="frames used (from the clip's start)")
+    ap.add_argument("--out", default="results/unseen", help="output path without extension")
+    a = ap.parse_args(argv)
+
+    from inbetweening.data.datasets import load_dataset
+    from inbetweening.evaluation import keyframes as KF
+    from inbetweening.geometry.interp import interpolate_keyframes
+    from inbetweening.tools.inbetweener import Inbetweener
+    from inbetweening.tools.render import render_gif, render_png
+
+    data = load_dataset("bandai_namco", split="content")
+    clip = next((c for c in data.test if Path(str(c.name)).stem == a.clip), None)
+    if clip is None:
+        raise SystemExit(f"--clip: no test clip {a.clip!r} in the content split (e.g. {data.test[0].name})")
+    n = min(a.frames, len(clip.root_pos))
+    keys = KF.keyframe_indices(n, a.every)
+    n = keys[-1] + 1
+    root, q = np.asarray(clip.root_pos[:n], np.float64), np.asarray(clip.local_q[:n], np.float64)
+    gen = KF.generated_frames(n, keys)
+    root_in, q_in = root.copy(), q.copy()
+    root_in[gen], q_in[gen] = np.nan, np.nan
+    model = Inbetweener.from_checkpoint(a.ckpt).fill_arrays(root_in, q_in, keys)
+    interp = interpolate_keyframes(root_in, q_in, keys)
+    sk = data.skeleton
+    pos = {name: sk.pose(*motion)[1] for name, motion in
+           (("model", model), ("interpolation", interp), ("ground truth", (root, q)))}
+    for name in ("model", "interpolation"):
+        total, count = KF.position_error(pos[name], pos["ground truth"], gen)
+        print(f"{a.clip}, keys every {a.every}: {name} {total / count:.2f} cm")
+    highlight = np.zeros(n, bool)
+    highlight[keys] = True
+    shown = [t for t in range(0, n, max(1, a.every // 3))]
+    out = Path(a.out)
+    render_png(pos, sk.parents, out.with_suffix(".png"), frames=shown, highlight=highlight,
+               title=f"{a.clip}: unseen content, keys every {a.every} frames")
+    render_gif(pos, sk.parents, out.with_suffix(".gif"), fps=15, highlight=highlight, dpi=50,
+               title=f"{a.clip}, keys every {a.every}")
+    print(f"wrote {out.with_suffix('.png')} and {out.with_suffix('.gif')}")
+
+
+if __name__ == "__main__":
+    main()
