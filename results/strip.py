@@ -9,9 +9,12 @@ Prints the clip's mean joint error (cm) of the model and of interpolation over t
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv=None) -> None:
@@ -21,6 +24,9 @@ def main(argv=None) -> None:
     ap.add_argument("--every", type=int, default=30, help="a keyframe every N frames")
     ap.add_argument("--frames", type=int, default=91, help="frames used (from the clip's start)")
     ap.add_argument("--out", default="results/unseen", help="output path without extension")
+    ap.add_argument("--data", default=os.environ.get("BANDAI_NAMCO_PATH", str(ROOT.parent / "shared" / "datasets" /
+                                                                             "bandai-namco-2.zip")),
+                    help="Bandai-Namco-2 zip or folder (default: $BANDAI_NAMCO_PATH, else ../shared/datasets)")
     a = ap.parse_args(argv)
 
     from inbetweening.data.datasets import load_dataset
@@ -29,7 +35,7 @@ def main(argv=None) -> None:
     from inbetweening.tools.inbetweener import Inbetweener
     from inbetweening.tools.render import render_gif, render_png
 
-    data = load_dataset("bandai_namco", split="content")
+    data = load_dataset("bandai_namco", a.data, split="content")
     clip = next((c for c in data.test if Path(str(c.name)).stem == a.clip), None)
     if clip is None:
         raise SystemExit(f"--clip: no test clip {a.clip!r} in the content split (e.g. {data.test[0].name})")

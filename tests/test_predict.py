@@ -5,6 +5,7 @@ import math
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -263,7 +264,7 @@ def test_cli_errors_exit_2_with_one_line(tiny_checkpoint, tmp_path, monkeypatch,
         (["ckpt_path=missing.ckpt", "input=clip.bvh", "gap=3", "output=o.bvh"],
          "ckpt_path: missing.ckpt does not exist"),
         ([f"ckpt_path={tiny_checkpoint}", "input=nope.bvh", "gap=3", "output=o.bvh"], "input: nope.bvh does not exist"),
-        (["input=clip.bvh", "gap=3"], "missing ckpt_path=..., output=..."),
+        (["input=clip.bvh", "gap=3"], "missing output=..."),  # ckpt_path: the shipped model
         (["ckpt_path=x", "input=clip.bvh", "output=o", "keyframes=0,a"], "keyframes: 'a' is not an integer"),
         (["ckpt_path=x", "input=clip.bvh", "output=o", "gap=3", "colour=red"], "unknown option 'colour'"),
         (["ckpt_path=x", "input=clip.bvh", "output=o"], "give exactly one of keyframes"),
@@ -274,3 +275,18 @@ def test_cli_errors_exit_2_with_one_line(tiny_checkpoint, tmp_path, monkeypatch,
         assert exc.value.code == 2
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and err.startswith("error: ") and msg in err, err
+
+
+def test_cli_defaults_to_the_shipped_model(tiny_checkpoint, tmp_path, monkeypatch, capsys):
+    """Without ckpt_path the shipped model (models/bn2_reference/model.ckpt) fills the clip; where it is absent
+    (an installed package without the repository) ckpt_path is required."""
+    assert predict.default_checkpoint() == predict.SHIPPED_MODEL and predict.SHIPPED_MODEL.is_file()
+    write_bvh(_clip(60), tmp_path / "clip.bvh")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(predict, "SHIPPED_MODEL", Path(tiny_checkpoint))
+    assert predict.run(["input=clip.bvh", "keyframes=0,30,59", "output=o.bvh"]) == 0
+    assert (tmp_path / "o.bvh").is_file() and str(tiny_checkpoint) in capsys.readouterr().out
+    monkeypatch.setattr(predict, "SHIPPED_MODEL", tmp_path / "absent.ckpt")
+    with pytest.raises(SystemExit) as exc:
+        predict.run(["input=clip.bvh", "keyframes=0,30,59", "output=o2.bvh"])
+    assert exc.value.code == 2 and "missing ckpt_path=..." in capsys.readouterr().err

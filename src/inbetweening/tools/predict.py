@@ -14,7 +14,7 @@ import numpy as np
 from inbetweening.tools._cli import UsageError, fail, parse_args, parse_bool, parse_int_list
 
 USAGE = """\
-usage: python -m inbetweening.predict ckpt_path=<model.ckpt> input=<clip.bvh> output=<out.bvh>
+usage: python -m inbetweening.predict [ckpt_path=<model.ckpt>] input=<clip.bvh> output=<out.bvh>
                                       (keyframes=<list> | gap=<n>) [options]
 
 Fill the frames between keyframes with a trained in-betweening model and write a BVH file with the input's
@@ -41,7 +41,8 @@ joint rotations by slerp), then the segments are generated left to right, each o
 previous one as its 10 context frames.  Your keyframes are never changed.  segment=false refuses such gaps.
 
 options:
-  ckpt_path=PATH        training checkpoint (.ckpt) of an in-betweening model            (required)
+  ckpt_path=PATH        checkpoint (.ckpt) of an in-betweening model (default: the shipped Bandai-Namco-2
+                        model, models/bn2_reference/model.ckpt of this repository; its skeleton only)
   input=PATH            BVH clip with the same skeleton as the checkpoint's training data  (required)
   output=PATH           BVH file to write                                                (required)
   keyframes=LIST        form A, see above
@@ -87,6 +88,15 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80) -> Pa
                       dpi=dpi, title=Path(path).stem)
 
 
+SHIPPED_MODEL = Path(__file__).resolve().parents[3] / "models" / "bn2_reference" / "model.ckpt"
+
+
+def default_checkpoint() -> Path | None:
+    """The shipped model (``models/bn2_reference/model.ckpt`` of a source checkout), ``None`` when absent (an
+    installed package without the repository)."""
+    return SHIPPED_MODEL if SHIPPED_MODEL.is_file() else None
+
+
 def run(argv: Sequence[str]) -> int:
     try:
         args = parse_args(argv, OPTIONS, ALIASES)
@@ -95,6 +105,9 @@ def run(argv: Sequence[str]) -> int:
     if args is None:
         print(USAGE)
         return 0
+    shipped = "ckpt_path" not in args and default_checkpoint() is not None
+    if shipped:
+        args["ckpt_path"] = str(default_checkpoint())
     missing = [k for k in ("ckpt_path", "input", "output") if k not in args]
     if missing:
         fail(f"missing {', '.join(f'{k}=...' for k in missing)} (see --help)")
@@ -140,6 +153,8 @@ def run(argv: Sequence[str]) -> int:
     if res.pseudo_keyframes:
         msg += f"; long gaps split at frames {res.pseudo_keyframes}"
     print(msg + f") in {time.perf_counter() - t0:.1f} s")
+    if shipped:
+        print(f"model: {args['ckpt_path']} (the shipped Bandai-Namco-2 model; ckpt_path=... chooses another)")
     if "render" in args:
         try:
             fps = 1.0 / res.bvh.frame_time if res.bvh.frame_time > 0 else ib.fps
