@@ -19,7 +19,7 @@ import torch
 
 from conftest import TINY, compose_cfg
 from inbetweening.training.figures import frames_to_draw, per_joint_figure, transition_figure
-from inbetweening.training.tb_logging import curated_hparams, hparams_metrics, run_label, tb_scalars
+from inbetweening.training.tb_logging import curated_hparams, hparams_metrics, resumed_version, run_label, tb_scalars
 from inbetweening.training.train import make_datamodule, make_module, train
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -189,6 +189,18 @@ def test_resume_with_logging_equals_the_uninterrupted_run(tmp_path, cache_dir):
     assert a["state_dict"].keys() == b["state_dict"].keys()
     assert all(torch.equal(a["state_dict"][k], b["state_dict"][k]) for k in a["state_dict"])
     assert b["val_l2p_mean_best"] == a["val_l2p_mean_best"] <= first_best
+
+
+def test_a_resumed_fit_continues_its_tensorboard_run(tmp_path):
+    """Resuming with other compute settings (python train.py ... threads=2 ckpt_path=...) continues the one run of
+    the run directory; a fresh fit, or a directory with several runs, is named after its configuration."""
+    tb = tmp_path / "tensorboard"
+    assert resumed_version(tb, True) is None  # nothing logged yet
+    (tb / "graph_transformer threads=1").mkdir(parents=True)
+    assert resumed_version(tb, True) == "graph_transformer threads=1"
+    assert resumed_version(tb, False) is None
+    (tb / "graph_transformer").mkdir()
+    assert resumed_version(tb, True) is None
 
 
 # ------------------------------------------------------------------ the TensorBoard server, as the browser reads it

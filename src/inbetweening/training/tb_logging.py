@@ -15,6 +15,7 @@ import re
 import sys
 import time
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import lightning as L
 import torch
@@ -150,6 +151,14 @@ def run_label(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[st
         keep = [o for o in keep if o.lstrip("+~").partition("=")[0] in swept]
     label = " ".join(dict.fromkeys([cfg.model.name, *sorted(keep)]))
     return re.sub(r"[^\w.=,@+\- ]", "_", label)[:150]
+
+
+def resumed_version(save_dir: str | Path, resuming: bool) -> str | None:
+    """The TensorBoard run a resumed fit continues: the one run folder under ``save_dir`` (``None`` when not
+    resuming, or when there is none or several), so that a resume with other compute settings (``threads=2``)
+    continues the curves of the same run instead of starting a new one."""
+    runs = [d.name for d in Path(save_dir).iterdir() if d.is_dir()] if resuming and Path(save_dir).is_dir() else []
+    return runs[0] if len(runs) == 1 else None
 
 
 def custom_scalars_layout(val_lengths: Sequence[int], test_lengths: Sequence[int]) -> dict:

@@ -41,6 +41,7 @@ from inbetweening.training.tb_logging import (
     RunLogger,
     TrainStats,
     curated_hparams,
+    resumed_version,
     run_label,
     swept_keys,
     task_overrides,
@@ -80,9 +81,10 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
 
 def _make_logger(cfg: DictConfig, node: DictConfig):
     """A logger from its config; a :class:`RunLogger` without a ``version`` is named after the run's configuration
-    (:func:`~inbetweening.training.tb_logging.run_label`)."""
+    (:func:`~inbetweening.training.tb_logging.run_label`), or continues the run a resumed fit was logging to."""
     if str(node.get("_target_", "")).endswith("RunLogger") and node.get("version") is None:
-        return instantiate(node, version=run_label(cfg, task_overrides(), swept_keys()))
+        version = resumed_version(node.save_dir, bool(cfg.get("ckpt_path")))
+        return instantiate(node, version=version or run_label(cfg, task_overrides(), swept_keys()))
     return instantiate(node)
 
 
