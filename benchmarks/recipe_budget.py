@@ -6,7 +6,8 @@ wall-clock time, yet every run has a step count its learning-rate schedule can f
 Each recipe's training config (``ablation=recipe``'s settings, Bandai-Namco-2) is built as ``train.py`` builds it;
 ``--steps`` full optimisation steps are timed **including the batch's collation** (cutting windows from clips,
 mirroring, masks): ``collate -> forward -> L1 loss -> backward -> AdamW``, after 5 warm-up steps, at ``--threads``
-torch threads.  Prints the mean seconds per step (transition lengths are drawn per batch, so the mean is what a run spends) and ``budget = minutes * 60 / step``.  Timings need a quiet
+torch threads.  Prints the mean seconds per step (transition lengths are drawn per batch, so the mean is what a run
+spends) and ``budget = minutes * 60 / step``.  Timings need a quiet
 machine (or the same load for every recipe: they run back to back).
 """
 from __future__ import annotations

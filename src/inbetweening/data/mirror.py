@@ -19,8 +19,8 @@ SIDE_MARKERS: tuple[tuple[str, str, str], ...] = (("Left", "Right", "prefix"), (
 
 MirrorMap = tuple[tuple[str, str], ...]
 
-__all__ = ["SIDE_MARKERS", "MirrorMap", "derive_mirror", "fit_mirror_frames", "mirror_motion", "mirror_permutation", "reflect_rotation",
-           "side_of",
+__all__ = ["SIDE_MARKERS", "MirrorMap", "derive_mirror", "fit_mirror_frames", "mirror_motion", "mirror_permutation",
+           "reflect_rotation", "side_of",
            "side_pairs", "swap_side",
            "validate_mirror"]
 
@@ -166,7 +166,8 @@ def fit_mirror_frames(offsets, parents, perm, sample_q, axis: int = 0, tol: floa
     map its children's offsets onto the mirrored offsets of its counterpart's children (``A_j o_c = S o_perm[c]``, which
     makes the mirrored positions exact) are candidates, and among them the one whose mirrored local rotations lie
     closest to the joint's own rotations in ``sample_q (N, J, 4)`` (training frames) wins; joints are settled parents
-    first, a right joint with its left one (``A_R = refl(A_L^-1)``, so that mirroring twice is the identity).  ``asymmetry``: the largest offset mismatch of the chosen frames relative to the longest offset (0 for an
+    first, a right joint with its left one (``A_R = refl(A_L^-1)``, so that mirroring twice is the identity).
+    ``asymmetry``: the largest offset mismatch of the chosen frames relative to the longest offset (0 for an
     exactly symmetric skeleton).  ``ValueError`` when no frame fits within ``tol`` (the skeleton is not symmetric).
     """
     from inbetweening.geometry.quaternion import qinv, qmul

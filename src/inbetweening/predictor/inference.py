@@ -46,7 +46,8 @@ def window_features(root, local_q, skeleton: Skeleton, mean, std, dtype=torch.fl
 
 def centred_forward(net, mask: str, feats: torch.Tensor, known: torch.Tensor, centre: str, shift_fn: ShiftFn):
     """``(pred, interp, target, shift)``: mask -> (``centre="known"``/``"last"``: subtract the known frames' root XZ
-    shift, :func:`~inbetweening.predictor.features.anchor_xz`) -> ``net(x, known, interp)``.  ``target`` is ``feats`` in the prediction's frame; ``shift`` is ``None`` for
+    shift, :func:`~inbetweening.predictor.features.anchor_xz`) -> ``net(x, known, interp)``.  ``target`` is ``feats`` in
+    the prediction's frame; ``shift`` is ``None`` for
     ``centre="window"``.  Shapes ``(B, T, J, F)``, ``known (B, T, J)``."""
     shift = None
     if check_centre(centre) != "window":
