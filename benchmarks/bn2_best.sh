@@ -7,7 +7,7 @@ set -euo pipefail
 OUT=${1:?out dir}
 mkdir -p "$OUT"
 for split in standard content; do
-  /usr/bin/time -v python train.py experiment=bn2_best data.split=$split hydra.run.dir="$OUT/$split" > "$OUT/$split.log" 2>&1
+  /usr/bin/time -v python train.py experiment=bn2_best model.checkpoint_layers=false data.split=$split hydra.run.dir="$OUT/$split" > "$OUT/$split.log" 2>&1
 done
 best=$(ls "$OUT"/standard/checkpoints/epoch_*.ckpt | head -1)
 python -m inbetweening.export ckpt_path="$best" format=ckpt output=models/bn2_reference/model.ckpt

@@ -7,7 +7,8 @@
 set -euo pipefail
 OUT=${1:?out dir}
 mkdir -p "$OUT"
-B="experiment=bn2_best trainer=gpu threads=1 callbacks.skeleton_figure=null"
+# experiment=bn2_best was then the frame transformer's recipe; these overrides pin what ran
+B="experiment=bn2_best model=frame_transformer trainer.max_steps=10800 trainer.val_check_interval=1200 trainer=gpu threads=1 callbacks.skeleton_figure=null"
 C="data.split=content"
 GT="model=graph_transformer model.checkpoint_layers=false trainer.max_steps=4400 trainer.val_check_interval=1100"
 jobs=(

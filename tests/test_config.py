@@ -238,12 +238,15 @@ def test_old_optim_dicts_keep_their_defaults_and_constant_schedules():
         upgrade_optim({"name": "rmsprop"})
 
 
-def test_old_checkpoint_loads_and_trains_with_the_upgraded_optimiser():
-    """models/bn2_reference/model.ckpt was saved with ``optim: {name: adamw, lr, ...}``."""
+def test_old_checkpoint_loads_and_trains_with_the_upgraded_optimiser(tmp_path):
+    """A checkpoint saved with the old ``optim: {name: adamw, lr, ...}`` (the previous models/bn2_reference's,
+    written back into the shipped checkpoint) loads with the same optimiser and schedule in the current form."""
     raw = torch.load(REFERENCE_CKPT, map_location="cpu", weights_only=True)
+    raw["hyper_parameters"]["optim"] = {"name": "adamw", "lr": 1e-3, "weight_decay": 1e-4, "betas": [0.9, 0.999],
+                                        "scheduler": "cosine", "warmup_steps": 200, "min_lr_ratio": 0.0}
+    torch.save(raw, tmp_path / "old.ckpt")
     old = raw["hyper_parameters"]["optim"]
-    assert old["name"] == "adamw" and "optimizer" not in old
-    module = load_module(REFERENCE_CKPT)
+    module = load_module(str(tmp_path / "old.ckpt"))
     assert module.hparams.optim == upgrade_optim(old) and module.hparams.optim["optimizer"]["lr"] == old["lr"]
     assert module.hparams.optim["scheduler"]["warmup_steps"] == old["warmup_steps"] == 200
     out = module.configure_optimizers()  # no trainer: one total step
