@@ -39,8 +39,11 @@ def _step(ckpt: Path) -> int:
 
 
 def _start_and_wait(run_dir, cache, min_step):
+    # SIGINT back to its default in the child: a background job of a non-interactive shell (nohup ... &) starts with
+    # SIGINT ignored, and a process that inherits SIG_IGN rightly keeps ignoring Ctrl-C
     proc = subprocess.Popen(_cmd(run_dir, cache), cwd=ROOT, env=_env(cache), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     last = run_dir / "checkpoints" / "last.ckpt"
     deadline = time.time() + 600
     while _step(last) < min_step:
