@@ -18,11 +18,13 @@ the run.  Written as the "## Inference latency" section of BENCHMARKS.md (date, 
 from __future__ import annotations
 
 import argparse
+import copy
 import datetime as _dt
 import os
 import statistics
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import _report  # noqa: E402  (benchmarks/ helper)
@@ -96,7 +98,16 @@ def main() -> None:
         sess = ort_session(path)
         feeds = {b: ort_feeds(sess, *w) for b, w in ((1, (x, known, interp)), (4, (xb, kb, ib_)),
                                                      (args.clips, (xa, ka, ia)))}
-        single = {"fill_arrays": [], "network": [], "ort": []}
+        with warnings.catch_warnings():  # torch.ao's deprecation notice
+            warnings.simplefilter("ignore")
+            qnet = torch.ao.quantization.quantize_dynamic(copy.deepcopy(pred.net), {torch.nn.Linear},
+                                                          dtype=torch.qint8)
+
+        def bf16():
+            with torch.autocast("cpu", dtype=torch.bfloat16):
+                return pred.net(x, known, interp)
+
+        single = {"fill_arrays": [], "network": [], "ort": [], "bf16": [], "int8": []}
         with torch.inference_mode():
             for _ in range(3):  # warm-up
                 ib.fill_arrays(*one)
@@ -106,6 +117,21 @@ def main() -> None:
                 single["fill_arrays"].append(timed(lambda: ib.fill_arrays(*one)))
                 single["network"].append(timed(lambda: pred.net(x, known, interp)))
                 single["ort"].append(timed(lambda: sess.run(None, feeds[1])))
+                single["bf16"].append(timed(bf16))
+                single["int8"].append(timed(lambda: qnet(x, known, interp)))
+            # the float32 matmul ceilings of this thread, interleaved with the rounds above: a 1024² product, and the
+            # network's own widest product (every joint token of the window times a d_model x ffn weight)
+            tokens = (pred.n_past + GAP + 1) * j
+            ffn_w = int(pred.model_cfg.get("ffn_dim") or 2 * int(pred.model_cfg.get("d_model", 64)))
+            mm = {"1024": (torch.randn(1024, 1024), torch.randn(1024, 1024)),
+                  "net": (torch.randn(tokens, int(pred.model_cfg.get("d_model", 64))), torch.randn(
+                      int(pred.model_cfg.get("d_model", 64)), ffn_w))}
+            mm_rate = {k: [] for k in mm}
+            for _ in range(5):
+                for k, (a, b) in mm.items():
+                    reps = 5 if k == "1024" else 200
+                    mm_rate[k].append(2.0 * a.shape[0] * a.shape[1] * b.shape[1] * reps / 1e9 / timed(
+                        lambda a=a, b=b, reps=reps: [torch.matmul(a, b) for _ in range(reps)]))
             batch = {("fill_many", b): [] for b in (1, 4, args.clips)}
             batch.update({("ort", b): [] for b in (4, args.clips)})
             for _ in range(max(2, args.repeats // 10)):
@@ -115,6 +141,10 @@ def main() -> None:
                     reps = args.clips // b
                     batch[("ort", b)].append(timed(lambda b=b, reps=reps: [sess.run(None, feeds[b])
                                                                            for _ in range(reps)]))
+        with torch.inference_mode():
+            ref = pred.net(x, known, interp)
+            dev = {"bf16": float((bf16().float() - ref).abs().max()),
+                   "int8": float((qnet(x, known, interp) - ref).abs().max())}
     load1 = os.getloadavg()[0]
     med = {k: statistics.median(v) for k, v in single.items()}
     tps = {k: args.clips / statistics.median(v) for k, v in batch.items()}
@@ -124,7 +154,9 @@ def main() -> None:
         *(f"| {name} | {med[k] * 1e3:.2f} ms | {np.percentile(single[k], 90) * 1e3:.2f} ms | {1 / med[k]:,.0f} |"
           for k, name in (("fill_arrays", "`Inbetweener.fill_arrays`, end to end (PyTorch eager)"),
                           ("network", "the network alone (PyTorch eager)"),
-                          ("ort", "the network alone (ONNX Runtime)"))),
+                          ("ort", "the network alone (ONNX Runtime)"),
+                          ("bf16", "the network alone, bf16 autocast (PyTorch eager)"),
+                          ("int8", "the network alone, int8 dynamic quantisation of its linear layers (eager)"))),
         *(f"| `Inbetweener.fill_many`, {args.clips} clips, forward batches of {b} | "
           f"{args.clips / tps[('fill_many', b)] * 1e3:,.0f} ms | | {tps[('fill_many', b)]:,.1f} |"
           for b in (1, 4, args.clips)),
@@ -143,17 +175,26 @@ def main() -> None:
     d, depth = int(cfg.get("d_model", 64)), int(cfg.get("depth", 6))
     ffn = int(cfg.get("ffn_dim") or 2 * d)
     gflop = 2 * depth * (pred.n_past + GAP + 1) * j * (8 * d * d + 2 * d * ffn) / 1e9
-    note += (f"  Why one transition stays far above 5 ms: the network's matrix products alone are {gflop:.2f} GFLOP per "
-             f"window ({depth} layers × {(pred.n_past + GAP + 1) * j} joint tokens × (8·d² + 2·d·ffn) multiply-adds), "
-             f"i.e. {gflop / med['network']:.0f} GFLOP/s at the eager median above, and the eager network is "
-             f"{med['network'] / med['fill_arrays']:.0%} of the end-to-end time; what was around it (float64 torch FK, "
-             "per-call statistics tensors) is gone, the rest needs a smaller or lower-precision network.")
+    r1024, rnet = (max(mm_rate[k]) for k in ("1024", "net"))
+    note += (f"\n\nWhy one transition stays far above 5 ms with this model: the network's matrix products alone are "
+             f"{gflop:.2f} GFLOP per window ({depth} layers × {(pred.n_past + GAP + 1) * j} joint tokens × (8·d² + "
+             f"2·d·ffn) multiply-adds).  In this run one thread's best float32 matmul rate was {r1024:.0f} GFLOP/s "
+             f"on 1024² and {rnet:.0f} GFLOP/s on the network's own widest product ({tokens} × {d} @ {d} × {ffn}), "
+             f"so those products cannot take less than {gflop / r1024 * 1e3:.1f} ms even at the 1024² rate "
+             f"({gflop / rnet * 1e3:.1f} ms at the network-shaped rate), before attention, norms and activations; the "
+             f"eager network ran at {gflop / med['network']:.0f} GFLOP/s and is {med['network'] / med['fill_arrays']:.0%}"
+             f" of the end-to-end time.  What was around it (float64 torch FK, per-call statistics tensors) is "
+             f"gone; the remaining {overhead * 1e3:.1f} ms are {overhead / med['fill_arrays']:.0%}.  Lower precision "
+             f"does not help these small products: bf16 autocast / fp32 = {med['bf16'] / med['network']:.2f}×, int8 "
+             f"dynamic quantisation / fp32 = {med['int8'] / med['network']:.2f}× (max abs output change "
+             f"{dev['bf16']:.1e} and {dev['int8']:.1e}).  5 ms needs a network with fewer multiply-adds per window.")
     cmd = "python benchmarks/inference_latency.py" + "".join(
         f" --{k} {getattr(args, k)}" for k in ("repeats", "clips") if getattr(args, k) != ap.get_default(k))
+    quiet = "quiet" if max(load0, load1) < 1.0 else "**shared** with other jobs: absolute times carry their noise"
     header = (f"Date: {_dt.date.today().isoformat()}; command: `{cmd}`; 2-core AMD EPYC dev machine, torch "
               f"{torch.__version__}, onnxruntime {onnxruntime.__version__}; 1-min load average {load0:.2f} at the "
-              f"start, {load1:.2f} at the end: the machine was **shared** with other jobs, so absolute times carry "
-              "their noise; the ratios are measured within the run, rounds interleaved.  Model: the shipped "
+              f"start, {load1:.2f} at the end ({quiet}); "
+              "the ratios are measured within the run, rounds interleaved.  Model: the shipped "
               f"`models/bn2_reference` ({sum(p.numel() for p in pred.net.parameters()):,} parameters, {j} joints).")
     text = header + "\n\n" + "\n".join(rows) + "\n\n" + note
     _report.publish(text, SECTION, not args.no_write)

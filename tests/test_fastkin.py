@@ -55,7 +55,7 @@ def test_canonicalise_windows_np_is_the_generic_definition_bit_for_bit(chunk):
     assert np.allclose(gq, fk(Q, X, PARENTS)[0])
 
 
-def test_training_stats_and_windows_equal_the_loop_per_window_definition(chunk):
+def test_training_stats_and_windows_equal_the_loop_per_window_definition(chunk, monkeypatch):
     rng = np.random.default_rng(2)
     sk = Skeleton(tuple(f"j{i}" for i in range(len(PARENTS))), PARENTS, rng.normal(size=(len(PARENTS), 3)) * 10)
     clips = [Clip(f"c{i}", _quats(rng, (n, len(PARENTS))), rng.normal(size=(n, 3)) * 100)
@@ -78,6 +78,18 @@ def test_training_stats_and_windows_equal_the_loop_per_window_definition(chunk):
     m2, s2 = B.position_stats(Xf, Qf, PARENTS)
     assert np.array_equal(m2, mean) and np.array_equal(s2, std)
     assert B.training_stats(clips[1:2], sk, 12, 5, (0.0, 0.0, 1.0)) is None
+    # the threaded path (many small chunks, blocks of columns) gives the same bits
+    monkeypatch.setattr(FK, "CHUNK_FRAMES", 24)
+    mt, st = B.training_stats(clips, sk, 12, 5, (0.0, 0.0, 1.0), threads=3)
+    assert np.array_equal(mt, mean) and np.array_equal(st, std)
+
+
+@pytest.mark.parametrize("shape", [(1000, 66), (77, 5), (9, 2), (10, 1)])
+@pytest.mark.parametrize("threads", [1, 2, 3, 8])
+def test_column_mean_std_is_numpys_bit_for_bit(shape, threads):
+    a = np.random.default_rng(3).normal(size=shape) * 50 + 3
+    m, s = FK.column_mean_std(a, threads)
+    assert np.array_equal(m, a.mean(axis=0)) and np.array_equal(s, a.std(axis=0))
 
 
 def test_parallel_reader_returns_the_sequential_clips(tmp_path, monkeypatch):

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from inbetweening.data.cache import CacheCorrupt, default_cache_dir, hash_source, load_entry, save_entry, settings_key
-from inbetweening.data.clips import Clip, MotionData, check_skeleton, clip_from_bvh, fold_static_root
+from inbetweening.data.clips import Clip, MotionData, check_skeleton, clip_from_bvh, fold_static_root, read_workers
 from inbetweening.data.errors import BVHError, DatasetError
 from inbetweening.data.lafan1 import download_lafan1, verify_lafan1
 from inbetweening.data.mirror import derive_mirror, validate_mirror
@@ -112,7 +112,8 @@ def prepare(spec: DatasetSpec, path: Path, forward_axis, split: str = DEFAULT_SP
     """Read every file, split (by the spec's split ``split``), cut/normalise the benchmark windows, compute
     training statistics."""
     skel, fps, splits = _read_clips(spec, path, spec.split_rule(split))
-    stats = B.training_stats(splits["train"], skel, B.TRAIN_WINDOW, B.TRAIN_OFFSET, forward_axis)
+    stats = B.training_stats(splits["train"], skel, B.TRAIN_WINDOW, B.TRAIN_OFFSET, forward_axis,
+                             threads=read_workers())
     if stats is None:
         raise DatasetError(f"{path}: no training window of {B.TRAIN_WINDOW} frames could be cut")
     mean, std = stats

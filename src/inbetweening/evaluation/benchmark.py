@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from inbetweening.geometry.canonical import canonicalise_windows
-from inbetweening.geometry.fastkin import canonical_positions_np, fk_np
+from inbetweening.geometry.fastkin import canonical_positions_np, column_mean_std, fk_np
 from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.quaternion import Array
 from inbetweening.geometry.skeleton import Skeleton
@@ -112,15 +112,15 @@ def position_stats(X: np.ndarray, Q: np.ndarray, parents: Sequence[int]) -> tupl
 
 
 def training_stats(clips: Sequence, skeleton: Skeleton, window: int, offset: int, forward_axis: Sequence[float],
-                   n_past: int = N_PAST) -> tuple[np.ndarray, np.ndarray] | None:
+                   n_past: int = N_PAST, threads: int = 1) -> tuple[np.ndarray, np.ndarray] | None:
     """``position_stats(*prepare_windows(clips, ...), skeleton.parents)``, bit for bit, without materialising the
-    windows (chunk by chunk); ``None`` when no window can be cut."""
+    windows (chunk by chunk, in ``threads`` threads); ``None`` when no window can be cut."""
     rows, root, q = window_rows(clips, window, offset)
     if not len(rows):
         return None
-    gp = canonical_positions_np(root, rows, q, skeleton.offsets, skeleton.parents, forward_axis, n_past - 1)
-    flat = gp.reshape(-1, gp.shape[-2] * 3)
-    return flat.mean(axis=0), flat.std(axis=0)
+    gp = canonical_positions_np(root, rows, q, skeleton.offsets, skeleton.parents, forward_axis, n_past - 1,
+                                threads=threads)
+    return column_mean_std(gp.reshape(-1, gp.shape[-2] * 3), threads=threads)
 
 
 # ------------------------------------------------------------------------------------------

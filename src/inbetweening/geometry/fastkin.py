@@ -18,7 +18,7 @@ import numpy as np
 
 CHUNK_FRAMES = 4096  # frames per chunk: ~2 MB of components per chunk for a 22-joint skeleton
 
-__all__ = ["CHUNK_FRAMES", "canonical_positions_np", "canonicalise_windows_np", "fk_np"]
+__all__ = ["CHUNK_FRAMES", "canonical_positions_np", "canonicalise_windows_np", "column_mean_std", "fk_np"]
 
 
 def _cross(a, b):
@@ -144,21 +144,60 @@ def canonicalise_windows_np(X: np.ndarray, Q: np.ndarray, parents: Sequence[int]
 
 
 def canonical_positions_np(root: np.ndarray, rows: np.ndarray, local_q: np.ndarray, offsets: np.ndarray,
-                           parents: Sequence[int], forward_axis: Sequence[float], frame: int) -> np.ndarray:
+                           parents: Sequence[int], forward_axis: Sequence[float], frame: int,
+                           threads: int = 1) -> np.ndarray:
     """Global joint positions ``(N, T, J, 3)`` of the canonicalised windows ``rows (N, T)`` (frame indices) of the
     frames ``root (F, 3), local_q (F, J, 4)`` with bone ``offsets (J, 3)``: the same numbers as
-    ``fk(*canonicalise_windows(X, Q)[::-1])[1]`` of the gathered windows, without materialising them."""
+    ``fk(*canonicalise_windows(X, Q)[::-1])[1]`` of the gathered windows, without materialising them.
+
+    ``threads > 1`` runs the chunks in a thread pool (numpy releases the GIL inside its loops); every chunk is
+    computed and stored exactly as with one thread, so the result is bit-identical."""
     from inbetweening.geometry.canonical import masked_mean
 
     r = root[rows]  # (N, T, 3)
     xz = masked_mean(r[:, :, 0::2])
     out = np.empty(rows.shape + offsets.shape, dtype=np.result_type(root, local_q, offsets))
-    for s, e in _chunks(len(rows), rows.shape[1]):
+
+    def one(bounds: tuple[int, int]) -> None:
+        s, e = bounds
         x = np.broadcast_to(offsets, (e - s, rows.shape[1]) + offsets.shape).copy()
         x[:, :, 0] = r[s:e]
         lq, lp = _canonical_chunk(x, local_q[rows[s:e]], xz[s:e], parents, forward_axis, frame)
         _store(out[s:e], _fk_chunk_tuples(lq, lp, parents))
+
+    _run(one, _chunks(len(rows), rows.shape[1]), threads)
     return out
+
+
+def column_mean_std(flat: np.ndarray, threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """``flat.mean(axis=0), flat.std(axis=0)`` of a ``(N, C)`` array, bit-identical (each column is reduced over
+    the same rows in the same order; blocks keep at least two columns), with blocks of columns in a thread pool
+    when ``threads > 1``."""
+    mean = np.empty(flat.shape[1], dtype=np.result_type(flat, np.float64))
+    std = np.empty_like(mean)
+
+    def one(bounds: tuple[int, int]) -> None:
+        s, e = bounds
+        block = np.ascontiguousarray(flat[:, s:e])
+        mean[s:e], std[s:e] = block.mean(axis=0), block.std(axis=0)
+
+    c = flat.shape[1]
+    n = max(1, min(int(threads), c // 2))  # >= 2 columns a block: one column alone is summed pairwise, not row by row
+    _run(one, [(c * i // n, c * (i + 1) // n) for i in range(n)], n)
+    return mean, std
+
+
+def _run(fn, items: list, threads: int) -> None:
+    """``fn(item)`` for every item, in a ``concurrent.futures`` thread pool when ``threads > 1``."""
+    if threads <= 1 or len(items) <= 1:
+        for item in items:
+            fn(item)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=int(threads)) as pool:
+        for _ in pool.map(fn, items):  # re-raises a worker's exception here
+            pass
 
 
 def _fk_chunk_tuples(lq, lp, parents: Sequence[int]):
