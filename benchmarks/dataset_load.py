@@ -65,7 +65,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
-    rounds = []
+    load0, rounds = os.getloadavg()[0], []
     for i in range(args.rounds):
         r = one_round(args.name, args.path, args.repeats)
         rounds.append(r)
@@ -78,8 +78,10 @@ def main() -> None:
     lines = [
         f"- Date: {_dt.date.today().isoformat()}; command: `{cmd}` ({args.name} from `{Path(args.path).name}`, "
         f"fresh temporary cache each round; reader processes: {read_workers()}); 2-core CPU dev machine, "
-        "**shared** with other jobs while measured: the ratio (prepare / inflate, same round, same load) is the "
-        "figure, absolute times move with the load.",
+        f"1-min load average {load0:.2f} before the first round (the rounds' own load average counts this "
+        "benchmark's reader processes and threads): the ratio (prepare / inflate, same round, same load) is the "
+        f"figure, absolute times move with the load.  Best round {best['ratio']:.2f}×, median of the "
+        f"{len(rounds)} rounds {statistics.median(r['ratio'] for r in rounds):.2f}×.",
         "",
         "| round | 1-min load average | inflate the zip | cold prepare (parse, fold, windows, statistics, cache) "
         "| ratio | cached load (median; max) |",

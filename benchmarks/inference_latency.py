@@ -190,7 +190,7 @@ def main() -> None:
              f"{dev['bf16']:.1e} and {dev['int8']:.1e}).  5 ms needs a network with fewer multiply-adds per window.")
     cmd = "python benchmarks/inference_latency.py" + "".join(
         f" --{k} {getattr(args, k)}" for k in ("repeats", "clips") if getattr(args, k) != ap.get_default(k))
-    quiet = "quiet" if max(load0, load1) < 1.0 else "**shared** with other jobs: absolute times carry their noise"
+    quiet = "quiet" if max(load0, load1) < 1.2 else "**shared** with other jobs: absolute times carry their noise"
     header = (f"Date: {_dt.date.today().isoformat()}; command: `{cmd}`; 2-core AMD EPYC dev machine, torch "
               f"{torch.__version__}, onnxruntime {onnxruntime.__version__}; 1-min load average {load0:.2f} at the "
               f"start, {load1:.2f} at the end ({quiet}); "

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-CHUNK_FRAMES = 4096  # frames per chunk: ~2 MB of components per chunk for a 22-joint skeleton
+CHUNK_FRAMES = 16384  # frames per chunk (~2.9 MB per component array for a 22-joint skeleton): measured fastest with 2 threads
 
 __all__ = ["CHUNK_FRAMES", "canonical_positions_np", "canonicalise_windows_np", "column_mean_std", "fk_np"]
 
