@@ -74,9 +74,10 @@ def main() -> None:
     load1 = os.getloadavg()[0]
     med = {k: statistics.median(v) for k, v in times.items()}
     cmd = "python benchmarks/predict_startup.py" + (f" --rounds {args.rounds}" if args.rounds != 3 else "")
+    quiet = "quiet" if max(load0, load1) < 1.2 else "the machine was **shared**"
     text = "\n".join([
         f"Date: {_dt.date.today().isoformat()}; command: `{cmd}`; 2-core AMD EPYC dev machine; 1-min load average "
-        f"{load0:.2f} at the start, {load1:.2f} at the end ({'quiet' if max(load0, load1) < 1.2 else 'the machine was **shared**'}; the ratio is within the run). "
+        f"{load0:.2f} at the start, {load1:.2f} at the end ({quiet}; the ratio is within the run). "
         f"Clip: the first 121 frames of `{source}`, keyframes {KEYS}, shipped model `models/bn2_reference`, no render.",
         "",
         "| fresh process | median wall time | rounds |",
