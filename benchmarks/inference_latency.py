@@ -87,6 +87,10 @@ def main() -> None:
     ib = Inbetweener(pred)
     rng = np.random.default_rng(0)
     j = pred.skeleton.num_joints
+    cfg = pred.model_cfg  # the network's sizes: its matrix products per window, and the matmul ceiling's shape
+    d, depth = int(cfg.get("d_model", 64)), int(cfg.get("depth", 6))
+    ffn = int(cfg.get("ffn_dim") or 2 * d)
+    tokens = (pred.n_past + GAP + 1) * j  # joint tokens of one 41-frame window
     one = clip(rng, j)
     many = [clip(rng, j) for _ in range(args.clips)]
     x, known, interp = random_window(pred, 1, GAP)
@@ -121,11 +125,8 @@ def main() -> None:
                 single["int8"].append(timed(lambda: qnet(x, known, interp)))
             # the float32 matmul ceilings of this thread, interleaved with the rounds above: a 1024² product, and the
             # network's own widest product (every joint token of the window times a d_model x ffn weight)
-            tokens = (pred.n_past + GAP + 1) * j
-            ffn_w = int(pred.model_cfg.get("ffn_dim") or 2 * int(pred.model_cfg.get("d_model", 64)))
             mm = {"1024": (torch.randn(1024, 1024), torch.randn(1024, 1024)),
-                  "net": (torch.randn(tokens, int(pred.model_cfg.get("d_model", 64))), torch.randn(
-                      int(pred.model_cfg.get("d_model", 64)), ffn_w))}
+                  "net": (torch.randn(tokens, d), torch.randn(d, ffn))}
             mm_rate = {k: [] for k in mm}
             for _ in range(5):
                 for k, (a, b) in mm.items():
@@ -171,13 +172,10 @@ def main() -> None:
             f"{tps[('fill_many', args.clips)] / tps[('fill_many', 1)]:.2f}× (large batches fall out of the CPU "
             f"cache, hence `fill_many`'s default forward batch of 4).  ORT vs PyTorch max abs diff "
             f"{info['max_abs_diff']:.1e}.")
-    cfg = pred.model_cfg
-    d, depth = int(cfg.get("d_model", 64)), int(cfg.get("depth", 6))
-    ffn = int(cfg.get("ffn_dim") or 2 * d)
-    gflop = 2 * depth * (pred.n_past + GAP + 1) * j * (8 * d * d + 2 * d * ffn) / 1e9
+    gflop = 2 * depth * tokens * (8 * d * d + 2 * d * ffn) / 1e9
     r1024, rnet = (max(mm_rate[k]) for k in ("1024", "net"))
     note += (f"\n\nWhy one transition stays far above 5 ms with this model: the network's matrix products alone are "
-             f"{gflop:.2f} GFLOP per window ({depth} layers × {(pred.n_past + GAP + 1) * j} joint tokens × (8·d² + "
+             f"{gflop:.2f} GFLOP per window ({depth} layers × {tokens} joint tokens × (8·d² + "
              f"2·d·ffn) multiply-adds).  In this run one thread's best float32 matmul rate was {r1024:.0f} GFLOP/s "
              f"on 1024² and {rnet:.0f} GFLOP/s on the network's own widest product ({tokens} × {d} @ {d} × {ffn}), "
              f"so those products cannot take less than {gflop / r1024 * 1e3:.1f} ms even at the 1024² rate "
