@@ -3,7 +3,7 @@
 # `python train.py ablation=recipe +recipe=<lever> model=<model>` run for the optimiser steps that this lever and model
 # reach in 10 minutes on this CPU with a second job beside it (benchmarks/recipe_budget.py), validated 4 times, then
 # `python -m inbetweening.collect --seeds`.
-#   bash benchmarks/recipe_ablation.sh <out dir>
+#   bash benchmarks/recipe_ablation.sh <out dir> [job name ...]     (names given: run only those jobs)
 # (`python train.py ablation=recipe` runs the standard-split grid of the default model through Hydra's joblib launcher.)
 set -euo pipefail
 OUT=${1:?out dir}
@@ -23,13 +23,27 @@ jobs=(
   "ft_mirror_s1     mirror 1 1055 $FT"
   "gt_M_s1          last   1 437  $GT"
   "gt_none_s1       last   1 451  $GT model.graph=none"
+  # round 2 (issue 12): single levers on top of base, then the second seeds. rot6d / velocity / keyframe get base's
+  # step budget: the extra input channels and the extra L1 term cost under 1 % of a step (the runs' own s/step,
+  # RESULTS.md 6.2)
+  "ft_rot6d_s1      rot6d    1 1091 $FT"
+  "ft_velocity_s1   velocity 1 1091 $FT"
+  "ft_keyframe_s1   keyframe 1 1091 $FT"
   "ft_base_s2       base   2 1091 $FT"
   "ft_last_s2       last   2 1055 $FT"
-  "gt_M_s2          last   2 437  $GT"
-  "gt_none_s2       last   2 451  $GT model.graph=none"
+  "ft_task_s2       task   2 1091 $FT"
+  "ft_dense_s2      dense  2 1055 $FT"
+  "ft_mirror_s2     mirror 2 1055 $FT"
+  "ft_rot6d_s2      rot6d    2 1091 $FT"
+  "ft_velocity_s2   velocity 2 1091 $FT"
+  "ft_keyframe_s2   keyframe 2 1091 $FT"
+  "ft_base_content_s2 base 2 1091 $FT data.split=content"
+  "ft_last_content_s2 last 2 1055 $FT data.split=content"
 )
+want=" ${*:2} "
 for j in "${jobs[@]}"; do
   set -- $j; name=$1; r=$2; s=$3; steps=$4; shift 4
+  if [ "$want" != "  " ] && [[ "$want" != *" $name "* ]]; then continue; fi
   v=$((steps / 4))
   echo "python train.py ablation=recipe +recipe=$r seed=$s trainer.max_steps=$((v * 4)) trainer.val_check_interval=$v $* hydra.mode=RUN hydra.run.dir=$OUT/$name > $OUT/$name.log 2>&1"
 done | xargs -P 2 -I{} bash -c "{}"

@@ -149,25 +149,26 @@ def _all_terms_nonzero_case():
 
 def test_loss_weights_scale_each_term_and_zero_removes_it():
     pred, gt, mask = _all_terms_nonzero_case()
+    raw = {"raw": pred + 0.1, "known": ~mask}  # the network's output before the keyframes are copied back
     alone = {}
     for term in L.LOSS_TERMS:
         weights = {"l1": 0.0, term: 1.0} if term != "l1" else {"l1": 1.0}
-        total, terms = L.total_loss(pred, gt, mask, weights, SK, MEAN, STD)
+        total, terms = L.total_loss(pred, gt, mask, weights, SK, MEAN, STD, **raw)
         alone[term] = float(total)
         assert alone[term] > 1e-3, term  # every term is active in this case
         assert float(terms[term]) == pytest.approx(alone[term], rel=1e-12)
         for w in (0.25, 3.0):  # weight w on a term alone: w times the term
-            scaled, _ = L.total_loss(pred, gt, mask, {**weights, term: w}, SK, MEAN, STD)
+            scaled, _ = L.total_loss(pred, gt, mask, {**weights, term: w}, SK, MEAN, STD, **raw)
             assert float(scaled) == pytest.approx(w * alone[term], rel=1e-12), (term, w)
     # l1 by hand: mean absolute feature difference over the masked entries (7 features each)
     sel = mask[..., None].expand_as(pred)
     assert alone["l1"] == pytest.approx(float((pred - gt).abs()[sel].mean()), rel=1e-12)
     # all terms together: the weighted sum; a weight of 0 removes exactly that term
-    w = {"l1": 0.5, "fk_pos": 2.0, "quat": 3.0, "bone": 0.7, "smooth": 1.5, "foot": 4.0}
-    total, terms = L.total_loss(pred, gt, mask, w, SK, MEAN, STD)
+    w = {"l1": 0.5, "fk_pos": 2.0, "quat": 3.0, "bone": 0.7, "smooth": 1.5, "foot": 4.0, "keyframe": 2.5}
+    total, terms = L.total_loss(pred, gt, mask, w, SK, MEAN, STD, **raw)
     assert float(total) == pytest.approx(sum(w[k] * alone[k] for k in w), rel=1e-12)
     for term in L.LOSS_TERMS:
-        total0, terms0 = L.total_loss(pred, gt, mask, {**w, term: 0.0}, SK, MEAN, STD)
+        total0, terms0 = L.total_loss(pred, gt, mask, {**w, term: 0.0}, SK, MEAN, STD, **raw)
         assert float(total0) == pytest.approx(sum(w[k] * alone[k] for k in w if k != term), rel=1e-12), term
         if term != "l1":  # disabled terms are not even computed (l1 is always logged)
             assert term not in terms0

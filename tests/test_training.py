@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from conftest import TINY, compose_cfg, model_overrides
-from inbetweening.checkpoint import predictor_state
+from inbetweening.checkpoint import load_predictor, predictor_state
 from inbetweening.evaluation import benchmark as B
 from inbetweening.evaluation.collect import collect
 from inbetweening.evaluation.collect import main as collect_main
@@ -264,7 +264,8 @@ def test_mocap_recovery_mask_trains_and_reports_rmse(model, tmp_path, cache_dir)
 
 def test_all_loss_terms_train(tmp_path, cache_dir):
     metrics, _ = run_train(tmp_path, cache_dir, BASE + MODEL_TINY["graph_transformer"] + [
-        "loss.fk_pos=0.5", "loss.quat=0.5", "loss.bone=0.1", "loss.smooth=0.1", "loss.foot=0.1", "optim=sgd"])
+        "loss.fk_pos=0.5", "loss.quat=0.5", "loss.bone=0.1", "loss.smooth=0.1", "loss.foot=0.1", "loss.keyframe=0.5",
+        "optim=sgd"])
     assert all(np.isfinite(v) for v in metrics.values())
 
 
@@ -386,7 +387,8 @@ def test_recipe_levers_train_end_to_end_and_report_keyframes_and_ratios(tmp_path
     trains, and benchmark.json holds the interpolation reference and the keyframes-only figures."""
     over = BASE + MODEL_TINY["graph_transformer"] + [
         "data.sampling=clips", "data.train_offset=2", "data.mirror=true", "data.context_min=1",
-        "data.keyframes_max=2", "data.keyframe_prob=0.5", "centre=last", "test_keyframes=[5]", "threads=1"]
+        "data.keyframes_max=2", "data.keyframe_prob=0.5", "centre=last", "test_keyframes=[5]", "threads=1",
+        "model.inputs=[rot6d,velocity]", "loss.keyframe=0.5"]
     threads = torch.get_num_threads()
     try:
         metrics, cfg = run_train(tmp_path, cache_dir, over)
@@ -397,3 +399,6 @@ def test_recipe_levers_train_end_to_end_and_report_keyframes_and_ratios(tmp_path
     assert set(res["interpolation"]) == set(res["metrics"]) and res["metrics"] == metrics
     row = res["keyframes"]["5"]
     assert row["model_cm"] > 0 and abs(row["ratio"] - row["model_cm"] / row["interp_cm"]) < 1e-9
+    ckpt = sorted((Path(cfg.paths.output_dir) / "checkpoints").glob("*.ckpt"))[0]
+    predictor = load_predictor(ckpt)  # the derived inputs are part of the checkpoint's model
+    assert predictor.net.inputs == ("rot6d", "velocity") and predictor.net.input_dim == 16

@@ -59,6 +59,15 @@ def qmul(a: Array, b: Array) -> Array:
     )
 
 
+def quat_to_rot6d(q: Array) -> Array:
+    """Continuous 6-D rotation (Zhou et al. 2019): the first two columns of the rotation matrix of unit quaternions
+    ``q`` (wxyz), as ``[m00, m10, m20, m01, m11, m21]``.  ``(..., 4) -> (..., 6)``; ``q`` and ``-q`` give the same
+    value (no sign ambiguity, unlike the quaternion itself)."""
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return _stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y),
+                   2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)])
+
+
 def qinv(q: Array) -> Array:
     """Inverse of a unit quaternion (the conjugate).  ``(..., 4) -> (..., 4)``."""
     return _stack([q[..., 0], -q[..., 1], -q[..., 2], -q[..., 3]])

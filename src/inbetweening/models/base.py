@@ -22,12 +22,33 @@ from typing import Any, ClassVar
 import torch
 from torch import Tensor, nn
 
+from inbetweening.geometry.quaternion import quat_to_rot6d
+
 from .blocks import ACTIVATIONS, check_length
 
 FEATURE_DIM = 7  # per joint: [pos x, pos y, pos z, qw, qx, qy, qz]
 POS = slice(0, 3)
 QUAT = slice(3, 7)
 SKELETON_ARGS = ("num_joints", "adjacency")  # given by the skeleton, not by the model config
+VELOCITY_SCALE = 10.0  # derived velocity inputs: frame-to-frame change of the z-scored positions x 10 (about unit
+# scale on Bandai-Namco-2 at 30 fps)
+
+
+def rot6d_input(x: Tensor) -> Tensor:
+    """6-D rotation of each joint's (masked) quaternion.  ``(B, T, J, F) -> (B, T, J, 6)``."""
+    return quat_to_rot6d(x[..., QUAT])
+
+
+def velocity_input(x: Tensor) -> Tensor:
+    """Frame-to-frame change of the (masked) positions, 0 on the first frame, x :data:`VELOCITY_SCALE`.
+    ``(B, T, J, F) -> (B, T, J, 3)``.  Computed from the masked input, so unknown frames never leak into it."""
+    p = x[..., POS]
+    return torch.cat([torch.zeros_like(p[:, :1]), p[:, 1:] - p[:, :-1]], dim=1) * VELOCITY_SCALE
+
+
+# extra input channels a model may be given (``inputs`` setting): name -> (channels per joint, function of the masked
+# input).  They are derived from the masked input features inside ``forward``: nothing changes outside the network
+INPUTS: dict[str, tuple[int, Any]] = {"rot6d": (6, rot6d_input), "velocity": (3, velocity_input)}
 
 
 class Checks:
@@ -71,6 +92,18 @@ class Checks:
 
     def activation(self, key: str = "activation") -> None:
         self.one_of(key, sorted(ACTIVATIONS))
+
+    def names(self, key: str, choices: Iterable[str]) -> None:
+        """A list of distinct names, each one of ``choices`` (empty allowed)."""
+        v, choices = self.values[key], list(choices)
+        if isinstance(v, str) or not isinstance(v, Iterable):
+            self.fail(key, f"must be a list of names from {choices}, got {v!r}")
+        v = list(v)
+        bad = [n for n in v if n not in choices]
+        if bad:
+            self.fail(key, f"unknown input(s) {bad}; choose from {choices}")
+        if len(set(v)) != len(v):
+            self.fail(key, f"names must be distinct, got {v}")
 
 
 def adjacency_tensor(adjacency: Any, num_joints: int) -> Tensor:
@@ -120,7 +153,9 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
     Common constructor arguments (every subclass passes them to ``super().__init__``): ``num_joints`` (``J``),
     ``adjacency`` (``J x J`` joint relation matrix, checked even by models that do not use it), ``feature_dim``
     (``F >= 7``: pos xyz + quaternion wxyz), ``max_frames`` (longest window ``T``), ``residual_to_interpolation``
-    (predict ``interp + network(...)`` when ``interp`` is given; output head initialised to 0), ``dropout``.
+    (predict ``interp + network(...)`` when ``interp`` is given; output head initialised to 0), ``dropout``,
+    ``inputs`` (extra input channels derived from ``x``, names of :data:`INPUTS`: the network reads
+    ``input_dim = F + extras`` channels per joint and still writes ``F``).
     """
 
     trainable: ClassVar[bool] = True  # baselines without parameters: False
@@ -137,10 +172,13 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
         dropout: float = 0.0,
+        inputs: Iterable[str] = (),
     ):
         super().__init__()
         self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
         self.residual_to_interpolation = bool(residual_to_interpolation)
+        self.inputs = tuple(inputs or ())
+        self.input_dim = feature_dim + sum(INPUTS[n][0] for n in self.inputs)
 
     # ------------------------------------------------------------------ settings
     @classmethod
@@ -164,6 +202,8 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         checks.integer("feature_dim", minimum=FEATURE_DIM)
         checks.integer("max_frames")
         checks.fraction("dropout")
+        if "inputs" in checks.values:
+            checks.names("inputs", INPUTS)
         cls.check_settings(checks)
 
     @classmethod
@@ -192,7 +232,8 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
 
     # ------------------------------------------------------------------ forward
     def network(self, x: Tensor, known: Tensor, interp: Tensor | None) -> Tensor:  # pragma: no cover
-        """``x (B, T, J, F), known (B, T, J) bool, interp (B, T, J, F) | None -> raw (B, T, J, F)``."""
+        """``x (B, T, J, input_dim), known (B, T, J) bool, interp (B, T, J, F) | None -> raw (B, T, J, F)``
+        (``input_dim == F`` unless the model was given ``inputs``: :meth:`network_input`)."""
         raise NotImplementedError
 
     def check_input(self, x: Tensor, known: Tensor, interp: Tensor | None) -> None:
@@ -210,15 +251,25 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         if self.length_limited:
             check_length(x.shape[1], self.max_frames)
 
-    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None) -> Tensor:
-        """``x (B, T, J, F), known (B, T, J), interp (B, T, J, F) | None -> (B, T, J, F)``."""
+    def network_input(self, x: Tensor) -> Tensor:
+        """``x`` followed by the derived ``inputs`` channels.  ``(B, T, J, F) -> (B, T, J, input_dim)``."""
+        if not self.inputs:
+            return x
+        return torch.cat([x, *(INPUTS[n][1](x) for n in self.inputs)], dim=-1)
+
+    def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None, with_raw: bool = False):
+        """``x (B, T, J, F), known (B, T, J), interp (B, T, J, F) | None -> (B, T, J, F)``.
+
+        ``with_raw=True``: ``(prediction, raw)``, ``raw`` being the output before the known values are copied back
+        (quaternions normalised), for the keyframe-consistency loss."""
         self.check_input(x, known, interp)
         # under autocast (bf16-mixed) the network may return bf16: the residual, the quaternion normalisation and the
         # output stay in the input's dtype (float32), so the contract's unit quaternions hold at float32 precision
-        raw = self.network(x, known, interp).to(x.dtype)
+        raw = self.network(self.network_input(x), known, interp).to(x.dtype)
         if self.residual_to_interpolation and interp is not None:
             raw = interp + raw
-        return self.finalize(raw, x, known)
+        pred = self.finalize(raw, x, known)
+        return (pred, self.normalize_quaternions(raw)) if with_raw else pred
 
     @classmethod
     def normalize_quaternions(cls, raw: Tensor) -> Tensor:

@@ -43,10 +43,12 @@ class FrameTransformer(InbetweenModel):
         activation: str = "gelu",
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
+        inputs: tuple[str, ...] = (),
     ):
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
+                         inputs)
         self.d_model = d_model
-        in_ch = num_joints * feature_dim + num_joints
+        in_ch = num_joints * self.input_dim + num_joints
         self.stem = nn.Conv1d(in_ch, d_model, kernel_size=3, padding=1)
         self.pos_embed = PositionEmbedding(max_frames, d_model)
         self.segment_embed = nn.Embedding(2, d_model)  # 0 = frame with missing joints, 1 = fully known frame
@@ -68,4 +70,4 @@ class FrameTransformer(InbetweenModel):
         frame_known = known.to(x.dtype).amin(dim=-1).long()  # (B, T): 1 iff every joint of the frame is known
         h = self.embed_dropout(h + self.pos_embed(x.shape[1]) + self.segment_embed(frame_known))
         h = self.encoder(h)
-        return self.head(h.transpose(1, 2)).transpose(1, 2).reshape(x.shape)
+        return self.head(h.transpose(1, 2)).transpose(1, 2).reshape(*x.shape[:-1], self.feature_dim)

@@ -90,8 +90,10 @@ class GraphTransformer(InbetweenModel):
         pos_encoding: str = "sinusoidal",
         activation: str = "gelu",
         checkpoint_layers: bool = True,
+        inputs: tuple[str, ...] = (),
     ):
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
+                         inputs)
         self.checkpoint_layers = bool(checkpoint_layers)
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
         adj = torch.as_tensor(adjacency, dtype=torch.float32)
@@ -102,7 +104,7 @@ class GraphTransformer(InbetweenModel):
         self.binary_graph = bool(((adj == 0) | (adj == 1)).all())
 
         # per-joint input projection (J separate Linear layers as one batched einsum)
-        self.in_weight = nn.Parameter(torch.empty(num_joints, feature_dim, d_model))
+        self.in_weight = nn.Parameter(torch.empty(num_joints, self.input_dim, d_model))
         self.in_bias = nn.Parameter(torch.zeros(num_joints, d_model))
         self.joint_embed = nn.Parameter(torch.randn(num_joints, d_model) * 0.02)
         self.flag_embed = nn.Embedding(2, d_model)
@@ -118,7 +120,7 @@ class GraphTransformer(InbetweenModel):
         self.out_weight = nn.Parameter(torch.empty(num_joints, d_model, feature_dim))
         self.out_bias = nn.Parameter(torch.zeros(num_joints, feature_dim))
         with torch.no_grad():  # same scale as nn.Linear's default init (uniform ±1/sqrt(fan_in)), per joint
-            self.in_weight.uniform_(-self.feature_dim**-0.5, self.feature_dim**-0.5)
+            self.in_weight.uniform_(-self.input_dim**-0.5, self.input_dim**-0.5)
 
     @classmethod
     def check_settings(cls, checks: Checks) -> None:

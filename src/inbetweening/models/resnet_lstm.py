@@ -44,9 +44,11 @@ class ResNetLSTM(InbetweenModel):
         activation: str = "relu",
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
+        inputs: tuple[str, ...] = (),
     ):
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
-        in_dim = num_joints * feature_dim + num_joints
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
+                         inputs)
+        in_dim = num_joints * self.input_dim + num_joints
         self.input_layers = nn.Sequential(nn.Linear(in_dim, hidden_dim), make_activation(activation))
         self.res_blocks = nn.Sequential(
             *(ResidualMLPBlock(hidden_dim, hidden_dim, dropout, activation) for _ in range(res_blocks))
@@ -71,4 +73,4 @@ class ResNetLSTM(InbetweenModel):
         """``x (B, T, J, F), known (B, T, J) bool, interp unused -> raw (B, T, J, F)``."""
         h = self.res_blocks(self.input_layers(frame_features(x, known)))  # (B, T, H)
         h, _ = self.lstm(h)
-        return self.output_layers(h).reshape(x.shape)
+        return self.output_layers(h).reshape(*x.shape[:-1], self.feature_dim)

@@ -50,13 +50,15 @@ class STTransformer(InbetweenModel):
         activation: str = "gelu",
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
+        inputs: tuple[str, ...] = (),
     ):
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
+                         inputs)
         spatial_ffn_dim = 2 * spatial_dim if spatial_ffn_dim is None else spatial_ffn_dim
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
         self.spatial_dim, self.d_model = spatial_dim, d_model
 
-        self.joint_proj = nn.Linear(feature_dim, spatial_dim)
+        self.joint_proj = nn.Linear(self.input_dim, spatial_dim)
         self.joint_embed = nn.Parameter(torch.randn(num_joints, spatial_dim) * 0.02)
         self.flag_embed = nn.Embedding(2, spatial_dim)
         nn.init.normal_(self.flag_embed.weight, std=0.02)
@@ -84,4 +86,4 @@ class STTransformer(InbetweenModel):
         s = self.spatial(s.reshape(-1, self.num_joints, self.spatial_dim))  # (B*T, J, C)
         h = self.frame_proj(s.reshape(b, t, self.num_joints * self.spatial_dim)) + self.time_embed(t)
         h = self.temporal(h)  # (B, T, D)
-        return self.head(self.head_norm(h)).reshape(x.shape)
+        return self.head(self.head_norm(h)).reshape(*x.shape[:-1], self.feature_dim)

@@ -65,11 +65,13 @@ class UNet1D(InbetweenModel):
         activation: str = "silu",
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
+        inputs: tuple[str, ...] = (),
     ):
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout)
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
+                         inputs)
         self.levels, self.multiple = levels, 2**levels
         chans = [base_channels * 2**i for i in range(levels + 1)]
-        in_ch = num_joints * feature_dim + num_joints
+        in_ch = num_joints * self.input_dim + num_joints
         self.down_blocks = nn.ModuleList()
         self.downsample = nn.ModuleList()
         for i in range(levels):
@@ -103,4 +105,4 @@ class UNet1D(InbetweenModel):
         h = self.bottleneck(h)
         for up, block, skip in zip(self.upsample, self.up_blocks, reversed(skips)):
             h = block(torch.cat([up(h), skip], dim=1))
-        return self.head(h)[:, :, :t].transpose(1, 2).reshape(x.shape)
+        return self.head(h)[:, :, :t].transpose(1, 2).reshape(*x.shape[:-1], self.feature_dim)

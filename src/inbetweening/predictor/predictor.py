@@ -10,6 +10,7 @@ Shapes: windows ``root (B, T, 3)``, ``local_q (B, T, J, 4)``; features ``(B, T, 
 """
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Sequence
 
@@ -128,12 +129,17 @@ class Predictor(nn.Module):
         return transition_known(batch, frames, self.skeleton.num_joints, self.n_past, n, device=device)
 
     # ------------------------------------------------------------------ forward / predict
-    def forward(self, feats: torch.Tensor, known: torch.Tensor, net=None):
+    def forward(self, feats: torch.Tensor, known: torch.Tensor, net=None, with_raw: bool = False):
         """Training forward (with gradients): ``(pred, interp, target)``, ``target`` being ``feats`` in the frame
         the prediction lives in (the loss compares the two).  ``net``: a callable run in place of ``self.net`` (its
-        compiled forward, see :meth:`InbetweenModule.compile_network`)."""
-        return centred_forward(net or self.net, self.mask_name, feats, known, self.centre,
-                               self.representation.centre_shift)[:3]
+        compiled forward, see :meth:`InbetweenModule.compile_network`).  ``with_raw``: ``(pred, interp, target, raw)``,
+        ``raw`` being the network's output before the known values are copied back (keyframe-consistency loss)."""
+        net = net or self.net
+        if with_raw:
+            net = functools.partial(net, with_raw=True)
+        out, interp, target, _ = centred_forward(net, self.mask_name, feats, known, self.centre,
+                                                 self.representation.centre_shift)
+        return (out[0], interp, target, out[1]) if with_raw else (out, interp, target)
 
     @torch.no_grad()
     def predict(self, feats: torch.Tensor, known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

@@ -10,7 +10,7 @@ import torch
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor import features as F
 
-LOSS_TERMS = ("l1", "fk_pos", "quat", "bone", "smooth", "foot")
+LOSS_TERMS = ("l1", "fk_pos", "quat", "bone", "smooth", "foot", "keyframe")
 
 
 def _masked_mean(err: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
@@ -78,13 +78,22 @@ def foot(pred, gt, mask, foot_joints: list[int], mean, std, threshold: float = 0
     return _masked_mean(pv / std_scale(std), mask[:, 1:][..., idx] & contact)
 
 
+def keyframe(raw: torch.Tensor, gt: torch.Tensor, known: torch.Tensor) -> torch.Tensor:
+    """Keyframe consistency: L1 between the network's own output at the KNOWN values (``raw``, before the model copies
+    the keyframes back over it) and the keyframes.  A prediction that agrees with its keyframes joins them without a
+    jump; the transition frames are not in this term."""
+    return l1(raw, gt, known)
+
+
 def foot_joint_indices(skeleton: Skeleton) -> list[int]:
     """Joints whose name contains Foot/Toe (LAFAN1, Bandai-Namco and synthetic naming)."""
     return [i for i, n in enumerate(skeleton.names) if "foot" in n.lower() or "toe" in n.lower()]
 
 
-def total_loss(pred, gt, mask, weights: dict, skeleton: Skeleton, mean, std) -> tuple[torch.Tensor, dict]:
-    """Weighted sum of the enabled terms and a dict of every computed term (for logging)."""
+def total_loss(pred, gt, mask, weights: dict, skeleton: Skeleton, mean, std, raw=None,
+               known=None) -> tuple[torch.Tensor, dict]:
+    """Weighted sum of the enabled terms and a dict of every computed term (for logging).  ``raw`` / ``known``:
+    the network's output before the keyframes are copied back and the known mask, needed by ``keyframe``."""
     unknown = [k for k in weights if k not in LOSS_TERMS]
     if unknown:
         raise ValueError(f"loss: unknown term(s) {unknown}; known: {list(LOSS_TERMS)}")
@@ -104,5 +113,9 @@ def total_loss(pred, gt, mask, weights: dict, skeleton: Skeleton, mean, std) -> 
             terms[name] = smooth(pred, mask, mean, std)
         elif name == "foot":
             terms[name] = foot(pred, gt, mask, foot_joint_indices(skeleton), mean, std)
+        elif name == "keyframe":
+            if raw is None or known is None:
+                raise ValueError("loss.keyframe: needs the network's raw output and the known mask (raw=, known=)")
+            terms[name] = keyframe(raw, gt, known)
     total = sum(float(weights[k]) * v for k, v in terms.items())
     return total, terms

@@ -171,8 +171,13 @@ class InbetweenModule(L.LightningModule):
 
     def _step_loss(self, batch: dict, stage: str) -> torch.Tensor:
         net = self._train_forward if stage == "train" else None
-        pred, _, gt = self.predictor(batch["gt"], batch["known"], net=net)
-        loss, terms = total_loss(pred, gt, batch["loss_mask"], self.loss_weights, self.skeleton, self.mean, self.std)
+        raw = None
+        if self.loss_weights.get("keyframe"):  # the network's own output at the keyframes, before they are copied back
+            pred, _, gt, raw = self.predictor(batch["gt"], batch["known"], net=net, with_raw=True)
+        else:
+            pred, _, gt = self.predictor(batch["gt"], batch["known"], net=net)
+        loss, terms = total_loss(pred, gt, batch["loss_mask"], self.loss_weights, self.skeleton, self.mean, self.std,
+                                 raw=raw, known=batch["known"])
         bs = gt.shape[0]
         self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=bs)
         for k, v in terms.items():
