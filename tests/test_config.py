@@ -261,3 +261,25 @@ def test_experiments_and_ablations_override_the_top_level_defaults(tmp_path, cac
     cfg = compose_cfg("train", ["ablation=recipe", "+recipe=last"], tmp_path, cache_dir)
     assert (cfg.task_name, cfg.centre, cfg.threads, list(cfg.test_keyframes)) == ("recipe_ablation", "last", 1, [15, 30])
     assert cfg.data.sampling == "clips" and cfg.data.mirror and cfg.data.context_min == 1
+
+
+def test_recipe_sweep_lists_every_recipe_and_single_levers_sit_on_base(tmp_path, cache_dir):
+    """``ablation=recipe`` sweeps every ``conf/recipe`` file; rot6d / velocity / keyframe change only their own lever."""
+    import yaml
+
+    grid = yaml.safe_load((Path(CONF_DIR) / "ablation" / "recipe.yaml").read_text())["hydra"]["sweeper"]["params"]["+recipe"]
+    assert sorted(grid.split(",")) == sorted(p.stem for p in (Path(CONF_DIR) / "recipe").glob("*.yaml"))
+    base = compose_cfg("train", ["ablation=recipe", "+recipe=base", "model=frame_transformer"], tmp_path, cache_dir)
+    for recipe, key, want in [("rot6d", "model.inputs", ["rot6d"]), ("velocity", "model.inputs", ["velocity"]),
+                              ("keyframe", "loss.keyframe", 1.0)]:
+        cfg = compose_cfg("train", ["ablation=recipe", f"+recipe={recipe}", "model=frame_transformer"], tmp_path,
+                          cache_dir)
+        got = OmegaConf.select(cfg, key)
+        assert (list(got) if key == "model.inputs" else got) == want, recipe
+        validate(cfg)
+        for k in ("data", "centre", "loss", "model"):  # everything else as in base
+            a, b = (OmegaConf.to_container(c[k], resolve=False) if OmegaConf.is_config(c[k]) else c[k]
+                    for c in (cfg, base))
+            if k == key.split(".")[0]:
+                a.pop(key.split(".")[1]), b.pop(key.split(".")[1])
+            assert a == b, (recipe, k)
