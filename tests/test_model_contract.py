@@ -213,7 +213,12 @@ def test_onnx_export_matches_onnxruntime(name, tmp_path):
     with torch.no_grad():
         for p in model.output_head():
             p.normal_(0.0, 0.1)
-    path = tmp_path / f"{name}.onnx"
+    onnx_round_trip(ort, model, tmp_path / f"{name}.onnx")
+
+
+def onnx_round_trip(ort, model, path) -> None:
+    """Export ``model`` as tools/export.py does (dynamic B and T) and check ONNX Runtime against PyTorch on other
+    B and T."""
     axes = {k: {0: "B", 1: "T"} for k in ("x", "known", "interp", "out")}
     with warnings.catch_warnings(), torch.no_grad():
         warnings.simplefilter("ignore")

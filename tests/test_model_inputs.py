@@ -2,8 +2,6 @@
 (``forward(..., with_raw=True)``) of the InbetweenModel contract, for every trainable model of the registry."""
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 import torch
@@ -14,7 +12,7 @@ from inbetweening.models import MODELS
 from inbetweening.models.base import INPUTS, VELOCITY_SCALE, rot6d_input, velocity_input
 from inbetweening.training import losses as L
 from inbetweening.training.config import ConfigError, validate
-from test_model_contract import make_batch
+from test_model_contract import make_batch, onnx_round_trip
 
 J = len(TINY_PARENTS)
 TRAINABLE = [n for n in sorted(MODELS) if MODELS[n].trainable]
@@ -94,17 +92,7 @@ def test_onnx_export_with_inputs_matches_onnxruntime(name, tmp_path):
     with torch.no_grad():
         for p in model.output_head():
             p.normal_(0.0, 0.1)
-    path = tmp_path / f"{name}.onnx"
-    axes = {k: {0: "B", 1: "T"} for k in ("x", "known", "interp", "out")}
-    with warnings.catch_warnings(), torch.no_grad():
-        warnings.simplefilter("ignore")
-        torch.onnx.export(model, make_batch(2, 8), str(path), dynamo=False, opset_version=17,
-                          input_names=["x", "known", "interp"], output_names=["out"], dynamic_axes=axes)
-    x, known, interp = make_batch(3, 13, seed=3)
-    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
-    (got,) = sess.run(None, {"x": x.numpy(), "known": known.numpy(), "interp": interp.numpy()})
-    with torch.no_grad():
-        np.testing.assert_allclose(got, model(x, known, interp).numpy(), atol=1e-4, rtol=0)
+    onnx_round_trip(ort, model, tmp_path / f"{name}.onnx")
 
 
 @pytest.mark.parametrize("bad, match", [("[kicks]", r"unknown input\(s\) \['kicks'\]"),
