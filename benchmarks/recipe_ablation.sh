@@ -9,6 +9,7 @@ set -euo pipefail
 OUT=${1:?out dir}
 mkdir -p "$OUT"
 FT="model=frame_transformer"
+UN="model=unet1d"
 GT="model=graph_transformer model.checkpoint_layers=false"   # 1 thread: memory is no issue, recomputation is
 # steps in 10 min (s/step, 1 thread, two jobs side by side, benchmarks/recipe_budget.py, 2026-11-23):
 # frame_transformer base/task 0.550 -> 1091, dense/mirror/last 0.569 -> 1055; graph_transformer last 1.372 -> 437,
@@ -39,6 +40,24 @@ jobs=(
   "ft_keyframe_s2   keyframe 2 1091 $FT"
   "ft_base_content_s2 base 2 1091 $FT data.split=content"
   "ft_last_content_s2 last 2 1055 $FT data.split=content"
+  # round 3 (issue 12): velocity on the content split, and velocity combined with each other lever. Budgets from
+  # `python benchmarks/recipe_budget.py model=frame_transformer --threads 1 --steps 30 --recipes velocity vel_foot
+  # vel_fk vel_last vel_mirror` (quiet machine, 2026-11-23), as ratios to vel_last (0.595 s/step; centre=last costs
+  # nothing, so vel_last = velocity = base's 1091): vel_foot 0.606 -> 1071, vel_fk 0.632 -> 1027, vel_mirror 0.640
+  # -> 1014 (the first row, velocity 0.665, was the cold start and is not used)
+  "ft_velocity_content_s1 velocity 1 1091 $FT data.split=content"
+  "ft_vel_last_s1   vel_last 1 1091 $FT"
+  "ft_vel_last_content_s1 vel_last 1 1091 $FT data.split=content"
+  "ft_vel_mirror_s1 vel_mirror 1 1014 $FT"
+  "ft_vel_foot_s1   vel_foot 1 1071 $FT"
+  "ft_vel_fk_s1     vel_fk   1 1027 $FT"
+  "ft_vel_keyframe_s1 vel_keyframe 1 1091 $FT"
+  "ft_velocity_content_s2 velocity 2 1091 $FT data.split=content"
+  # the model lever at the same wall clock: unet1d (temporal convolutions) with velocity inputs. Its budget is the ratio
+  # of its s/step to the frame transformer's, measured back to back under the same load (recipe_budget.py --threads 1,
+  # velocity: unet1d 0.254 and 0.271, frame_transformer 0.965 between them) -> 1091 x 0.965 / 0.263 = 4003
+  "un_velocity_s1   velocity 1 4000 $UN"
+  "un_velocity_content_s1 velocity 1 4000 $UN data.split=content"
 )
 want=" ${*:2} "
 for j in "${jobs[@]}"; do

@@ -73,6 +73,9 @@ def main() -> None:
     p.add_argument("--recipes", nargs="*", default=list(RECIPES))
     p.add_argument("overrides", nargs="*", help="extra config overrides (e.g. model=frame_transformer)")
     a = p.parse_args()
+    # `--recipes a b model=x` would swallow the override as a recipe name: anything with "=" is an override
+    a.overrides += [r for r in a.recipes if "=" in r]
+    a.recipes = [r for r in a.recipes if "=" not in r]
     torch.set_num_threads(a.threads)
     print(f"| recipe | s/step ({a.threads} thread) | steps in {a.minutes:g} min |\n|---|---:|---:|")
     for r in a.recipes:

@@ -1,7 +1,8 @@
 """Training throughput (windows/s), FLOPs and share of the matmul rate of every model of the zoo on this CPU.
 
     python benchmarks/train_throughput.py [--models graph_transformer frame_transformer] [--variants fp32 bf16 compile]
-        [--depths 6 12] [--steps 20] [--warmup 3] [--threads 2] [--write [--out BENCHMARKS.md]]
+        [--depths 6 12] [--set "" "model.checkpoint_layers=false"] [--steps 20] [--warmup 3] [--threads 2]
+        [--write [--out BENCHMARKS.md]]
 
 * models: ``--models`` (default: every trainable model of ``inbetweening.models.MODELS``), each with its
   ``conf/model/<name>.yaml`` defaults and the lerp mask; ``--depths`` also runs each depth of the models that have a
@@ -16,7 +17,8 @@
   backward -> AdamW step (+ LR scheduler step)``, driven by a plain loop: no Lightning ``Trainer``.  Batches are
   gathered before timing.  ``--warmup`` untimed steps, then the median over ``--steps`` timed steps;
 * FLOPs: ``torch.utils.flop_counter.FlopCounterMode`` over one eager float32 training step's forward and over
-  forward + backward, divided by the batch size (matrix products only: element-wise work is not counted);
+  forward + backward, divided by the batch size (matrix products, the fused CPU attention kernel's included, which
+  torch's own table lacks: ``SDPA_CPU_FLOPS``; element-wise work is not counted);
 * reference: a 1024 x 1024 float32 ``torch.matmul`` on the same threads, sampled between the timed steps (so it sees
   the same load), and the achieved rate ``fwd+bwd FLOPs/window x windows/s`` as a share of it.
 
@@ -30,6 +32,7 @@ import contextlib
 import datetime as _dt
 import os
 import platform
+import shlex
 import statistics
 import sys
 import tempfile
@@ -43,7 +46,7 @@ import torch
 from hydra import compose, initialize_config_dir
 from hydra.core.global_hydra import GlobalHydra
 from omegaconf import open_dict
-from torch.utils.flop_counter import FlopCounterMode
+from torch.utils.flop_counter import FlopCounterMode, sdpa_backward_flop_count, sdpa_flop_count
 
 from inbetweening.models import MODELS
 from inbetweening.training.train import make_datamodule, make_module
@@ -57,12 +60,12 @@ VARIANTS = ("fp32", "bf16", "compile")
 TRAINABLE = [name for name, cls in MODELS.items() if cls.trainable]
 
 
-def compose_cfg(model: str, depth: int | None, cache: str, out: str):
-    """The training config as ``python train.py model=<model> [model.depth=<depth>] ...`` would compose it."""
+def compose_cfg(model: str, depth: int | None, cache: str, out: str, extra: tuple[str, ...] = ()):
+    """The training config as ``python train.py model=<model> [model.depth=<depth>] [extra ...]`` would compose it."""
     overrides = [
         f"model={model}", "mask=lerp", "optim=adamw", f"data.batch_size={BATCH}",
         f"data.transition_min={N_TRANS}", f"data.transition_max={N_TRANS}",
-        *([f"model.depth={depth}"] if depth is not None else []),
+        *([f"model.depth={depth}"] if depth is not None else []), *extra,
     ]
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
@@ -94,13 +97,30 @@ def matmul_gflops(m: int, k: int, n: int, repeats: int, batch: int = 1) -> float
     return 2.0 * batch * m * k * n / med / 1e9
 
 
+def _sdpa_cpu(query, key, value, *args, out_shape=None, **kwargs) -> int:
+    return sdpa_flop_count(query, key, value)
+
+
+def _sdpa_cpu_backward(grad_out, query, key, value, *args, out_shape=None, **kwargs) -> int:
+    return sdpa_backward_flop_count(grad_out, query, key, value)
+
+
+# torch's FlopCounterMode counts the CUDA fused-attention kernels but not the CPU one that
+# scaled_dot_product_attention dispatches to here: the same formulas (QKᵀ and PV products) for the CPU ops
+SDPA_CPU_FLOPS = {
+    torch.ops.aten._scaled_dot_product_flash_attention_for_cpu: _sdpa_cpu,
+    torch.ops.aten._scaled_dot_product_flash_attention_for_cpu_backward: _sdpa_cpu_backward,
+}
+
+
 def count_flops(module, batch: dict) -> tuple[float, float, dict]:
-    """FLOPs of one training step's forward, and of forward + backward, for the whole batch."""
+    """FLOPs of one training step's forward, and of forward + backward, for the whole batch (matrix products,
+    fused attention included)."""
     module.zero_grad(set_to_none=True)
-    with FlopCounterMode(display=False) as fc:
+    with FlopCounterMode(display=False, custom_mapping=SDPA_CPU_FLOPS) as fc:
         module.training_step(batch, 0)
     fwd = fc.get_total_flops()
-    with FlopCounterMode(display=False) as fc:
+    with FlopCounterMode(display=False, custom_mapping=SDPA_CPU_FLOPS) as fc:
         loss = module.training_step(batch, 0)
         loss.backward()
     both = fc.get_total_flops()
@@ -154,10 +174,10 @@ class MatmulReference:
         return self.flops / med / 1e9
 
 
-def gather(model: str, depth: int | None, cache: str, n: int):
+def gather(model: str, depth: int | None, cache: str, n: int, extra: tuple[str, ...] = ()):
     """The composed config, the set-up data module and ``n`` full training batches."""
     with tempfile.TemporaryDirectory() as out:
-        cfg = compose_cfg(model, depth, cache, out)
+        cfg = compose_cfg(model, depth, cache, out, extra)
         L.seed_everything(0, workers=True, verbose=False)
         dm = make_datamodule(cfg)
         dm.prepare_data()
@@ -169,7 +189,7 @@ def gather(model: str, depth: int | None, cache: str, n: int):
 
 
 def bench(cfg, dm, batches: list[dict], variant: str, steps: int, warmup: int, ref: MatmulReference,
-          profile: bool) -> dict:
+          profile: bool, extra: tuple[str, ...] = ()) -> dict:
     """One (model, variant): a fresh module (same seed), FLOPs of an eager float32 step, then the timed steps."""
     L.seed_everything(0, workers=True, verbose=False)
     module = make_module(cfg, dm)
@@ -213,6 +233,7 @@ def bench(cfg, dm, batches: list[dict], variant: str, steps: int, warmup: int, r
         torch._dynamo.reset()  # the next model compiles from scratch
     return {
         "model": cfg.model.name, "depth": cfg.model.get("depth"), "variant": variant, "cfg": cfg.model,
+        "extra": " ".join(extra),
         "params": sum(p.numel() for p in module.net.parameters() if p.requires_grad), "shape": shape,
         "n_windows": len(dm.train_feats), "fwd": fwd / BATCH, "both": both / BATCH, "ops": ops, "first_s": first,
         "step_s": med, "step_min": min(ts), "step_max": max(ts), "wps": BATCH / med,
@@ -229,12 +250,17 @@ def load() -> str:
 
 
 def label(r: dict, with_depth: bool) -> str:
-    return f"{r['model']} (depth {r['depth']})" if with_depth and r["depth"] is not None else r["model"]
+    name = f"{r['model']} (depth {r['depth']})" if with_depth and r["depth"] is not None else r["model"]
+    return f"{name} `{r['extra']}`" if r.get("extra") else name
 
 
 def table(results: list[dict], with_depth: bool) -> str:
-    """The markdown table: one row per (model, depth, variant); speed-up against the same model's fp32 row."""
-    base = {(r["model"], r["depth"]): r["wps"] for r in results if r["variant"] == "fp32"}
+    """The markdown table: one row per (model, depth, --set, variant); speed-up against the same model's (and depth's)
+    first fp32 row, i.e. its default settings when ``--set`` lists ``""`` first."""
+    base: dict = {}
+    for r in results:
+        if r["variant"] == "fp32":
+            base.setdefault((r["model"], r["depth"]), r["wps"])
     lines = ["| model | variant | params | FLOPs/window fwd+bwd | first step (s) | median step (ms) | windows/s "
              "| vs fp32 | achieved GFLOP/s | matmul GFLOP/s | % of matmul |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
@@ -268,6 +294,12 @@ def shapes_line(results: list[dict], ref: MatmulReference, repeats: int) -> str:
             f"batched ({t} x {dh}) @ ({dh} x {t}) {tp:.1f} GFLOP/s.")
 
 
+def applies(model: str, overrides: str) -> bool:
+    """Whether every ``model.<key>=`` of a ``--set`` group is a setting of ``model`` (other groups skip it)."""
+    keys = [o.split("=", 1)[0].split(".", 1)[1] for o in overrides.split() if o.startswith("model.")]
+    return all(k in MODELS[model].settings() for k in keys)
+
+
 def run(args) -> tuple[list[dict], str, str, str]:
     torch.set_num_threads(args.threads)
     warnings.filterwarnings("ignore", message=".*self.log.*")
@@ -282,11 +314,11 @@ def run(args) -> tuple[list[dict], str, str, str]:
     results = []
     for model in args.models:
         depths = args.depths if args.depths and "depth" in MODELS[model].settings() else [None]
-        for depth in depths:
-            cfg, dm, batches = gather(model, depth, cache, args.warmup + args.steps + 1)
+        for depth, extra in [(d, tuple(e.split())) for d in depths for e in args.set if applies(model, e)]:
+            cfg, dm, batches = gather(model, depth, cache, args.warmup + args.steps + 1, extra)
             for variant in args.variants:
                 profile = not args.no_profile and not results
-                r = bench(cfg, dm, batches, variant, args.steps, args.warmup, ref, profile)
+                r = bench(cfg, dm, batches, variant, args.steps, args.warmup, ref, profile, extra)
                 print(f"{label(r, True)} {variant}: median step {r['step_s'] * 1e3:.0f} ms (min "
                       f"{r['step_min'] * 1e3:.0f}, max {r['step_max'] * 1e3:.0f}) -> {r['wps']:.2f} windows/s; "
                       f"matmul {r['ref']:.1f} GFLOP/s ({r['ref_min']:.1f}-{r['ref_max']:.1f}); load {load()}",
@@ -323,7 +355,8 @@ def report(args, results: list[dict], shapes: str, load_start: str, load_end: st
         f"network's forward through `torch.compile` (what `compile=true` does; compiled in the first warm-up step, "
         f"whose time is the \"first step\" column).  {args.warmup} warm-up steps, then the median of {args.steps} "
         f"steps.  FLOPs from `torch.utils.flop_counter.FlopCounterMode` over an eager float32 step (matrix products "
-        f"only), per window = per batch / {b}; fwd+bwd FLOPs by op of {label(r0, True)}: {op_share}.  Achieved GFLOP/s "
+        f"and the fused attention's QKᵀ and PV products; element-wise work is not counted), per window = per batch / "
+        f"{b}; fwd+bwd FLOPs by op of {label(r0, True)}: {op_share}.  Achieved GFLOP/s "
         f"= fwd+bwd FLOPs/window x windows/s, the same count for every variant."
     )
     spread = "; ".join(f"{label(r, True)} {r['variant']}: steps {r['step_min'] * 1e3:,.0f}-{r['step_max'] * 1e3:,.0f}"
@@ -352,7 +385,7 @@ def command(ap: argparse.ArgumentParser, args) -> str:
     for k, v in vars(args).items():
         if k in ("write", "no_profile", "out") or v == ap.get_default(k):
             continue
-        opts.append(f"--{k.replace('_', '-')} {' '.join(map(str, v)) if isinstance(v, list) else v}")
+        opts.append(f"--{k.replace('_', '-')} {' '.join(shlex.quote(str(x)) for x in v) if isinstance(v, list) else v}")
     opts += [f for f, on in (("--no-profile", args.no_profile), ("--write", args.write)) if on]
     return " ".join(["/work/venv/bin/python benchmarks/train_throughput.py", *opts])
 
@@ -364,6 +397,10 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=VARIANTS)
     ap.add_argument("--depths", type=int, nargs="+", default=None,
                     help="also run these depths of the models with a depth setting (default: the config's)")
+    ap.add_argument("--set", nargs="+", default=[""], metavar="OVERRIDES",
+                    help='one group of rows per string of space-separated config overrides, e.g. --set "" '
+                         '"model.checkpoint_layers=false" (default: the config as it is); a group naming a model.* '
+                         'key that a model lacks skips that model')
     ap.add_argument("--steps", type=int, default=20, help="timed optimisation steps per row (median reported)")
     ap.add_argument("--warmup", type=int, default=3, help="untimed steps first (>= 1: compile happens there)")
     ap.add_argument("--threads", type=int, default=2, help="torch.set_num_threads")

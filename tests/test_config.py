@@ -283,3 +283,31 @@ def test_recipe_sweep_lists_every_recipe_and_single_levers_sit_on_base(tmp_path,
             if k == key.split(".")[0]:
                 a.pop(key.split(".")[1]), b.pop(key.split(".")[1])
             assert a == b, (recipe, k)
+
+
+def _flat(cfg) -> dict:
+    """``data`` / ``centre`` / ``loss`` / ``model`` of a composed config as one flat ``{dotted key: value}``."""
+    out = {"centre": cfg.centre}
+    for k in ("data", "loss", "model"):
+        for kk, v in OmegaConf.to_container(cfg[k], resolve=False).items():
+            out[f"{k}.{kk}"] = v
+    return out
+
+
+@pytest.mark.parametrize("recipe, want", [
+    ("vel_last", {"centre": "last"}),
+    ("vel_mirror", {"data.sampling": "clips", "data.mirror": True}),
+    ("vel_foot", {"loss.foot": 1.0}),
+    ("vel_fk", {"loss.fk_pos": 1.0}),
+    ("vel_keyframe", {"loss.keyframe": 0.1}),
+])
+def test_velocity_combinations_add_one_lever_to_velocity(recipe, want, tmp_path, cache_dir):
+    """Round 3's combinations are ``velocity`` plus exactly their own lever (mirroring keeps base's stride of 20)."""
+    def flat(r):
+        return _flat(compose_cfg("train", ["ablation=recipe", f"+recipe={r}", "model=frame_transformer"], tmp_path,
+                                 cache_dir))
+
+    vel, cfg = flat("velocity"), flat(recipe)
+    assert cfg["model.inputs"] == ["velocity"]
+    assert {k: v for k, v in cfg.items() if vel.get(k) != v} == want
+    assert cfg["data.train_offset"] == flat("base")["data.train_offset"] == 20  # vel_mirror: base's window starts

@@ -109,6 +109,7 @@ class MultiHeadAttention(nn.Module):
         prob_mask: Tensor | None = None,
         attn_mask: Tensor | None = None,
         key_padding_mask: Tensor | None = None,
+        fused: bool | None = None,
     ) -> Tensor:
         """``x (N, L, D) -> (N, L, D)``; masks as described in the class docstring.
 
@@ -116,9 +117,11 @@ class MultiHeadAttention(nn.Module):
         ``scaled_dot_product_attention``: the ``(N, heads, L, L)`` scores and probabilities are never kept for the
         backward pass (a fraction of the memory, faster), and it exports to ONNX.  A ``prob_mask`` (the graph
         multiplication with a non-binary ``M``), a key padding mask or a fully masked row takes the explicit path.
+        ``fused``: the caller's decision for a mask it has checked once (the per-call check reads the mask's values,
+        which splits a ``torch.compile`` graph); ``None`` checks here.
         """
-        fused = prob_mask is None and key_padding_mask is None and (
-            attn_mask is None or (attn_mask.dtype == torch.bool and not bool(attn_mask.all(-1).any())))
+        if fused is None:
+            fused = fused_attention_ok(prob_mask, attn_mask, key_padding_mask)
         if fused:
             q, k, v = self._split(self.q_proj(x)), self._split(self.k_proj(x)), self._split(self.v_proj(x))
             allowed = None if attn_mask is None else ~attn_mask  # SDPA's boolean convention: True = may attend
@@ -129,6 +132,13 @@ class MultiHeadAttention(nn.Module):
             out = torch.matmul(probs, self._split(self.v_proj(x)))  # (N, H, L, head_dim)
         out = out.transpose(1, 2).reshape(x.shape[0], -1, self.d_model)
         return self.out_proj(out)
+
+
+def fused_attention_ok(prob_mask: Tensor | None, attn_mask: Tensor | None, key_padding_mask: Tensor | None) -> bool:
+    """Whether :class:`MultiHeadAttention` may use the fused kernel with these masks: no probability mask, no key
+    padding, and at most a boolean ``attn_mask (L, L)`` without a fully masked row (the fused kernel gives NaN there)."""
+    return prob_mask is None and key_padding_mask is None and (
+        attn_mask is None or (attn_mask.dtype == torch.bool and not bool(attn_mask.all(-1).any())))
 
 
 class Norm(nn.Module):

@@ -12,7 +12,15 @@ from torch import Tensor, nn
 from torch.utils.checkpoint import checkpoint
 
 from .base import FEATURE_DIM, Checks, InbetweenModel
-from .blocks import NORMS, AddNorm, FeedForward, MultiHeadAttention, PositionEmbedding, SinusoidalPositionalEncoding
+from .blocks import (
+    NORMS,
+    AddNorm,
+    FeedForward,
+    MultiHeadAttention,
+    PositionEmbedding,
+    SinusoidalPositionalEncoding,
+    fused_attention_ok,
+)
 
 # multiply      : Z = (M ⊙ softmax_M(QKᵀ/√d)) V, the softmax taken over the M-neighbourhood, so a joint's output
 #                 depends only on its neighbours (exact locality; for binary M the product keeps the support).
@@ -35,12 +43,14 @@ class GraphTransformerLayer(nn.Module):
         self.ffn = FeedForward(d_model, ffn_dim, dropout, activation)
         self.ffn_norm = AddNorm(d_model, norm, dropout)
 
-    def forward(self, h: Tensor, prob_mask: Tensor | None = None, attn_mask: Tensor | None = None) -> Tensor:
-        """``h (B, T, J, D), prob_mask / attn_mask (J, J) | None -> (B, T, J, D)``."""
+    def forward(self, h: Tensor, prob_mask: Tensor | None = None, attn_mask: Tensor | None = None,
+                fused: bool | None = None) -> Tensor:
+        """``h (B, T, J, D), prob_mask / attn_mask (J, J) | None -> (B, T, J, D)``; ``fused``: see
+        :meth:`MultiHeadAttention.forward`."""
         j, d = h.shape[-2], h.shape[-1]
         t = h.shape[1]
         s = h.reshape(-1, j, d)  # (B*T, J, D)
-        s = self.spatial_norm(s, self.spatial(s, prob_mask=prob_mask, attn_mask=attn_mask))
+        s = self.spatial_norm(s, self.spatial(s, prob_mask=prob_mask, attn_mask=attn_mask, fused=fused))
         tm = s.reshape(-1, t, j, d).transpose(1, 2).reshape(-1, t, d)  # (B*J, T, D)
         tm = self.temporal_norm(tm, self.temporal(tm))
         h = tm.reshape(-1, j, t, d).transpose(1, 2)  # (B, T, J, D)
@@ -102,6 +112,9 @@ class GraphTransformer(InbetweenModel):
         if graph == "multiply":  # softmax restricted to the neighbourhood: -inf (finite min) outside it
             self.register_buffer("graph_attn_mask", adj <= 0, persistent=False)
         self.binary_graph = bool(((adj == 0) | (adj == 1)).all())
+        # the masks are fixed: whether the fused attention applies is decided once (not per layer call, which would
+        # read the mask's values and split a torch.compile graph at every layer)
+        self._fused = fused_attention_ok(*self._graph_masks(), None)
 
         # per-joint input projection (J separate Linear layers as one batched einsum)
         self.in_weight = nn.Parameter(torch.empty(num_joints, self.input_dim, d_model))
@@ -152,10 +165,11 @@ class GraphTransformer(InbetweenModel):
         h = h + self.joint_embed + self.flag_embed(known.long())
         h = h + self.time_embed(x.shape[1])[:, None, :]
         prob_mask, attn_mask = self._graph_masks()
+        fused = self._fused
         recompute = self.checkpoint_layers and self.training and torch.is_grad_enabled()
         for layer in self.layers:
             if recompute:  # keep only each layer's input for backward; its activations are recomputed there
-                h = checkpoint(layer, h, prob_mask=prob_mask, attn_mask=attn_mask, use_reentrant=False)
+                h = checkpoint(layer, h, prob_mask=prob_mask, attn_mask=attn_mask, fused=fused, use_reentrant=False)
             else:
-                h = layer(h, prob_mask=prob_mask, attn_mask=attn_mask)
+                h = layer(h, prob_mask=prob_mask, attn_mask=attn_mask, fused=fused)
         return torch.einsum("btjd,jdf->btjf", h, self.out_weight) + self.out_bias
