@@ -58,6 +58,10 @@ jobs=(
   # velocity: unet1d 0.254 and 0.271, frame_transformer 0.965 between them) -> 1091 x 0.965 / 0.263 = 4003
   "un_velocity_s1   velocity 1 4000 $UN"
   "un_velocity_content_s1 velocity 1 4000 $UN data.split=content"
+  # time warp on the content split (the unseen `run` is faster than every training content); its s/step equals
+  # vel_mirror's, measured back to back (recipe_budget.py --recipes vel_mirror vel_speed vel_mirror vel_speed: 1.927 /
+  # 1.917 / 2.214 / 1.885 under load), so vel_mirror's 1014 steps
+  "ft_vel_speed_content_s1 vel_speed 1 1014 $FT data.split=content"
 )
 want=" ${*:2} "
 for j in "${jobs[@]}"; do

@@ -374,9 +374,9 @@ def report(args, results: list[dict], shapes: str, load_start: str, load_end: st
     return "\n\n".join(p for p in (header, setup, table(results, with_depth), ref_line, prof_line) if p)
 
 
-def write_section(path: Path, body: str) -> None:
-    """Add or replace this script's section of ``path``, keeping every other section."""
-    _report.write_section(path, SECTION, body)
+def write_section(path: Path, body: str, section: str = SECTION) -> None:
+    """Add or replace this script's section (``--section``) of ``path``, keeping every other section."""
+    _report.write_section(path, section, body)
 
 
 def command(ap: argparse.ArgumentParser, args) -> str:
@@ -385,9 +385,12 @@ def command(ap: argparse.ArgumentParser, args) -> str:
     for k, v in vars(args).items():
         if k in ("write", "no_profile", "out") or v == ap.get_default(k):
             continue
+        if k == "section":
+            opts.append(f"--section {shlex.quote(v)}")
+            continue
         opts.append(f"--{k.replace('_', '-')} {' '.join(shlex.quote(str(x)) for x in v) if isinstance(v, list) else v}")
     opts += [f for f, on in (("--no-profile", args.no_profile), ("--write", args.write)) if on]
-    return " ".join(["/work/venv/bin/python benchmarks/train_throughput.py", *opts])
+    return " ".join(["python benchmarks/train_throughput.py", *opts])
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -408,6 +411,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--no-profile", action="store_true", help="skip the one profiled step (time breakdown)")
     ap.add_argument("--write", action="store_true", help="write the section of --out")
     ap.add_argument("--out", type=Path, default=ROOT / "BENCHMARKS.md", help="the file --write updates")
+    ap.add_argument("--section", default=SECTION,
+                    help=f"the heading --write adds or replaces (default {SECTION!r}; e.g. a subset of models)")
     args = ap.parse_args(argv)
     if args.steps < 1 or args.warmup < 1:
         ap.error("--steps and --warmup must be >= 1")
@@ -416,8 +421,8 @@ def main(argv: list[str] | None = None) -> None:
     text = report(args, results, shapes, load_start, load_end, command(ap, args))
     print(text)
     if args.write:
-        write_section(args.out, text)
-        print(f"\nwrote the '{SECTION}' section of {args.out}")
+        write_section(args.out, text, args.section)
+        print(f"\nwrote the '{args.section}' section of {args.out}")
 
 
 if __name__ == "__main__":

@@ -300,6 +300,7 @@ def _flat(cfg) -> dict:
     ("vel_foot", {"loss.foot": 1.0}),
     ("vel_fk", {"loss.fk_pos": 1.0}),
     ("vel_keyframe", {"loss.keyframe": 0.1}),
+    ("vel_speed", {"data.sampling": "clips", "data.speed": [1.0, 2.0]}),
 ])
 def test_velocity_combinations_add_one_lever_to_velocity(recipe, want, tmp_path, cache_dir):
     """Round 3's combinations are ``velocity`` plus exactly their own lever (mirroring keeps base's stride of 20)."""

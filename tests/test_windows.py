@@ -153,6 +153,55 @@ def test_clip_sampling_data_module_mirrors_about_half_the_windows(tmp_path, cach
     assert 0 < sum(same) < len(same)
 
 
+# ------------------------------------------------------------------------------------------ time warp (data.speed)
+def _normalised(cw, root, q):
+    X, Q = B.centre_and_rotate(cw.skeleton.local_positions(root), q, cw.skeleton.parents, cw.forward_axis)
+    return X[:, :, 0], Q
+
+
+def test_time_warp_plays_the_clip_faster_and_stays_inside_it(cache_dir):
+    d = load_dataset("synthetic", cache_dir=cache_dir, synthetic={"num_clips": 6, "min_frames": 120, "max_frames": 160})
+    cw = ClipWindows(d.train, d.skeleton, 30, 10, d.forward_axis)
+    idx = np.arange(len(cw))
+    plain = cw.windows(idx)
+    for a, b in zip(plain, cw.windows(idx, speed=np.ones(len(idx)))):  # speed 1: the very same frames
+        np.testing.assert_array_equal(a, b)
+    first = int(np.argmax(cw.max_speed(idx) >= 2))  # a window with room for 2x
+    s = cw.starts[first]
+    frames = s + 2 * np.arange(30)
+    root, q = cw.windows([first], speed=[2.0])
+    want = _normalised(cw, cw.root[frames][None], cw.q[frames][None])
+    np.testing.assert_array_equal(root, want[0])  # whole frames are exact
+    np.testing.assert_array_equal(q, want[1])
+    # 1.5x: odd frames fall half-way between two frames: root lerp and slerp of the clip's own poses
+    from inbetweening.geometry.interp import interpolate_pose
+    t = s + 1.5 * np.arange(30)
+    f0 = np.floor(t).astype(int)
+    r_mid, q_mid = interpolate_pose(cw.root[f0], cw.q[f0], cw.root[f0 + 1], cw.q[f0 + 1], t - f0)
+    root, q = cw.windows([first], speed=[1.5])
+    want = _normalised(cw, r_mid[None], q_mid[None])
+    np.testing.assert_allclose(root, want[0], atol=1e-6)
+    np.testing.assert_allclose(q, want[1], atol=1e-6)
+    assert not np.allclose(root, plain[0][first])
+    # the last window of a clip has no room to speed up: capped at what stays inside the clip, never past its end
+    last = int(np.argmin(cw.max_speed(idx)))
+    assert cw.max_speed([last])[0] < 1.2
+    for a, b in zip(cw.windows([last], speed=[3.0]), cw.windows([last], speed=cw.max_speed([last]))):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_data_module_time_warp_is_seeded_and_changes_the_windows(tmp_path, cache_dir):
+    warp = _dm(tmp_path, cache_dir, "data.sampling=clips", "data.speed=[1.0,2.0]")
+    plain = _dm(tmp_path, cache_dir, "data.sampling=clips")
+    batch, again = (next(iter(warp.train_dataloader())) for _ in range(2))
+    assert all(torch.equal(batch[k], again[k]) for k in batch)  # a pure function of seed, epoch, batch
+    idx = [i for *_, i in next(iter(warp.train_dataloader().batch_sampler))]
+    a, b = warp._train_features(idx, torch.Generator().manual_seed(0)), plain._train_features(idx, None)
+    assert a.shape == b.shape and torch.isfinite(a).all()
+    assert not torch.allclose(a, b)
+    assert torch.equal(plain._train_features(idx, None), b)  # no speed: nothing drawn, the plain windows
+
+
 # ------------------------------------------------------------------------------------------ centring on the last frame
 def test_last_frame_anchor_is_the_root_at_the_last_context_frame():
     feats = torch.randn(3, 12, 4, 7)
@@ -175,6 +224,9 @@ def test_config_rejects_bad_task_options(tmp_path, cache_dir):
                          (["data.context_min=5", "data.context_max=11"], "data.context_min/max"),
                          (["data.keyframe_prob=1.5"], "data.keyframe_prob"),
                          (["data.mirror=true"], "data.mirror"),
+                         (["data.speed=[1.0,2.0]"], "data.speed: the time warp needs data.sampling=clips"),
+                         (["data.sampling=clips", "data.speed=[0.5,1.0]"], "data.speed: need 1 <= lo"),
+                         (["data.sampling=clips", "data.speed=fast"], "data.speed: must be null or"),
                          (["data.sampling=random"], "data.sampling"),
                          (["centre=middle"], "centre")]:
         cfg = compose_cfg("train", [*DATA, *extra], tmp_path, cache_dir)

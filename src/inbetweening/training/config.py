@@ -265,3 +265,13 @@ def _check_task(cfg: DictConfig) -> None:
         raise ConfigError(f"data.keyframe_prob: must be in [0, 1], got {prob}")
     if _get(cfg, "data.mirror", False) and sampling != "clips":
         raise ConfigError("data.mirror: mirroring needs data.sampling=clips (windows are mirrored before normalising)")
+    speed = _get(cfg, "data.speed", None)
+    if speed is not None:
+        try:
+            lo, hi = (float(v) for v in speed)
+        except (TypeError, ValueError):
+            raise ConfigError(f"data.speed: must be null or [lo, hi] with 1 <= lo <= hi, got {speed!r}") from None
+        if not 1.0 <= lo <= hi or hi > 4.0:
+            raise ConfigError(f"data.speed: need 1 <= lo <= hi <= 4 (play-back faster than recorded), got {[lo, hi]}")
+        if sampling != "clips":
+            raise ConfigError("data.speed: the time warp needs data.sampling=clips (windows are cut from the clips)")

@@ -172,6 +172,8 @@ class InbetweenDataModule(L.LightningDataModule):
             known frames inside its transition.
         mirror: mirror each training window left/right with probability 0.5 (the dataset's mirror map; ``sampling:
             clips``).
+        speed: ``[lo, hi]`` play each training window at a speed drawn uniformly in that range (time warp: faster
+            versions of the training motions; ``sampling: clips``; capped where the clip ends); ``None``: off.
         val_lengths, test_lengths: transition lengths the validation and test benchmarks score (passed on to
             the LightningModule by :meth:`model_kwargs`).
         max_train_windows, max_eval_windows, max_val_windows: caps for quick runs (``None``: all windows;
@@ -205,6 +207,7 @@ class InbetweenDataModule(L.LightningDataModule):
         keyframes_max: int,
         keyframe_prob: float,
         mirror: bool,
+        speed: list[float] | None,
         val_lengths: list[int],
         test_lengths: list[int],
         max_train_windows: int | None,
@@ -317,13 +320,17 @@ class InbetweenDataModule(L.LightningDataModule):
 
     def _train_features(self, idx: list[int], gen: torch.Generator | None) -> torch.Tensor:
         """Features ``(B, W, J, F)`` of training windows ``idx``: gathered from the encoded windows, or (``sampling:
-        clips``) cut from the clips now, each mirrored with probability 0.5 when ``mirror`` is on."""
+        clips``) cut from the clips now, each mirrored with probability 0.5 when ``mirror`` is on and played at a
+        drawn speed when ``speed`` is set."""
         if self.clip_windows is None:
             return self.train_feats[torch.as_tensor(idx)]
-        flip = None
+        flip = sp = None
         if self.hparams.mirror:
             flip = (torch.rand(len(idx), generator=gen) < 0.5).numpy()
-        root, q = self.clip_windows.windows(idx, flip)
+        if self.hparams.speed:
+            lo, hi = (float(v) for v in self.hparams.speed)
+            sp = (lo + (hi - lo) * torch.rand(len(idx), generator=gen, dtype=torch.float64)).numpy()
+        root, q = self.clip_windows.windows(idx, flip, sp)
         d = self.data
         return window_features(root, q, d.skeleton, d.pos_mean, d.pos_std)
 

@@ -1,7 +1,8 @@
 """Training windows and the training task drawn on them.
 
 * :class:`ClipWindows` - windows cut from the training clips on the fly, at any stride (dense sampling without a
-  window tensor in memory), optionally mirrored left/right, normalised like the benchmark's windows
+  window tensor in memory), optionally mirrored left/right and played faster (time warp), normalised like the
+  benchmark's windows
   (:func:`inbetweening.evaluation.benchmark.centre_and_rotate`: the root faces +X at the last context frame).
 * :func:`draw_task` - per-sample context length, transition length and intermediate keyframes, and
   :func:`task_window`, the window cut to that task with its ``known`` mask.
@@ -18,6 +19,7 @@ import torch
 
 from inbetweening.data.mirror import fit_mirror_frames, mirror_motion, mirror_permutation
 from inbetweening.evaluation import benchmark as B
+from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor.masks import transition_known
 
@@ -39,11 +41,14 @@ class ClipWindows:
         self.skeleton, self.window, self.forward_axis = skeleton, int(window), tuple(forward_axis)
         self.root = np.concatenate([np.asarray(c.root_pos, dtype=np.float64) for c in clips])
         self.q = np.concatenate([np.asarray(c.local_q, dtype=np.float64) for c in clips])
-        starts, base = [], 0
+        starts, ends, base = [], [], 0
         for c in clips:
-            starts.extend(base + s for s in B.window_starts(c.num_frames, self.window, int(stride)))
+            st = B.window_starts(c.num_frames, self.window, int(stride))
+            starts.extend(base + s for s in st)
+            ends.extend(base + c.num_frames for _ in st)
             base += c.num_frames
         self.starts = np.asarray(starts, dtype=np.int64)
+        self.ends = np.asarray(ends, dtype=np.int64)  # one past the last frame of each window's clip
         self.mirror = None
         if mirror:
             perm = mirror_permutation(mirror, skeleton.names)
@@ -56,11 +61,30 @@ class ClipWindows:
     def __len__(self) -> int:
         return len(self.starts)
 
-    def windows(self, idx: Sequence[int], mirrored: Sequence[bool] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def max_speed(self, idx: Sequence[int]) -> np.ndarray:
+        """``(B,)`` the fastest play-back of each window that stays inside its clip (>= 1)."""
+        i = np.asarray(idx, dtype=np.int64)
+        return (self.ends[i] - 1 - self.starts[i]) / max(self.window - 1, 1)
+
+    def windows(self, idx: Sequence[int], mirrored: Sequence[bool] | None = None,
+                speed: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Normalised windows ``root (B, W, 3), local_q (B, W, J, 4)`` (float64) of window numbers ``idx``; those
-        flagged in ``mirrored`` are mirrored first (needs ``mirror``)."""
-        frames = self.starts[np.asarray(idx, dtype=np.int64)][:, None] + np.arange(self.window)[None, :]
-        root, q = self.root[frames], self.q[frames]
+        flagged in ``mirrored`` are mirrored first (needs ``mirror``).  ``speed (B,)``: play each window that many
+        times faster (frame ``i`` is the clip at ``start + i * speed``, root lerp and per-joint slerp between the two
+        nearest frames), capped by :meth:`max_speed`; ``1`` (or ``None``) cuts the frames exactly as they are."""
+        i = np.asarray(idx, dtype=np.int64)
+        if speed is None:
+            frames = self.starts[i][:, None] + np.arange(self.window)[None, :]
+            root, q = self.root[frames], self.q[frames]
+        else:
+            sp = np.minimum(np.asarray(speed, dtype=np.float64), self.max_speed(i))
+            t = self.starts[i][:, None] + np.arange(self.window)[None, :] * sp[:, None]
+            f0 = np.minimum(np.floor(t).astype(np.int64), self.ends[i][:, None] - 1)
+            f1 = np.minimum(f0 + 1, self.ends[i][:, None] - 1)
+            w = t - f0
+            root, q = interpolate_pose(self.root[f0], self.q[f0], self.root[f1], self.q[f1], w)
+            exact = w == 0  # whole frames stay bit-exact (slerp renormalises)
+            root[exact], q[exact] = self.root[f0[exact]], self.q[f0[exact]]
         if mirrored is not None and np.any(mirrored):
             if self.mirror is None:
                 raise ValueError("ClipWindows: mirroring asked for, but no mirror map was given")
