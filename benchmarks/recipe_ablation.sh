@@ -62,6 +62,10 @@ jobs=(
   # vel_mirror's, measured back to back (recipe_budget.py --recipes vel_mirror vel_speed vel_mirror vel_speed: 1.927 /
   # 1.917 / 2.214 / 1.885 under load), so vel_mirror's 1014 steps
   "ft_vel_speed_content_s1 vel_speed 1 1014 $FT data.split=content"
+  # unet1d, the best model of round 3, with the time warp on the content split: vel_speed / velocity s/step 1.03 for
+  # unet1d (recipe_budget.py model=unet1d --recipes velocity vel_speed velocity vel_speed: 0.627 / 0.609 / 0.631 /
+  # 0.687 under load) -> 4000 / 1.03 = 3880
+  "un_vel_speed_content_s1 vel_speed 1 3880 $UN data.split=content"
 )
 want=" ${*:2} "
 for j in "${jobs[@]}"; do
