@@ -66,6 +66,9 @@ jobs=(
   # unet1d (recipe_budget.py model=unet1d --recipes velocity vel_speed velocity vel_speed: 0.627 / 0.609 / 0.631 /
   # 0.687 under load) -> 4000 / 1.03 = 3880
   "un_vel_speed_content_s1 vel_speed 1 3880 $UN data.split=content"
+  # second seeds of the best configuration at this budget
+  "un_velocity_s2   velocity 2 4000 $UN"
+  "un_velocity_content_s2 velocity 2 4000 $UN data.split=content"
 )
 want=" ${*:2} "
 for j in "${jobs[@]}"; do
