@@ -5,7 +5,7 @@ Writes benchmark.json into the run directory (hydra.run.dir=... to choose it).""
 import hydra
 from omegaconf import DictConfig
 
-from inbetweening.training.train import evaluate, run_cli
+from inbetweening.training.jobs import evaluate, run_cli
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="eval")

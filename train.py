@@ -2,7 +2,7 @@
 import hydra
 from omegaconf import DictConfig
 
-from inbetweening.training.train import run_cli, train
+from inbetweening.training.jobs import run_cli, train
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="train")

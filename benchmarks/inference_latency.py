@@ -31,7 +31,7 @@ import _report  # noqa: E402  (benchmarks/ helper)
 import numpy as np
 import torch
 
-from inbetweening.checkpoint import load_predictor
+from inbetweening.predictor.checkpoint import load_predictor
 from inbetweening.tools.export import export_onnx, random_window
 from inbetweening.tools.inbetweener import Inbetweener
 

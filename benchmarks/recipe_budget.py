@@ -25,7 +25,7 @@ from hydra import compose, initialize_config_dir
 from hydra.core.global_hydra import GlobalHydra
 from omegaconf import open_dict
 
-from inbetweening.training.train import make_datamodule, make_module
+from inbetweening.training.builders import make_datamodule, make_module
 
 ROOT = Path(__file__).resolve().parents[1]
 RECIPES = ("base", "task", "dense", "mirror", "last")

@@ -49,7 +49,7 @@ from omegaconf import open_dict
 from torch.utils.flop_counter import FlopCounterMode, sdpa_backward_flop_count, sdpa_flop_count
 
 from inbetweening.models import MODELS
-from inbetweening.training.train import make_datamodule, make_module
+from inbetweening.training.builders import make_datamodule, make_module
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF_DIR = str(ROOT / "conf")

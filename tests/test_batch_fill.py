@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening.checkpoint import load_predictor
 from inbetweening.geometry import canonical
+from inbetweening.predictor.checkpoint import load_predictor
 from inbetweening.tools.inbetweener import Inbetweener, InbetweenError
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "bn2_reference" / "model.ckpt"

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from inbetweening.checkpoint import CheckpointError, load_module, non_finite_tensor, read_checkpoint
+from inbetweening.predictor.checkpoint import CheckpointError, load_module, non_finite_tensor, read_checkpoint
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "models" / "bn2_reference" / "model.ckpt"
@@ -51,7 +51,7 @@ def test_predict_and_eval_refuse_payload_in_a_subprocess(tmp_path):
     path, marker = _malicious_checkpoint(tmp_path)
     import numpy as np
 
-    from inbetweening.data.bvh import write_bvh
+    from inbetweening.data.bvh_writer import write_bvh
     from inbetweening.data.synthetic import generate_clip, make_bvh
 
     bvh = tmp_path / "in.bvh"

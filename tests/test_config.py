@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 import torch
+from inbetweening.checkpoint import load_module
 from omegaconf import OmegaConf
 
 from conftest import CONF_DIR, compose_cfg
-from inbetweening.checkpoint import load_module
 from inbetweening.data.datasets import DatasetError, resolve_path
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.schedules import SCHEDULE_TARGET, build_optimizers, lr_factor, upgrade_optim, warmup_decay
@@ -95,7 +95,7 @@ def test_cli_exits_2_with_one_line(overrides, match, tmp_path):
 
 
 def test_an_unknown_split_is_one_line_and_exit_2_before_data_loads(tmp_path, capsys):
-    from inbetweening.training.train import evaluate, run_cli
+    from inbetweening.training.jobs import evaluate, run_cli
 
     # the path does not exist either: the split is checked first, from the spec, before anything is read
     cfg = compose_cfg("eval", ["data=lafan1", "data.split=content", "model=interpolation",

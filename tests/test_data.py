@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening.data.bvh import BVH, parse_bvh, write_bvh
+from inbetweening.data.bvh import BVH, parse_bvh
+from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.datasets import (
     DatasetError,
     bandai_namco_content_split,
@@ -57,7 +58,7 @@ def bn_bvh(rng, frames: int) -> BVH:
 
 def write_bn_zip(path: Path, takes=range(1, 13), frames: int = 130, contents=("walk",)) -> Path:
     """A Bandai-Namco-2-format zip: ``dataset-2_<content>_normal_<take>.bvh`` for every content and take."""
-    from inbetweening.data.bvh import format_bvh
+    from inbetweening.data.bvh_writer import format_bvh
 
     rng = np.random.default_rng(2)
     with zipfile.ZipFile(path, "w") as z:
@@ -320,9 +321,10 @@ def test_an_unknown_split_names_the_splits_of_the_dataset(tmp_path):
 def test_eval_and_the_data_module_on_the_content_split(tmp_path, capsys):
     import json
 
+    from inbetweening.training.train import evaluate, make_datamodule
+
     from conftest import compose_cfg
     from inbetweening.training.datamodule import split_train_val
-    from inbetweening.training.train import evaluate, make_datamodule
 
     zpath = write_bn_zip(tmp_path / "bn.zip", takes=(9, 10, 11, 20), frames=110, contents=BN_CONTENTS)
     over = ["data=bandai_namco", f"data.path={zpath}", "data.split=content", "model=interpolation",

@@ -10,13 +10,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import torch
+from inbetweening.predictor.inference import window_features
 from omegaconf import OmegaConf
 
 from conftest import CONF_DIR, TINY, compose_cfg
 from inbetweening.evaluation import benchmark as B
-from inbetweening.predictor.inference import window_features
+from inbetweening.training.builders import make_datamodule, make_module
 from inbetweening.training.datamodule import InbetweenDataModule, split_train_val
-from inbetweening.training.train import make_datamodule, make_module
 
 DATA = [o for o in TINY if o.startswith("data.")]
 

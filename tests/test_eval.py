@@ -11,15 +11,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from inbetweening.predictor.inference import predict_transitions
+from inbetweening.training.train import evaluate, train
 
 from conftest import TINY, compose_cfg
-from inbetweening.checkpoint import CheckpointError, load_module
-from inbetweening.data.bvh import read_bvh, write_bvh
+from inbetweening.data.bvh import read_bvh
+from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.datasets import load_dataset
 from inbetweening.data.synthetic import generate_dataset
 from inbetweening.evaluation import benchmark as B
-from inbetweening.predictor.inference import predict_transitions
-from inbetweening.training.train import evaluate, train
+from inbetweening.predictor.checkpoint import CheckpointError, load_module
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = [o for o in TINY if o.startswith("data.")]

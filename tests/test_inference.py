@@ -4,10 +4,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-
-from inbetweening.evaluation import benchmark as B
-from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.models import build_model
 from inbetweening.predictor.features import global_positions
 from inbetweening.predictor.inference import (
     known_centre_shift,
@@ -16,6 +12,10 @@ from inbetweening.predictor.inference import (
     predict_transitions,
     window_features,
 )
+
+from inbetweening.evaluation import benchmark as B
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.models import build_model
 from inbetweening.predictor.masks import transition_known
 
 NAMES = ("root", "spine", "head", "leg")

@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from inbetweening.data.bvh import BVH, format_bvh, parse_bvh
+from inbetweening.data.bvh import BVH, parse_bvh
+from inbetweening.data.bvh_writer import format_bvh
 from inbetweening.data.clips import fold_static_root
 from inbetweening.data.datasets import load_dataset
 from inbetweening.data.errors import DatasetError

@@ -6,13 +6,13 @@ import json
 import numpy as np
 import pytest
 import torch
+from inbetweening.training.train import train
 
 from conftest import TINY, TINY_PARENTS, compose_cfg, sinusoid_batch, tiny_model
 from inbetweening.models import MODELS
 from inbetweening.predictor.masks import apply_mask
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.module import InbetweenModule
-from inbetweening.training.train import train
 
 BASE = [*TINY, "callbacks=none", "logger=none", "threads=1"]
 
@@ -82,7 +82,7 @@ def test_compile_trains_through_the_compiled_forward_and_keeps_the_state_dict_ke
 def test_compile_network_leaves_validation_eager_and_can_be_turned_off(tmp_path, cache_dir):
     """The compiled forward is used for the training loss only (no compilation here: nothing is run)."""
     cfg = compose_cfg("train", BASE, tmp_path, cache_dir)
-    from inbetweening.training.train import make_datamodule, make_module
+    from inbetweening.training.builders import make_datamodule, make_module
 
     dm = make_datamodule(cfg)
     dm.prepare_data()

@@ -9,16 +9,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from inbetweening.training.train import CheckpointError
 
 from inbetweening import Inbetweener
-from inbetweening.data.bvh import BVH, format_bvh, parse_bvh, read_bvh, write_bvh
+from inbetweening.data.bvh import BVH, parse_bvh, read_bvh
+from inbetweening.data.bvh_writer import format_bvh, write_bvh
 from inbetweening.data.datasets import fold_static_root
 from inbetweening.data.synthetic import generate_clip, make_bvh
+from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.quaternion import qinv, qmul, qrot
 from inbetweening.tools import predict
-from inbetweening.tools.inbetweener import InbetweenError, interpolate_arrays
+from inbetweening.tools.inbetweener import InbetweenError
 from inbetweening.training.module import InbetweenModule
-from inbetweening.training.train import CheckpointError
 
 
 def _clip(frames: int = 120, seed: int = 0) -> BVH:
@@ -136,7 +138,7 @@ def test_interpolation_model_reproduces_interpolation(clip):
     module = InbetweenModule(model={"name": "interpolation"}, skeleton=sk.to_dict(), pos_mean=[0.0] * 66,
                              pos_std=[50.0] * 66, forward_axis=(0.0, 0.0, 1.0), centre="window")
     res = Inbetweener(module).fill_detailed(clip, keyframes=[0, 30, 75, 119])
-    ri, qi = interpolate_arrays(res.root, res.local_q, res.known_frames)
+    ri, qi = interpolate_keyframes(res.root, res.local_q, res.known_frames)
     np.testing.assert_allclose(res.root, ri, atol=1e-3)
     assert _same_rotations(res.local_q, qi, 1e-6)
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from inbetweening.data.bvh import read_bvh, write_bvh
+from inbetweening.data.bvh import read_bvh
+from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.synthetic import generate_clip, make_bvh
 from inbetweening.tools import export, predict
 

@@ -9,13 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from inbetweening.predictor.features import known_centre_shift
 
-from inbetweening.checkpoint import CheckpointError, load_predictor, predictor_state, upgrade_module_state
 from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.quaternion import qmul, qrot
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor import representation as R
-from inbetweening.predictor.features import known_centre_shift
+from inbetweening.predictor.checkpoint import CheckpointError, load_predictor, predictor_state, upgrade_module_state
 from inbetweening.predictor.predictor import Predictor, upgrade_hparams
 from inbetweening.training.module import InbetweenModule
 
@@ -232,7 +232,7 @@ def test_reference_checkpoint_predictor_equals_the_module_and_loads_without_ligh
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
     a, b = pred.predict_transitions(root, q, 15), module.predictor.predict_transitions(root, q, 15)
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
-    code = ("import sys; from inbetweening.checkpoint import load_predictor; "
+    code = ("import sys; from inbetweening.predictor.checkpoint import load_predictor; "
             "from inbetweening.tools.inbetweener import Inbetweener; "
             f"ib = Inbetweener(load_predictor({str(REFERENCE)!r})); "
             "bad = [m for m in sys.modules if m.startswith(('lightning', 'inbetweening.training'))]; "

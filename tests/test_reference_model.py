@@ -12,7 +12,7 @@ import torch
 from inbetweening import Inbetweener
 from inbetweening.data.bvh import iter_bvh_sources, parse_bvh
 from inbetweening.data.datasets import bandai_namco_split, fold_static_root
-from inbetweening.tools.inbetweener import interpolate_arrays
+from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.training.module import InbetweenModule
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,7 +46,7 @@ def test_reference_model_fills_real_test_clips(tmp_path):
         _, gt = sk.fk(q, sk.local_positions(root))
         unknown = np.setdiff1d(np.arange(f), keys)
         for label, (r, qq) in (("model", inb.fill_arrays(root, q, keys)),
-                               ("interpolation", interpolate_arrays(root, q, keys))):
+                               ("interpolation", interpolate_keyframes(root, q, keys))):
             _, gp = sk.fk(qq, sk.local_positions(r))
             errs[label].append(np.linalg.norm(gp[unknown] - gt[unknown], axis=-1).mean())
         out = inb.fill(bvh, keyframes=keys)  # the BVH path too: keyframe rows exact

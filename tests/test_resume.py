@@ -12,7 +12,6 @@ from pathlib import Path
 
 import pytest
 import torch
-
 from inbetweening.checkpoint import predictor_state
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
-from inbetweening.data.bvh import write_bvh
+from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.clips import Clip
 from inbetweening.data.datasets import load_dataset, resolve_path
 from inbetweening.data.errors import DatasetError

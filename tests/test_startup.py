@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 
-from inbetweening.data.bvh import format_bvh
+from inbetweening.data.bvh_writer import format_bvh
 from inbetweening.data.synthetic import generate_clip, make_bvh
 
 HEAVY = ("lightning", "pytorch_lightning", "hydra", "omegaconf", "matplotlib", "roma", "torch._dynamo", "onnx",

@@ -10,19 +10,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from inbetweening.predictor.inference import predict_transitions
+from inbetweening.training.train import CheckpointError, load_module, make_datamodule, make_module, train
 
 from conftest import TINY, compose_cfg, model_overrides
-from inbetweening.checkpoint import load_predictor, predictor_state
 from inbetweening.evaluation import benchmark as B
 from inbetweening.evaluation.collect import collect
 from inbetweening.evaluation.collect import main as collect_main
 from inbetweening.models import MODELS
 from inbetweening.predictor import features as F
-from inbetweening.predictor.inference import predict_transitions
+from inbetweening.predictor.checkpoint import load_predictor, predictor_state
 from inbetweening.predictor.masks import apply_mask, transition_known
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.module import InbetweenModule
-from inbetweening.training.train import CheckpointError, load_module, make_datamodule, make_module, train
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL_TINY = {name: model_overrides(name) for name in MODELS}  # every registered model, its declared TINY sizes
@@ -338,9 +338,10 @@ def test_ablation_name_launches_multirun(tmp_path, cache_dir):
 def test_known_centring_removes_the_window_centring_leak(centre, equivariant):
     """Shifting a whole window in XZ (what a different whole-window centre does) shifts a centre=known model's
     prediction by exactly that much; a centre=window model sees the absolute position and changes its answer."""
+    from inbetweening.predictor.inference import predict_features
+
     from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS
     from inbetweening.geometry.skeleton import Skeleton
-    from inbetweening.predictor.inference import predict_features
 
     torch.manual_seed(0)
     sk = Skeleton(NAMES, PARENTS, OFFSETS)
@@ -366,9 +367,8 @@ def test_known_centring_removes_the_window_centring_leak(centre, equivariant):
 def test_ddp_trainer_config_builds_a_ddp_trainer(tmp_path, cache_dir):
     """``trainer=ddp`` composes, validates and instantiates a Trainer with a DDP strategy (nothing is launched)."""
     from hydra.utils import instantiate
-    from lightning.pytorch.strategies import DDPStrategy
-
     from inbetweening.training.train import make_trainer
+    from lightning.pytorch.strategies import DDPStrategy
 
     cfg = compose_cfg("train", ["trainer=ddp", "trainer.accelerator=cpu", "trainer.devices=2", "logger=none"],
                       tmp_path, cache_dir)

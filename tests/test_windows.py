@@ -4,16 +4,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from inbetweening.predictor.features import anchor_xz, known_centre_shift
+from inbetweening.training.train import make_datamodule
+from inbetweening.training.windows import ClipWindows, draw_task, task_window
 
 from conftest import TINY, compose_cfg
 from inbetweening.data.datasets import load_dataset
 from inbetweening.data.mirror import fit_mirror_frames, mirror_motion, mirror_permutation
 from inbetweening.evaluation import benchmark as B
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.predictor.features import anchor_xz, known_centre_shift
 from inbetweening.training.config import ConfigError, validate
-from inbetweening.training.train import make_datamodule
-from inbetweening.training.windows import ClipWindows, draw_task, task_window
 
 DATA = [o for o in TINY if o.startswith("data.")]
 SHARED_BN2 = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared/datasets/bandai-namco-2.zip"

@@ -1,7 +1,7 @@
-"""BVH motion files: the :class:`BVH` data class and a fast, strict reader (the writer is re-exported here).
+"""BVH motion files: the :class:`BVH` data class and a fast, strict reader.
 
 ``parse_bvh`` reads the (small) HIERARCHY with a plain line loop (:mod:`inbetweening.data.bvh_header`) and
-the (large) MOTION block vectorised (:mod:`inbetweening.data.numbers`): token boundaries, per-line value
+the (large) MOTION block vectorised (:mod:`inbetweening.data.bvh_motion`): token boundaries, per-line value
 counts and the decimal-to-float conversion are numpy operations over the raw bytes, never a Python loop
 over frames, and give the correctly rounded double, identical to ``float(token)``.
 
@@ -26,9 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from inbetweening.data.bvh_header import CHANNELS, MOTION_RE, parse_header, parse_motion_header, raise_motion_error
-from inbetweening.data.bvh_writer import format_bvh, write_bvh
+from inbetweening.data.bvh_motion import motion_values
 from inbetweening.data.errors import BVHError
-from inbetweening.data.numbers import motion_values
 from inbetweening.data.sources import iter_bvh_sources
 from inbetweening.geometry.quaternion import euler_to_quat_np, quat_to_euler_np, remove_discontinuities
 from inbetweening.geometry.skeleton import Skeleton
@@ -36,12 +35,10 @@ from inbetweening.geometry.skeleton import Skeleton
 __all__ = [
     "BVH",
     "BVHError",
-    "format_bvh",
     "iter_bvh_sources",
     "parse_bvh",
     "read_bvh",
     "read_bvh_many",
-    "write_bvh",
 ]
 
 _AXIS_NAMES = "xyz"

@@ -2,7 +2,7 @@
 
 The hierarchy is small and read with a plain line loop (:func:`parse_header`, memoised: the clips of a
 dataset share their header).  :func:`raise_motion_error` walks a MOTION block line by line to report the
-first problem once the vectorised conversion (:mod:`inbetweening.data.numbers`) has declined it.  Every
+first problem once the vectorised conversion (:mod:`inbetweening.data.bvh_motion`) has declined it.  Every
 problem raises one :class:`~inbetweening.data.errors.BVHError` naming the line.
 """
 from __future__ import annotations

@@ -12,21 +12,28 @@ from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from inbetweening.data.bvh import BVH, parse_bvh
-from inbetweening.data.errors import DatasetError
+from inbetweening.data.errors import BVHError, DatasetError
 from inbetweening.data.sources import list_bvh_sources, read_bvh_sources
-from inbetweening.evaluation import benchmark as B
-from inbetweening.geometry.quaternion import qmul, qrot, remove_discontinuities
+from inbetweening.data.windows import BenchmarkSet
+from inbetweening.geometry.quaternion import qinv, qmul, qrot, remove_discontinuities
 from inbetweening.geometry.skeleton import Skeleton
 
-if TYPE_CHECKING:
-    from inbetweening.data.specs import DatasetSpec
 
-__all__ = ["Clip", "MotionData", "check_skeleton", "clip_from_bvh", "fold_static_root", "read_bvh_clips"]
+class ReadSpec(Protocol):
+    """What the default reader needs of a :class:`~inbetweening.data.specs.DatasetSpec`."""
+
+    pattern: str
+    fold_root: str | None
+
+    def reads(self, name: str) -> bool: ...
+
+__all__ = ["Clip", "MotionData", "check_skeleton", "clip_from_bvh", "clip_in_skeleton", "fold_static_root", "motion_in_file",
+           "read_bvh_clips"]
 
 
 @dataclass
@@ -61,8 +68,8 @@ class MotionData:
     mirror: tuple[tuple[str, str], ...] = ()
     split: str = "standard"  # the spec's split rule that made train/test (DatasetSpec.splits)
 
-    def benchmark_set(self) -> B.BenchmarkSet:
-        return B.BenchmarkSet(self.test_X, self.test_Q, self.skeleton, self.pos_mean, self.pos_std)
+    def benchmark_set(self) -> BenchmarkSet:
+        return BenchmarkSet(self.test_X, self.test_Q, self.skeleton, self.pos_mean, self.pos_std)
 
     def summary(self) -> dict:
         return {
@@ -104,6 +111,53 @@ def fold_static_root(bvh: BVH, name: str, root_name: str = "joint_Root") -> tupl
     return Clip(name, local_q, hips_p), skel
 
 
+def clip_in_skeleton(bvh: BVH, skeleton: Skeleton) -> tuple[bool, np.ndarray, np.ndarray]:
+    """``(folded?, root (F, 3), local_q (F, J, 4))`` of a file's motion in ``skeleton``'s joints: the same joint names
+    in the same order, or one extra motionless top joint above the skeleton's root (Bandai-Namco's ``joint_Root``),
+    folded into it (:func:`fold_static_root`).  :class:`DatasetError` naming the first joint that differs otherwise."""
+    names, ck = list(bvh.names), list(skeleton.names)
+    if names == ck:
+        return False, bvh.local_positions()[:, 0].copy(), bvh.local_rotations()
+    if names[1:] == ck:
+        clip, _ = fold_static_root(bvh, bvh.source, root_name=names[0])
+        return True, clip.root_pos, clip.local_q
+    i = next((i for i, (a, b) in enumerate(zip(names, ck, strict=False)) if a != b), min(len(names), len(ck)))
+    here = repr(names[i]) if i < len(names) else "(none)"
+    there = repr(ck[i]) if i < len(ck) else "(none)"
+    raise DatasetError(
+        f"skeleton mismatch: {bvh.source} has {len(names)} joints, the checkpoint's skeleton has {len(ck)}; "
+        f"first difference at joint {i}: file {here}, checkpoint {there}")
+
+
+def motion_in_file(bvh: BVH, folded: bool, root: np.ndarray, q: np.ndarray, rows: np.ndarray) -> BVH:
+    """The inverse of :func:`clip_in_skeleton`: a BVH of ``bvh``'s hierarchy and channels whose frames carry
+    ``root (F, 3), q (F, J, 4)`` (the skeleton's joints); the channels the skeleton does not hold (a folded top
+    joint, non-root position channels) are taken from ``bvh``'s frames ``rows (F,)`` (the top joint raw, without an
+    Euler round trip).  :class:`BVHError` when no joint can carry the root translation."""
+    file_q = bvh.local_rotations()[rows]
+    pos = bvh.channel_positions()[rows]
+    if not folded:
+        file_q[:] = q
+        pos[:, 0] = root
+    else:
+        top_q, top_p = file_q[:, 0], pos[:, 0]
+        file_q[:, 1] = qmul(qinv(top_q), q[:, 0])
+        file_q[:, 2:] = q[:, 1:]
+        layout_pos = {c for c in bvh.channels[1] if c.lower().endswith("position")}
+        if len(layout_pos) == 3:
+            pos[:, 1] = qrot(qinv(top_q), root - top_p)
+        elif sum(c.lower().endswith("position") for c in bvh.channels[0]) == 3:
+            pos[:, 0] = root - qrot(top_q, bvh.offsets[1][None])
+        else:
+            raise BVHError(f"neither {bvh.names[0]} nor {bvh.names[1]} has 3 position channels: "
+                           "cannot write the root translation", bvh.source)
+    out = bvh.with_motion(file_q, pos)
+    if folded:  # the folded top joint is copied raw from its rows (no Euler round trip)
+        n_top = len(bvh.channels[0])
+        out.motion[:, :n_top] = bvh.motion[rows, :n_top]
+    return out
+
+
 def check_skeleton(ref: Skeleton | None, skel: Skeleton, name: str) -> Skeleton:
     """The dataset's skeleton so far (``ref``, ``None`` before the first file) after checking ``skel`` matches it."""
     if ref is None:
@@ -127,17 +181,17 @@ def read_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _clip_of(spec: DatasetSpec, fname: str, raw: bytes) -> tuple[str, Clip, Skeleton, float | None]:
+def _clip_of(spec: ReadSpec, fname: str, raw: bytes) -> tuple[str, Clip, Skeleton, float | None]:
     bvh = parse_bvh(raw, source=fname)
     stem = fname.rsplit(".", 1)[0]
     clip, skel = fold_static_root(bvh, stem, spec.fold_root) if spec.fold_root else clip_from_bvh(bvh, stem)
     return fname, clip, skel, 1.0 / bvh.frame_time
 
 
-_WORKER_SPEC: DatasetSpec | None = None
+_WORKER_SPEC: ReadSpec | None = None
 
 
-def _init_worker(spec: DatasetSpec) -> None:
+def _init_worker(spec: ReadSpec) -> None:
     global _WORKER_SPEC
     _WORKER_SPEC = spec
 
@@ -146,7 +200,7 @@ def _read_part(path: str, files: list[tuple[str, str]]) -> list[tuple[str, Clip,
     return [_clip_of(_WORKER_SPEC, name, raw) for name, raw in read_bvh_sources(path, files)]
 
 
-def read_bvh_clips(spec: DatasetSpec, path: Path) -> Iterator[tuple[str, Clip, Skeleton, float | None]]:
+def read_bvh_clips(spec: ReadSpec, path: Path) -> Iterator[tuple[str, Clip, Skeleton, float | None]]:
     """The default reader: ``(file name, clip, skeleton, frames per second)`` per BVH file of ``path``.
 
     Files are those matching ``spec.pattern``, sorted by name; a file no split rule of the spec uses is

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from inbetweening.data import windows as W
 from inbetweening.data.cache import CacheCorrupt, default_cache_dir, hash_source, load_entry, save_entry, settings_key
 from inbetweening.data.clips import Clip, MotionData, check_skeleton, clip_from_bvh, fold_static_root, read_workers
 from inbetweening.data.errors import BVHError, DatasetError
@@ -35,7 +36,6 @@ from inbetweening.data.specs import (
     lafan_split,
     register,
 )
-from inbetweening.evaluation import benchmark as B
 from inbetweening.geometry.skeleton import Skeleton
 
 CACHE_VERSION = 4  # 4: checksums in meta.json
@@ -112,12 +112,12 @@ def prepare(spec: DatasetSpec, path: Path, forward_axis, split: str = DEFAULT_SP
     """Read every file, split (by the spec's split ``split``), cut/normalise the benchmark windows, compute
     training statistics."""
     skel, fps, splits = _read_clips(spec, path, spec.split_rule(split))
-    stats = B.training_stats(splits["train"], skel, B.TRAIN_WINDOW, B.TRAIN_OFFSET, forward_axis,
+    stats = W.training_stats(splits["train"], skel, W.TRAIN_WINDOW, W.TRAIN_OFFSET, forward_axis,
                              threads=read_workers())
     if stats is None:
-        raise DatasetError(f"{path}: no training window of {B.TRAIN_WINDOW} frames could be cut")
+        raise DatasetError(f"{path}: no training window of {W.TRAIN_WINDOW} frames could be cut")
     mean, std = stats
-    teX, teQ = B.prepare_windows(splits["test"], skel, B.TEST_WINDOW, B.TEST_OFFSET, forward_axis)
+    teX, teQ = W.prepare_windows(splits["test"], skel, W.TEST_WINDOW, W.TEST_OFFSET, forward_axis)
     return MotionData(spec.name, skel, fps, tuple(float(a) for a in forward_axis), splits["train"], splits["test"],
                       mean, std, teX, teQ, str(path), split=split)
 
@@ -171,7 +171,7 @@ def load_dataset(
     axis = tuple(float(a) for a in (forward_axis if forward_axis is not None else spec.forward_axis))
     settings = {
         "v": CACHE_VERSION, "name": name, "axis": axis, "fold": spec.fold_root,
-        "train": (B.TRAIN_WINDOW, B.TRAIN_OFFSET), "test": (B.TEST_WINDOW, B.TEST_OFFSET),
+        "train": (W.TRAIN_WINDOW, W.TRAIN_OFFSET), "test": (W.TEST_WINDOW, W.TEST_OFFSET),
     }
     if split != DEFAULT_SPLIT:  # the standard split keeps the key it had before splits had names (entries stay valid)
         settings["split"] = split

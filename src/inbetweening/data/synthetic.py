@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from inbetweening.data.bvh import BVH, write_bvh
+from inbetweening.data.bvh import BVH
+from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.geometry.quaternion import euler_to_quat_np, qmul, quat_to_euler_np
 
 NAMES = (

@@ -1,5 +1,6 @@
-"""torchmetrics wrappers: the benchmark (L2Q/L2P/NPSS, scored by :func:`inbetweening.evaluation.benchmark.score`,
-the same function ``eval.py`` uses) and per-joint position / rotation errors."""
+"""torchmetrics wrappers: the benchmark (L2Q/L2P/NPSS of global poses, scored by
+:func:`inbetweening.evaluation.benchmark.score_global`, what ``eval.py``'s scores come from) and per-joint position /
+rotation errors."""
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -9,7 +10,7 @@ import torch
 from torchmetrics import Metric
 from torchmetrics.utilities import dim_zero_cat
 
-from inbetweening.evaluation.benchmark import score
+from inbetweening.evaluation.benchmark import score_global
 from inbetweening.geometry.quaternion import qangle
 from inbetweening.geometry.skeleton import Skeleton
 
@@ -26,21 +27,25 @@ class BenchmarkMetric(Metric):
         self.mean, self.std = np.asarray(mean, np.float64), np.asarray(std, np.float64)
         self.lengths = tuple(int(n) for n in lengths)
         for n in self.lengths:
-            for k in ("pred_root", "pred_q", "gt_root", "gt_q"):
+            for k in self.STATES:
                 self.add_state(f"{k}_{n}", default=[], dist_reduce_fx="cat")
 
-    def update(self, n: int, pred_root, pred_q, gt_root, gt_q) -> None:  # (B, n, 3), (B, n, J, 4) each
-        for k, v in (("pred_root", pred_root), ("pred_q", pred_q), ("gt_root", gt_root), ("gt_q", gt_q)):
+    STATES = ("pred_gq", "pred_gp", "gt_gq", "gt_gp")
+
+    def update(self, n: int, pred_gq, pred_gp, gt_gq, gt_gp) -> None:
+        """Global poses of ``n`` transition frames (FK done once by the caller): quaternions ``(B, n, J, 4)``,
+        positions ``(B, n, J, 3)``, prediction then ground truth."""
+        for k, v in zip(self.STATES, (pred_gq, pred_gp, gt_gq, gt_gp)):
             getattr(self, f"{k}_{n}").append(torch.as_tensor(v, dtype=torch.float64, device=self.device))
 
     def compute(self) -> dict[str, float]:
         out: dict[str, float] = {}
         for n in self.lengths:
-            state = getattr(self, f"gt_root_{n}")  # a list of batches, or one tensor after a DDP sync
+            state = getattr(self, f"gt_gq_{n}")  # a list of batches, or one tensor after a DDP sync
             if (len(state) if isinstance(state, list) else state.numel()) == 0:
                 continue
-            arrays = [dim_zero_cat(getattr(self, f"{k}_{n}")).cpu().numpy() for k in ("gt_root", "gt_q", "pred_root", "pred_q")]
-            out.update(score(*arrays, self.skeleton, self.mean, self.std, n))
+            arrays = [dim_zero_cat(getattr(self, f"{k}_{n}")).cpu().numpy() for k in self.STATES]
+            out.update(score_global(*arrays, self.mean, self.std, n))
         return out
 
 

@@ -1,8 +1,9 @@
 """Window canonicalisation: centre the root XZ and turn about +Y so the root's forward axis points to +X.
 
-One home for the normalisation used by the benchmark windows (:func:`canonicalise_windows`, the LAFAN1
-protocol), the known-frame centring of the predictor (:func:`xz_centre` with a ``known`` mask) and the animator
-tool (:func:`canonical_frame` + :func:`canonicalise` / :func:`uncanonicalise`).  Pure functions; numpy arrays
+The geometry of a window's canonical frame: :func:`facing_rotation`, :func:`canonical_frame` and
+:func:`canonicalise` / :func:`uncanonicalise` (used by the predictor's one centring stage,
+:meth:`inbetweening.predictor.predictor.Predictor.canonical_frame`, and by the LAFAN1 protocol's whole-window
+normalisation, :func:`inbetweening.data.windows.canonicalise_windows`).  Pure functions; numpy arrays
 and torch tensors alike (like :mod:`inbetweening.geometry.quaternion`).
 """
 from __future__ import annotations
@@ -13,7 +14,6 @@ import numpy as np
 import torch
 
 from inbetweening.geometry.quaternion import Array, qbetween, qinv, qmul, qnormalize, qrot
-from inbetweening.geometry.skeleton import fk, ik
 
 
 def _is_torch(x) -> bool:
@@ -103,31 +103,3 @@ def uncanonicalise(root: Array, local_q: Array, centre: Array, rotation: Array) 
     q = local_q.clone() if _is_torch(local_q) else np.array(local_q, copy=True)
     q[..., 0, :] = qmul(rotation, local_q[..., 0, :])
     return qrot(rotation, root) + centre, q
-
-
-def canonicalise_windows(X: Array, Q: Array, parents: Sequence[int], forward_axis: Sequence[float],
-                         frame: int) -> tuple[Array, Array]:
-    """The benchmark's normalisation (LAFAN1 protocol, bit for bit).  ``(B, T, J, 3), (B, T, J, 4) -> same``.
-
-    ``X``/``Q`` are local positions / rotations.  The root XZ is centred on its mean over the whole window, then
-    global rotations and positions (FK) are turned so the root faces +X at ``frame`` and taken back to local (IK).
-    Numpy windows take :func:`inbetweening.geometry.fastkin.canonicalise_windows_np` (the same arithmetic,
-    bit-identical, in cache-sized chunks); torch tensors the generic path below.
-    """
-    if not _is_torch(X) and not _is_torch(Q):
-        from inbetweening.geometry.fastkin import canonicalise_windows_np
-
-        return canonicalise_windows_np(X, Q, parents, forward_axis, frame)
-    return _canonicalise_windows_generic(X, Q, parents, forward_axis, frame)
-
-
-def _canonicalise_windows_generic(X: Array, Q: Array, parents: Sequence[int], forward_axis: Sequence[float],
-                                  frame: int) -> tuple[Array, Array]:
-    """:func:`canonicalise_windows` written once for numpy and torch (the definition the fast path is tested against)."""
-    X = X.clone() if _is_torch(X) else np.array(X, copy=True)
-    xz = masked_mean(X[:, :, 0, 0::2])  # (B, 1, 2)
-    X[:, :, 0, 0] = X[:, :, 0, 0] - xz[..., 0]
-    X[:, :, 0, 2] = X[:, :, 0, 2] - xz[..., 1]
-    gq, gp = fk(Q, X, parents)
-    inv = qinv(facing_rotation(gq[:, frame : frame + 1, 0:1, :], forward_axis))
-    return ik(qmul(inv, gq), qrot(inv, gp), parents)[::-1]

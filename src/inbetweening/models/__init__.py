@@ -32,15 +32,20 @@ def build_model(name: str, **kwargs) -> InbetweenModel:
     return MODELS[name](**kwargs)
 
 
-def build_network(model_cfg: dict, skeleton) -> InbetweenModel:
+def build_network(model_cfg: dict, skeleton, layout: dict | None = None) -> InbetweenModel:
     """The network of a model config (``name`` + constructor values; ``hops`` builds a k-hop relation matrix)
-    for a :class:`~inbetweening.geometry.skeleton.Skeleton`; ValueError naming ``model.name`` if unknown."""
+    for a :class:`~inbetweening.geometry.skeleton.Skeleton` and a representation's feature ``layout``
+    (:meth:`~inbetweening.representation.base.Representation.layout`; default: the default representation's);
+    ValueError naming ``model.name`` if unknown."""
     cfg = dict(model_cfg)
     name = cfg.pop("name")
     if name not in MODELS:
         raise ValueError(f"model.name: unknown model {name!r}; choose one of {sorted(MODELS)}")
     hops = int(cfg.get("hops", 1))
-    return build_model(name, num_joints=skeleton.num_joints, adjacency=skeleton.adjacency(hops).tolist(), **cfg)
+    given = {"num_joints": skeleton.num_joints, "adjacency": skeleton.adjacency(hops).tolist()}
+    if layout is not None:
+        given.update(layout=dict(layout), feature_dim=int(layout["features"]))
+    return build_model(name, **given, **cfg)
 
 
 __all__ = [

@@ -23,26 +23,28 @@ import torch
 from torch import Tensor, nn
 
 from inbetweening.geometry.quaternion import quat_to_rot6d
+from inbetweening.representation import DEFAULT_REPRESENTATION, representation_class
 
 from .blocks import ACTIVATIONS, check_length
 
-FEATURE_DIM = 7  # per joint: [pos x, pos y, pos z, qw, qx, qy, qz]
-POS = slice(0, 3)
-QUAT = slice(3, 7)
-SKELETON_ARGS = ("num_joints", "adjacency")  # given by the skeleton, not by the model config
+# the feature layout is the representation's (inbetweening.representation); a network is built with its plain
+# values (``layout``), by default the default representation's
+DEFAULT_LAYOUT: dict = representation_class(DEFAULT_REPRESENTATION).layout()
+FEATURE_DIM = DEFAULT_LAYOUT["features"]
+SKELETON_ARGS = ("num_joints", "adjacency", "layout")  # given by the skeleton and the representation, not the config
 VELOCITY_SCALE = 10.0  # derived velocity inputs: frame-to-frame change of the z-scored positions x 10 (about unit
 # scale on Bandai-Namco-2 at 30 fps)
 
 
-def rot6d_input(x: Tensor) -> Tensor:
+def rot6d_input(x: Tensor, pos: slice, quat: slice) -> Tensor:
     """6-D rotation of each joint's (masked) quaternion.  ``(B, T, J, F) -> (B, T, J, 6)``."""
-    return quat_to_rot6d(x[..., QUAT])
+    return quat_to_rot6d(x[..., quat])
 
 
-def velocity_input(x: Tensor) -> Tensor:
+def velocity_input(x: Tensor, pos: slice, quat: slice) -> Tensor:
     """Frame-to-frame change of the (masked) positions, 0 on the first frame, x :data:`VELOCITY_SCALE`.
     ``(B, T, J, F) -> (B, T, J, 3)``.  Computed from the masked input, so unknown frames never leak into it."""
-    p = x[..., POS]
+    p = x[..., pos]
     return torch.cat([torch.zeros_like(p[:, :1]), p[:, 1:] - p[:, :-1]], dim=1) * VELOCITY_SCALE
 
 
@@ -154,6 +156,8 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
     ``adjacency`` (``J x J`` joint relation matrix, checked even by models that do not use it), ``feature_dim``
     (``F >= 7``: pos xyz + quaternion wxyz), ``max_frames`` (longest window ``T``), ``residual_to_interpolation``
     (predict ``interp + network(...)`` when ``interp`` is given; output head initialised to 0), ``dropout``,
+    ``layout`` (the representation's feature layout, :meth:`inbetweening.representation.base.Representation.layout`:
+    which channels are positions and rotations; given by the predictor, default the default representation's),
     ``inputs`` (extra input channels derived from ``x``, names of :data:`INPUTS`: the network reads
     ``input_dim = F + extras`` channels per joint and still writes ``F``).
     """
@@ -173,8 +177,13 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         residual_to_interpolation: bool = False,
         dropout: float = 0.0,
         inputs: Iterable[str] = (),
+        layout: Mapping[str, Any] | None = None,
     ):
         super().__init__()
+        layout = dict(layout or DEFAULT_LAYOUT)
+        if int(layout["features"]) != feature_dim:
+            raise ValueError(f"feature_dim: {feature_dim} differs from the representation's {layout['features']} channels")
+        self.pos, self.quat = slice(*layout["position"]), slice(*layout["rotation"])
         self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
         self.residual_to_interpolation = bool(residual_to_interpolation)
         self.inputs = tuple(inputs or ())
@@ -255,7 +264,7 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         """``x`` followed by the derived ``inputs`` channels.  ``(B, T, J, F) -> (B, T, J, input_dim)``."""
         if not self.inputs:
             return x
-        return torch.cat([x, *(INPUTS[n][1](x) for n in self.inputs)], dim=-1)
+        return torch.cat([x, *(INPUTS[n][1](x, self.pos, self.quat) for n in self.inputs)], dim=-1)
 
     def forward(self, x: Tensor, known: Tensor, interp: Tensor | None = None, with_raw: bool = False):
         """``x (B, T, J, F), known (B, T, J), interp (B, T, J, F) | None -> (B, T, J, F)``.
@@ -271,12 +280,11 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         pred = self.finalize(raw, x, known)
         return (pred, self.normalize_quaternions(raw)) if with_raw else pred
 
-    @classmethod
-    def normalize_quaternions(cls, raw: Tensor) -> Tensor:
-        """Scale features ``3:7`` of ``(..., F)`` to unit norm; other features unchanged."""
-        q = raw[..., QUAT]
-        norm = torch.sqrt((q * q).sum(dim=-1, keepdim=True)).clamp_min(cls.quat_eps)
-        return torch.cat([raw[..., POS], q / norm, raw[..., QUAT.stop :]], dim=-1)
+    def normalize_quaternions(self, raw: Tensor) -> Tensor:
+        """Scale the rotation channels of ``(..., F)`` to unit norm; other channels unchanged."""
+        q = raw[..., self.quat]
+        norm = torch.sqrt((q * q).sum(dim=-1, keepdim=True)).clamp_min(self.quat_eps)
+        return torch.cat([raw[..., : self.quat.start], q / norm, raw[..., self.quat.stop :]], dim=-1)
 
     def finalize(self, raw: Tensor, x: Tensor, known: Tensor) -> Tensor:
         """``raw, x (B, T, J, F), known (B, T, J) -> (B, T, J, F)``: unit quaternions, known values copied from ``x``."""

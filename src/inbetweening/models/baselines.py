@@ -11,7 +11,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from .base import FEATURE_DIM, QUAT, InbetweenModel
+from .base import FEATURE_DIM, InbetweenModel
 
 
 class _Baseline(InbetweenModel):
@@ -28,12 +28,13 @@ class _Baseline(InbetweenModel):
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
         dropout: float = 0.0,
+        layout: dict | None = None,
         **architecture: object,
     ):
         # architecture settings shared by a sweep (depth, ...) mean nothing to a baseline: ignored; and a baseline has
         # nothing to add to the interpolation: residual_to_interpolation is accepted for config uniformity only
         del residual_to_interpolation
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, False, dropout)
+        super().__init__(num_joints, adjacency, feature_dim, max_frames, False, dropout, layout=layout)
 
 
 class ZeroVelocity(_Baseline):
@@ -53,11 +54,11 @@ class ZeroVelocity(_Baseline):
         nxt = torch.where(known, frame, torch.full_like(frame, t)).flip(1).cummin(dim=1).values.flip(1)
         src = torch.where(last >= 0, last, torch.where(nxt < t, nxt, frame))  # (B, T, J) source frame
         raw = torch.gather(x, 1, src[..., None].expand(-1, -1, -1, x.shape[-1]))
-        q = raw[..., QUAT]
+        q = raw[..., self.quat]
         identity = torch.zeros_like(q)
         identity[..., 0] = 1.0
         degenerate = (q * q).sum(dim=-1, keepdim=True) < self.quat_eps
-        return torch.cat([raw[..., : QUAT.start], torch.where(degenerate, identity, q), raw[..., QUAT.stop :]], -1)
+        return torch.cat([raw[..., : self.quat.start], torch.where(degenerate, identity, q), raw[..., self.quat.stop :]], -1)
 
 
 class Interpolation(_Baseline):

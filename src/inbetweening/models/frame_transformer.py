@@ -44,9 +44,10 @@ class FrameTransformer(InbetweenModel):
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
         inputs: tuple[str, ...] = (),
+        layout: dict | None = None,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs)
+                         inputs, layout)
         self.d_model = d_model
         in_ch = num_joints * self.input_dim + num_joints
         self.stem = nn.Conv1d(in_ch, d_model, kernel_size=3, padding=1)

@@ -101,9 +101,10 @@ class GraphTransformer(InbetweenModel):
         activation: str = "gelu",
         checkpoint_layers: bool = True,
         inputs: tuple[str, ...] = (),
+        layout: dict | None = None,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs)
+                         inputs, layout)
         self.checkpoint_layers = bool(checkpoint_layers)
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
         adj = torch.as_tensor(adjacency, dtype=torch.float32)

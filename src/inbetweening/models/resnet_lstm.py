@@ -45,9 +45,10 @@ class ResNetLSTM(InbetweenModel):
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
         inputs: tuple[str, ...] = (),
+        layout: dict | None = None,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs)
+                         inputs, layout)
         in_dim = num_joints * self.input_dim + num_joints
         self.input_layers = nn.Sequential(nn.Linear(in_dim, hidden_dim), make_activation(activation))
         self.res_blocks = nn.Sequential(

@@ -51,9 +51,10 @@ class STTransformer(InbetweenModel):
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
         inputs: tuple[str, ...] = (),
+        layout: dict | None = None,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs)
+                         inputs, layout)
         spatial_ffn_dim = 2 * spatial_dim if spatial_ffn_dim is None else spatial_ffn_dim
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
         self.spatial_dim, self.d_model = spatial_dim, d_model

@@ -66,9 +66,10 @@ class UNet1D(InbetweenModel):
         max_frames: int = 128,
         residual_to_interpolation: bool = False,
         inputs: tuple[str, ...] = (),
+        layout: dict | None = None,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs)
+                         inputs, layout)
         self.levels, self.multiple = levels, 2**levels
         chans = [base_channels * 2**i for i in range(levels + 1)]
         in_ch = num_joints * self.input_dim + num_joints

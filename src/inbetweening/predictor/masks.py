@@ -1,16 +1,18 @@
 """Masks: which values are known, and what the model sees in place of the unknown ones.
 
-Small pure functions on torch tensors.  ``known`` is ``(B, T, J)`` bool (True = given);
-features are ``(B, T, J, 7)`` ``[pos xyz, quat wxyz]``.
+Small pure functions on torch tensors.  ``known`` is ``(B, T, J)`` bool (True = given); features are
+``(B, T, J, F)`` whose position and rotation channels the representation names (``layout``: an object with ``pos``
+and ``quat`` slices, :class:`inbetweening.representation.base.Representation`).
 
 * :func:`transition_known` - the in-betweening mask: context frames, then a gap, then a target keyframe.
 * :func:`joints_known`     - the mocap-recovery mask: random joints missing over random gaps.
-* ``MASKS[name](x, known)`` - fill the unknown values: ``zero`` (zeros) or ``lerp`` (positions
-  linear, quaternions slerp between the nearest known frames of the same joint).
+* ``MASKS[name](x, known, layout)`` - fill the unknown values: ``zero`` (zeros) or ``lerp`` (positions
+  linear, quaternions slerp between the nearest known frames of the same joint, other channels held).
 """
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import torch
 
@@ -32,6 +34,29 @@ def transition_known(batch: int, frames: int, joints: int, n_past: int, n_trans,
     return known[:, :, None].expand(batch, frames, joints).clone()
 
 
+@dataclass(frozen=True)
+class JointGaps:
+    """The mocap-recovery task's gap settings (``mask=joints``; ``conf/mask/joints.yaml``), defaults in one place:
+    per sample a ``frac_min..frac_max`` share of the joints is missing over one gap of ``gap_min..gap_max``
+    frames.  Used by the training batches and by the recovery scores of validation/test alike."""
+
+    gap_min: int = 10
+    gap_max: int = 200
+    frac_min: float = 0.1
+    frac_max: float = 0.3
+
+    @classmethod
+    def from_config(cls, cfg: dict | None) -> JointGaps:
+        """From the ``mask`` group's values (its ``name`` ignored; missing keys take the defaults)."""
+        return cls(**{k: v for k, v in (cfg or {}).items() if k != "name"})
+
+    def known(self, batch: int, frames: int, joints: int, generator: torch.Generator | None = None,
+              device=None) -> torch.Tensor:
+        """:func:`joints_known` with these settings."""
+        return joints_known(batch, frames, joints, int(self.gap_min), int(self.gap_max), float(self.frac_min),
+                            float(self.frac_max), generator=generator, device=device)
+
+
 def joints_known(
     batch: int, frames: int, joints: int, gap_min: int, gap_max: int, frac_min: float, frac_max: float,
     generator: torch.Generator | None = None, device=None,
@@ -51,7 +76,7 @@ def joints_known(
     return known
 
 
-def zero_fill(x: torch.Tensor, known: torch.Tensor) -> torch.Tensor:
+def zero_fill(x: torch.Tensor, known: torch.Tensor, layout=None) -> torch.Tensor:
     """Unknown values set to 0.  ``(B, T, J, F), (B, T, J) -> (B, T, J, F)``."""
     return torch.where(known[..., None], x, torch.zeros_like(x))
 
@@ -66,11 +91,12 @@ def _neighbour_known(known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return prev, nxt
 
 
-def lerp_fill(x: torch.Tensor, known: torch.Tensor) -> torch.Tensor:
+def lerp_fill(x: torch.Tensor, known: torch.Tensor, layout) -> torch.Tensor:
     """Unknown values interpolated from the nearest known frames of the same joint.
 
-    Positions linearly, quaternions by slerp (shortest arc, linear fallback when nearly equal);
-    before the first / after the last known frame the nearest known value is held.
+    Positions (``layout.pos``) linearly, quaternions (``layout.quat``) by slerp (shortest arc, linear fallback when
+    nearly equal), other channels held from the previous known frame; before the first / after the last known frame
+    the nearest known value is held.
     ``(B, T, J, F), (B, T, J) -> (B, T, J, F)``.
     """
     prev, nxt = _neighbour_known(known)
@@ -85,21 +111,21 @@ def lerp_fill(x: torch.Tensor, known: torch.Tensor) -> torch.Tensor:
     safe = torch.where(known[..., None], x, torch.zeros_like(x))  # never read unknown values, even NaN ones
     xp = torch.gather(safe, 1, p[..., None].expand_as(x))
     xn = torch.gather(safe, 1, n[..., None].expand_as(x))
-    pos = lerp(xp[..., :3], xn[..., :3], w[..., None])
-    quat = slerp(xp[..., 3:7], xn[..., 3:7], w)
-    filled = torch.cat([pos, quat, xp[..., 7:]], dim=-1)
+    filled = xp.clone()
+    filled[..., layout.pos] = lerp(xp[..., layout.pos], xn[..., layout.pos], w[..., None])
+    filled[..., layout.quat] = slerp(xp[..., layout.quat], xn[..., layout.quat], w)
     return torch.where(known[..., None], x, filled)
 
 
 # name -> fill function; "joints" is the mocap-recovery task, which fills its gaps by interpolation
-MASKS: dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {
+MASKS: dict[str, Callable[..., torch.Tensor]] = {
     "zero": zero_fill,
     "lerp": lerp_fill,
     "joints": lerp_fill,
 }
 
 
-def apply_mask(name: str, x: torch.Tensor, known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+def apply_mask(name: str, x: torch.Tensor, known: torch.Tensor, layout) -> tuple[torch.Tensor, torch.Tensor]:
     """Model input and interpolation for a mask: ``(masked x, lerp interpolation)``, both ``(B, T, J, F)``.
 
     The interpolation is always returned (models with ``residual_to_interpolation`` and the
@@ -107,6 +133,6 @@ def apply_mask(name: str, x: torch.Tensor, known: torch.Tensor) -> tuple[torch.T
     """
     if name not in MASKS:
         raise ValueError(f"unknown mask {name!r}; choose one of {sorted(MASKS)}")
-    interp = lerp_fill(x, known)
-    shown = interp if MASKS[name] is lerp_fill else MASKS[name](x, known)
+    interp = lerp_fill(x, known, layout)
+    shown = interp if MASKS[name] is lerp_fill else MASKS[name](x, known, layout)
     return shown, interp

@@ -4,7 +4,8 @@ It owns the skeleton, the training statistics, the feature representation, the m
 context length, the forward axis and the network, and is the only path from windows to predictions used by
 training, validation/test, ``eval.py``, the TensorBoard figure, the animator tool and export.  It is built
 from plain values (:meth:`Predictor.from_hparams` / :meth:`Predictor.hparams`), so a checkpoint's
-hyper-parameters and state dict restore it without Hydra or Lightning (:func:`inbetweening.checkpoint.load_predictor`).
+hyper-parameters and state dict restore it without Hydra or Lightning
+(:func:`inbetweening.predictor.checkpoint.load_predictor`).
 
 Shapes: windows ``root (B, T, 3)``, ``local_q (B, T, J, 4)``; features ``(B, T, J, F)``; ``known (B, T, J)`` bool.
 """
@@ -13,47 +14,72 @@ from __future__ import annotations
 import functools
 import json
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 import torch
 from torch import nn
 
-from inbetweening.evaluation.benchmark import N_PAST
+from inbetweening.data.windows import N_PAST
 from inbetweening.geometry import canonical
+from inbetweening.geometry.quaternion import qrot
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.predictor.inference import CENTRES, centred_forward, check_centre, restore_frame
 from inbetweening.predictor.masks import MASK_NAMES, apply_mask, transition_known
-from inbetweening.predictor.representation import DEFAULT_REPRESENTATION, build_representation
+from inbetweening.representation import DEFAULT_REPRESENTATION, build_representation, representation_class
 
-LEGACY_CENTRE = "window"  # what checkpoints made before the ``centre`` option did
+CENTRES = ("known", "last", "window")
+LEGACY_CENTRE = "window"  # what checkpoints made before the ``centre`` option record (see Predictor.canonical_frame)
 
 # the predictor's hyper-parameters, as InbetweenModule records them
 HPARAMS = ("model", "skeleton", "pos_mean", "pos_std", "mask", "centre", "n_past", "forward_axis", "representation",
            "fps", "train_window", "dataset")
 
 
+def check_centre(centre: str) -> str:
+    """``centre`` itself, or ValueError naming the allowed modes."""
+    if centre not in CENTRES:
+        raise ValueError(f"centre must be one of {list(CENTRES)}, got {centre!r}")
+    return centre
+
+
 def upgrade_hparams(hp: dict) -> dict:
     """Hyper-parameters of an older checkpoint in today's form: a missing ``centre`` is ``window`` (what those
-    checkpoints did), a missing ``representation`` the original one.  Returns a new dict."""
+    checkpoints record), a missing ``representation`` the original one.  Returns a new dict."""
     hp = dict(hp)
     hp.setdefault("centre", LEGACY_CENTRE)
     hp.setdefault("representation", DEFAULT_REPRESENTATION)
     return hp
 
 
+class Filled(NamedTuple):
+    """What :meth:`Predictor.predict_windows` returns.  ``root``/``local_q`` and ``interp_root``/``interp_q``: the
+    prediction and the interpolation in the input's frame, float64, known values copied bit-exactly from the input;
+    ``feats``/``pred``: the input's and the predicted features in the canonical frame (unknown input values NaN);
+    ``frame``: that frame."""
+
+    root: torch.Tensor
+    local_q: torch.Tensor
+    interp_root: torch.Tensor
+    interp_q: torch.Tensor
+    feats: torch.Tensor
+    pred: torch.Tensor
+    frame: tuple  # (centre (B, 1, 3), rotation (B, 1, 4)): the canonical frame (Predictor.canonical_frame)
+
+
 class Predictor(nn.Module):
-    """Windows -> features -> (mask, centring) -> network -> predicted windows.
+    """Windows -> canonical frame -> features -> mask -> network -> predicted windows.
 
     Args:
         net: the network, ``net(x, known, interp) -> (B, T, J, F)`` (:mod:`inbetweening.models`).
         skeleton: the training data's skeleton.
         pos_mean, pos_std: training statistics of global positions, ``J*3`` floats each.
         mask: ``zero`` | ``lerp`` | ``joints`` (what the network sees in place of unknown values).
-        centre: ``known`` (re-centre on the known frames' mean root XZ), ``last`` (on the last context frame's root
-            XZ) or ``window`` (as given); required.
+        centre: where the canonical frame's origin is (:meth:`canonical_frame`): ``known`` (the known frames' mean
+            root XZ), ``last`` (the last context frame's root XZ) or ``window`` (checkpoints made before the option:
+            the same as ``known``); required.
         n_past: context frames before a transition.
-        forward_axis: the root's forward direction in its local frame (window canonicalisation).
-        representation: name of the feature representation (:mod:`inbetweening.predictor.representation`).
+        forward_axis: the root's forward direction in its local frame (the canonical frame faces it to +X).
+        representation: name of the feature representation (:mod:`inbetweening.representation`).
         model: the network's config (recorded, for :meth:`hparams`); fps, train_window, dataset: data conventions.
     """
 
@@ -88,7 +114,8 @@ class Predictor(nn.Module):
         skeleton = Skeleton.from_dict(hp["skeleton"])
         kw = {k: hp[k] for k in HPARAMS[4:] if k in hp and hp[k] is not None}
         kw.setdefault("mask", "lerp")
-        return cls(build_network(hp["model"], skeleton), skeleton, hp["pos_mean"], hp["pos_std"],
+        layout = representation_class(kw.get("representation", DEFAULT_REPRESENTATION)).layout()
+        return cls(build_network(hp["model"], skeleton, layout), skeleton, hp["pos_mean"], hp["pos_std"],
                    model=dict(hp["model"]), **kw)
 
     def hparams(self) -> dict:
@@ -107,6 +134,53 @@ class Predictor(nn.Module):
         """Longest window the network accepts (``None``: any)."""
         m = getattr(self.net, "max_frames", None)
         return int(m) if m else None
+
+    # ------------------------------------------------------------------ the one centring stage
+    def canonical_frame(self, root, local_q, known):
+        """The canonical frame of windows, decided by their known values only: ``(centre (B, 1, 3), rotation
+        (B, 1, 4))``, numpy for numpy windows, torch otherwise (float64).
+
+        The rotation turns the root's ``forward_axis`` at the last context frame (the last frame before the first
+        frame with an unknown root value; the first known frame when the window starts unknown) to +X about +Y; the
+        centre is the known frames' mean root XZ (``centre="known"``, and ``"window"``) or the root XZ at that frame
+        (``"last"``), Y = 0.  Done once, in world space, for every caller (training batches, the benchmark's
+        windows, the animator's): a yaw and a translation are rigid motions, so the same step serves every
+        representation (a feature-space shift could only translate, and only z-scored positions).  Unknown values
+        are never read (NaN is fine).  ``root (B, T, 3)``, ``local_q (B, T, J, 4)``, ``known (B, T, J)`` bool."""
+        is_np = not isinstance(root, torch.Tensor)
+        k = np.asarray(known.cpu() if isinstance(known, torch.Tensor) else known)[..., 0] if is_np else known[..., 0]
+        b, t = k.shape
+        if is_np:
+            idx = np.arange(t)[None, :]
+            first_unknown = np.where(~k, idx, t).min(axis=1)
+            first_known = np.where(k, idx, t).min(axis=1)
+            frame = np.minimum(np.where(first_unknown > 0, first_unknown - 1, first_known), t - 1)
+            rows = np.arange(b)
+        else:
+            idx = torch.arange(t, device=k.device)[None, :]
+            first_unknown = torch.where(~k, idx, t).min(dim=1).values
+            first_known = torch.where(k, idx, t).min(dim=1).values
+            frame = torch.where(first_unknown > 0, first_unknown - 1, first_known).clamp(max=t - 1)
+            rows = torch.arange(b, device=k.device)
+        rot = canonical.facing_rotation(local_q[rows, frame][:, None, 0, :], self.forward_axis)
+        rot = rot / (rot * rot).sum(-1)[..., None] ** 0.5
+        # "last": the XZ of that one frame (a mean over one frame is the value itself)
+        centre = canonical.xz_centre(root[rows, frame][:, None, :]) if self.centre == "last" else \
+            canonical.xz_centre(root, k)
+        return centre, rot
+
+    def canonical_features(self, root, local_q, known: torch.Tensor):
+        """Windows (any frame, numpy or torch) -> ``(features (B, T, J, F) in the canonical frame on the network's
+        device, (centre, rotation))``."""
+        if isinstance(root, torch.Tensor) or isinstance(local_q, torch.Tensor):
+            root = torch.as_tensor(root, dtype=torch.float64)
+            local_q = torch.as_tensor(local_q, dtype=torch.float64, device=root.device)
+            known = known.to(root.device)
+        else:
+            root, local_q = np.asarray(root, dtype=np.float64), np.asarray(local_q, dtype=np.float64)
+        frame = self.canonical_frame(root, local_q, known)
+        croot, cq = canonical.canonicalise(root, local_q, *frame)
+        return self.encode(croot, cq, device=self.device), frame
 
     # ------------------------------------------------------------------ features
     def encode(self, root, local_q, dtype=torch.float32, device=None) -> torch.Tensor:
@@ -129,30 +203,43 @@ class Predictor(nn.Module):
         return transition_known(batch, frames, self.skeleton.num_joints, self.n_past, n, device=device)
 
     # ------------------------------------------------------------------ forward / predict
-    def forward(self, feats: torch.Tensor, known: torch.Tensor, net=None, with_raw: bool = False):
-        """Training forward (with gradients): ``(pred, interp, target)``, ``target`` being ``feats`` in the frame
-        the prediction lives in (the loss compares the two).  ``net``: a callable run in place of ``self.net`` (its
-        compiled forward, see :meth:`InbetweenModule.compile_network`).  ``with_raw``: ``(pred, interp, target, raw)``,
-        ``raw`` being the network's output before the known values are copied back (keyframe-consistency loss)."""
+    def forward(self, root, local_q, known: torch.Tensor, net=None, with_raw: bool = False):
+        """Training forward (with gradients): ``(pred, interp, target)`` features in the canonical frame, ``target``
+        being the input's (the loss compares the two).  ``net``: a callable run in place of ``self.net`` (its compiled
+        forward, see :meth:`InbetweenModule.compile_network`).  ``with_raw``: ``(pred, interp, target, raw)``, ``raw``
+        being the network's output before the known values are copied back (keyframe-consistency loss)."""
         net = net or self.net
         if with_raw:
             net = functools.partial(net, with_raw=True)
-        out, interp, target, _ = centred_forward(net, self.mask_name, feats, known, self.centre,
-                                                 self.representation.centre_shift)
-        return (out[0], interp, target, out[1]) if with_raw else (out, interp, target)
+        feats, _ = self.canonical_features(root, local_q, known)
+        known = known.to(feats.device)
+        x, interp = apply_mask(self.mask_name, feats, known, self.representation)
+        out = net(x, known, interp)
+        return (out[0], interp, feats, out[1]) if with_raw else (out, interp, feats)
 
     @torch.no_grad()
-    def predict(self, feats: torch.Tensor, known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """``(prediction, interpolation)`` in the input's frame; known values bit-exact from ``feats``, unknown
-        input values never read (they may be NaN)."""
-        pred, interp, _, shift = centred_forward(self.net, self.mask_name, feats, known, self.centre,
-                                                 self.representation.centre_shift)
-        return restore_frame(feats, known, pred, interp, shift)
+    def predict_windows(self, root, local_q, known: torch.Tensor) -> Filled:
+        """Predict the unknown values of windows given in any frame (numpy or torch): a :class:`Filled`, the
+        prediction and the interpolation back in the input's frame with the known values copied bit-exactly;
+        unknown input values are never read (they may be NaN)."""
+        feats, frame = self.canonical_features(root, local_q, known)
+        known = known.to(feats.device)
+        x, interp = apply_mask(self.mask_name, feats, known, self.representation)
+        pred = self.net(x, known, interp)
+        frame = tuple(torch.as_tensor(f, device=feats.device) for f in frame)
+        root_in = torch.as_tensor(root, dtype=torch.float64, device=feats.device)
+        q_in = torch.as_tensor(local_q, dtype=torch.float64, device=feats.device)
+        outs = []
+        for f in (pred, interp):
+            r, q = canonical.uncanonicalise(*self.decode(f), *frame)
+            outs += [torch.where(known[..., :1], root_in, r), torch.where(known[..., None], q_in, q)]
+        return Filled(*outs, feats, pred, frame)
 
-    def predict_windows(self, root, local_q, known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Encode windows and predict their unknown values: ``(features, prediction, interpolation)``."""
-        feats = self.encode(root, local_q, device=known.device)
-        return (feats, *self.predict(feats, known))
+    def world_positions(self, out: Filled) -> torch.Tensor:
+        """The global joint positions the predicted features carry (their position channels, not FK), in the input's
+        frame, float64.  ``-> (B, T, J, 3)``."""
+        centre, rot = out.frame
+        return qrot(rot[:, :, None], self.global_positions(out.pred)) + centre[:, :, None]
 
     def predict_transitions(self, root, local_q, n: int, device=None, batch_size: int = 256):
         """The benchmark's predictor contract.
@@ -160,26 +247,22 @@ class Predictor(nn.Module):
         ``root (B, n_past+n+1, 3), local_q (B, n_past+n+1, J, 4)`` (transition frames may be NaN) ->
         predicted ``root (B, n, 3)``, ``local_q (B, n, J, 4)`` as float64 numpy.
         """
-        device = device or self.device
         sl = slice(self.n_past, self.n_past + n)
         outs_r, outs_q = [], []
         for s in range(0, len(root), batch_size):
             r, q = root[s : s + batch_size], local_q[s : s + batch_size]
-            known = self.transition_known(len(r), np.shape(r)[1], n, device=device)
-            _, pred, _ = self.predict_windows(r, q, known)
-            pr, pq = self.decode(pred)
-            outs_r.append(pr[:, sl].cpu().numpy())
-            outs_q.append(pq[:, sl].cpu().numpy())
+            known = self.transition_known(len(r), np.shape(r)[1], n, device=device or self.device)
+            out = self.predict_windows(r, q, known)
+            outs_r.append(out.root[:, sl].cpu().numpy())
+            outs_q.append(out.local_q[:, sl].cpu().numpy())
         return np.concatenate(outs_r), np.concatenate(outs_q)
 
     def fill_window(self, root: np.ndarray, local_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """One transition in world space, as the animator tool needs it.
 
         ``root (T, 3), local_q (T, J, 4)``: ``n_past`` context frames, ``n = T - n_past - 1`` transition frames
-        (never read) and the target.  The window is canonicalised like the training windows (XZ centred on the
-        known frames' root, the root facing +X at the last context frame), predicted, and taken back.
-        Returns the ``n`` predicted frames ``root (n, 3), local_q (n, J, 4)``, float64, unit quaternions.
-        This is :meth:`fill_windows` of a batch of one.
+        (never read) and the target.  Returns the ``n`` predicted frames ``root (n, 3), local_q (n, J, 4)``, float64,
+        unit quaternions.  This is :meth:`fill_windows` of a batch of one.
         """
         pr, pq = self.fill_windows(np.asarray(root)[None], np.asarray(local_q)[None])
         return pr[0], pq[0]
@@ -188,7 +271,7 @@ class Predictor(nn.Module):
         """:meth:`fill_window` of ``B`` windows of the same length in one forward pass.
 
         ``root (B, T, 3), local_q (B, T, J, 4)`` -> ``root (B, n, 3), local_q (B, n, J, 4)``, ``n = T - n_past - 1``.
-        Each window is canonicalised on its own; the windows do not interact (the same numbers as one at a time,
+        Each window gets its own canonical frame; the windows do not interact (the same numbers as one at a time,
         up to float rounding of the batched network).
         """
         root = np.asarray(root, dtype=np.float64)
@@ -201,18 +284,11 @@ class Predictor(nn.Module):
         n = t - p - 1
         if n < 1:
             raise ValueError(f"fill_windows: {t} frames leave no transition after {p} context frames and the target")
-        known_t = np.zeros(t, dtype=bool)
-        known_t[:p] = True
-        known_t[-1] = True
-        centre, rot = canonical.canonical_frame(root, local_q, self.forward_axis, p - 1, known_t)
-        wr, wq = canonical.canonicalise(root, local_q, centre, rot)
         known = self.transition_known(b, t, n, device=self.device)
         with torch.inference_mode():
-            _, pred, _ = self.predict_windows(wr, wq, known)
-            pr, pq = self.decode(pred[:, p : p + n])
-        pr, pq = pr.cpu().numpy(), pq.cpu().numpy()
-        pq /= np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit (decode's normalisation has an epsilon)
-        return canonical.uncanonicalise(pr, pq, centre, rot)
+            out = self.predict_windows(root, local_q, known)
+        pr, pq = out.root[:, p : p + n].cpu().numpy(), out.local_q[:, p : p + n].cpu().numpy()
+        return pr, pq / np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit (decode's normalisation has an epsilon)
 
     # ------------------------------------------------------------------ export
     def example_inputs(self, batch: int, gap: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -224,7 +300,7 @@ class Predictor(nn.Module):
         quat = torch.randn(batch, t, j, rep.quat.stop - rep.quat.start, generator=g)
         feats[..., rep.quat] = quat / quat.norm(dim=-1, keepdim=True)
         known = transition_known(batch, t, j, self.n_past, gap)
-        x, interp = apply_mask(self.mask_name, feats, known)
+        x, interp = apply_mask(self.mask_name, feats, known, rep)
         return x, known, interp
 
     def metadata(self, inputs: Sequence[str] = ("x", "known", "interp")) -> dict[str, str]:

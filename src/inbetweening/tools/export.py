@@ -146,7 +146,7 @@ def export_checkpoint(src: str | Path, dst: str | Path) -> dict:
     result still loads with ``InbetweenModule.load_from_checkpoint`` and ``Inbetweener.from_checkpoint``.
     Returns ``{"path", "bytes"}``.
     """
-    from inbetweening.checkpoint import predictor_state, read_checkpoint
+    from inbetweening.predictor.checkpoint import predictor_state, read_checkpoint
 
     ckpt = read_checkpoint(str(src))
     slim = {k: ckpt[k] for k in INFERENCE_KEYS if k in ckpt}
@@ -176,7 +176,7 @@ def run(argv: Sequence[str]) -> int:
     if fmt not in FORMATS:
         fail(f"format: unknown export format {args['format']!r}; supported: {', '.join(FORMATS)}")
     from inbetweening.atomic import same_file
-    from inbetweening.checkpoint import CheckpointError, load_predictor
+    from inbetweening.predictor.checkpoint import CheckpointError, load_predictor
 
     if same_file(args["ckpt_path"], args["output"]) and not args.get("force", False):
         fail(f"output: {args['output']} is the checkpoint being exported; writing it would destroy the input "

@@ -41,16 +41,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from inbetweening.data.bvh import BVH, BVHError, read_bvh
-from inbetweening.data.datasets import DatasetError, fold_static_root
+from inbetweening.data.bvh import BVH, read_bvh
+from inbetweening.data.clips import clip_in_skeleton, motion_in_file
+from inbetweening.data.errors import DatasetError
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_pose
-from inbetweening.geometry.quaternion import qinv, qmul, qnormalize, qrot, remove_discontinuities
+from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["FillResult", "InbetweenError", "Inbetweener", "interpolate_arrays"]
-
-# the keyframe interpolation baseline (root lerp, per-joint slerp), under its historical name
-interpolate_arrays = interpolate_keyframes
+__all__ = ["FillResult", "InbetweenError", "Inbetweener"]
 
 
 class InbetweenError(ValueError):
@@ -145,7 +143,7 @@ class Inbetweener:
         ``kw`` go to the constructor (``max_gap``, ``segment``); ``trained_gap`` defaults to the data module's
         ``transition_max`` recorded in the checkpoint.
         """
-        from inbetweening.checkpoint import load_predictor, read_checkpoint
+        from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint
 
         ckpt = read_checkpoint(str(path))
         dm = ckpt.get("datamodule_hyper_parameters") or {}
@@ -324,49 +322,18 @@ class Inbetweener:
 
     def _model_space(self, bvh: BVH) -> tuple[bool, np.ndarray, np.ndarray]:
         """``(folded?, root (F, 3), local_q (F, J, 4))`` of a clip in the model's skeleton."""
-        names, ck = list(bvh.names), list(self.skeleton.names)
-        if names == ck:
-            return False, bvh.local_positions()[:, 0].copy(), bvh.local_rotations()
-        if names[1:] == ck:
-            try:
-                clip, _ = fold_static_root(bvh, bvh.source, root_name=names[0])
-            except DatasetError as e:
-                raise InbetweenError(str(e)) from None
-            return True, clip.root_pos, clip.local_q
-        i = next((i for i, (a, b) in enumerate(zip(names, ck, strict=False)) if a != b), min(len(names), len(ck)))
-        here = repr(names[i]) if i < len(names) else "(none)"
-        there = repr(ck[i]) if i < len(ck) else "(none)"
-        raise InbetweenError(
-            f"skeleton mismatch: {bvh.source} has {len(names)} joints, the checkpoint's skeleton has {len(ck)}; "
-            f"first difference at joint {i}: file {here}, checkpoint {there}")
+        try:
+            return clip_in_skeleton(bvh, self.skeleton)
+        except DatasetError as e:
+            raise InbetweenError(str(e)) from None
 
     def _to_bvh(self, bvh: BVH, fold: bool, root: np.ndarray, q: np.ndarray, src: list[int], out_pos: list[int]):
-        n_out = root.shape[0]
-        t = np.arange(n_out)
+        """The output clip: generated frames written into the file's hierarchy (a folded top joint takes the nearest
+        keyframe's values), the keyframes' rows copied unchanged."""
+        t = np.arange(root.shape[0])
         keys = np.asarray(out_pos)
         nearest = np.abs(t[:, None] - keys[None, :]).argmin(axis=1)  # ties -> the earlier keyframe
-        rows = np.asarray(src)[nearest]
-        file_q = bvh.local_rotations()[rows]
-        pos = bvh.channel_positions()[rows]
-        if not fold:
-            file_q[:] = q
-            pos[:, 0] = root
-        else:
-            top_q, top_p = file_q[:, 0], pos[:, 0]
-            file_q[:, 1] = qmul(qinv(top_q), q[:, 0])
-            file_q[:, 2:] = q[:, 1:]
-            layout_pos = {c for c in bvh.channels[1] if c.lower().endswith("position")}
-            if len(layout_pos) == 3:
-                pos[:, 1] = qrot(qinv(top_q), root - top_p)
-            elif sum(c.lower().endswith("position") for c in bvh.channels[0]) == 3:
-                pos[:, 0] = root - qrot(top_q, bvh.offsets[1][None])
-            else:
-                raise BVHError(f"neither {bvh.names[0]} nor {bvh.names[1]} has 3 position channels: "
-                               "cannot write the root translation", bvh.source)
-        out = bvh.with_motion(file_q, pos)
-        if fold:  # the folded top joint is copied raw from the nearest keyframe (no Euler round trip)
-            n_top = len(bvh.channels[0])
-            out.motion[:, :n_top] = bvh.motion[rows, :n_top]
+        out = motion_in_file(bvh, fold, root, q, np.asarray(src)[nearest])
         out.motion[keys] = bvh.motion[np.asarray(src)]
         return out
 

@@ -129,8 +129,9 @@ def run(argv: Sequence[str]) -> int:
     device = args.get("device", "cpu")
     import torch
 
-    from inbetweening.checkpoint import CheckpointError
-    from inbetweening.data.bvh import BVHError, read_bvh, write_bvh
+    from inbetweening.data.bvh import BVHError, read_bvh
+    from inbetweening.data.bvh_writer import write_bvh
+    from inbetweening.predictor.checkpoint import CheckpointError
     from inbetweening.tools.inbetweener import Inbetweener, InbetweenError
 
     if str(device).startswith("cuda") and not torch.cuda.is_available():

@@ -6,9 +6,9 @@ import inspect
 from omegaconf import DictConfig
 
 from inbetweening.data.specs import DATASETS, DEFAULT_SPLIT
-from inbetweening.evaluation.benchmark import N_PAST
-from inbetweening.predictor.inference import CENTRES
+from inbetweening.data.windows import N_PAST
 from inbetweening.predictor.masks import MASK_NAMES
+from inbetweening.predictor.predictor import CENTRES
 from inbetweening.training.losses import LOSS_TERMS
 
 
@@ -119,7 +119,7 @@ def _check_optim(cfg) -> None:
 def _check_data(cfg, mask) -> None:
     """The data module's arguments, numeric ranges of the data settings and what the windows need from the model."""
     if _get(cfg, "data") is not None:
-        _target_args(cfg, "data", ("mask", "joint_mask", "seed"))
+        _target_args(cfg, "data", ())
     nw = _get(cfg, "data.num_workers")
     if nw is not None and (not isinstance(nw, int) or nw < 0):
         raise ConfigError(f"data.num_workers: must be an integer >= 0, got {nw!r}")

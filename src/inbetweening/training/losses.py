@@ -1,14 +1,17 @@
-"""Training losses on ``(B, T, J, 7)`` features; every term is averaged over the ``mask`` entries.
+"""Training losses on ``(B, T, J, F)`` features; every term is averaged over the ``mask`` entries.
 
 ``mask`` is ``(B, T, J)`` bool: the values the model had to predict (unknown and inside the window).
-Weights come from the ``loss`` config; only ``l1`` (the method's loss) is on by default.
+Weights come from the ``loss`` config; only ``l1`` (the method's loss) is on by default.  What the channels mean
+(positions, rotations, their units) is asked of the representation (``rep``,
+:class:`inbetweening.representation.base.Representation`).
 """
 from __future__ import annotations
 
 import torch
 
+from inbetweening.geometry.quaternion import qnormalize
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.predictor import features as F
+from inbetweening.representation.base import Representation
 
 LOSS_TERMS = ("l1", "fk_pos", "quat", "bone", "smooth", "foot", "keyframe")
 
@@ -27,55 +30,49 @@ def l1(pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor) -> torch.Tensor
     return _masked_mean((pred - gt).abs(), mask)
 
 
-def fk_positions(pred: torch.Tensor, skeleton: Skeleton, mean, std) -> torch.Tensor:
-    """Z-scored global positions from FK of the predicted root + local quaternions.  ``(B,T,J,7) -> (B,T,J,3)``."""
-    root, q = F.decode(pred, mean, std)
-    _, gp = skeleton.pose(root, q)
-    m, s = F._stats(mean, std, gp, skeleton.num_joints)
-    return (gp - m) / s
+def fk_positions(pred: torch.Tensor, rep: Representation) -> torch.Tensor:
+    """Global positions from FK of the predicted root + local quaternions, in the position channels' units.
+    ``(B, T, J, F) -> (B, T, J, 3)``."""
+    _, gp = rep.skeleton.pose(*rep.decode(pred))
+    return rep.normalise_positions(gp)
 
 
-def fk_pos(pred, gt, mask, skeleton, mean, std) -> torch.Tensor:
-    """L1 between FK global positions of the prediction and the true global positions (z-scored)."""
-    return _masked_mean((fk_positions(pred, skeleton, mean, std) - gt[..., F.POS]).abs(), mask)
+def fk_pos(pred, gt, mask, rep: Representation) -> torch.Tensor:
+    """L1 between FK global positions of the prediction and the true global positions (position units)."""
+    return _masked_mean((fk_positions(pred, rep) - gt[..., rep.pos]).abs(), mask)
 
 
-def quat(pred, gt, mask) -> torch.Tensor:
+def quat(pred, gt, mask, rep: Representation) -> torch.Tensor:
     """Sign-invariant rotation distance ``1 - |<q_pred, q_gt>|``."""
-    d = (F.qnormalize(pred[..., F.QUAT]) * gt[..., F.QUAT]).sum(-1).abs()
+    d = (qnormalize(pred[..., rep.quat]) * gt[..., rep.quat]).sum(-1).abs()
     return _masked_mean(1.0 - d, mask)
 
 
-def bone(pred, gt, mask, skeleton, mean, std) -> torch.Tensor:
+def bone(pred, gt, mask, rep: Representation) -> torch.Tensor:
     """Rigidity: difference of parent/child distances of predicted vs true global positions."""
-    pairs = torch.as_tensor(skeleton.bone_pairs(), device=pred.device)
-    pp, gp = F.global_positions(pred, mean, std), F.global_positions(gt, mean, std)
+    pairs = torch.as_tensor(rep.skeleton.bone_pairs(), device=pred.device)
+    pp, gp = rep.global_positions(pred), rep.global_positions(gt)
     c, p = pairs[:, 0], pairs[:, 1]
     err = ((pp[..., c, :] - pp[..., p, :]).norm(dim=-1) - (gp[..., c, :] - gp[..., p, :]).norm(dim=-1)).abs()
-    return _masked_mean(err / std_scale(std), mask[..., c] | mask[..., p])
+    return _masked_mean(err / rep.position_scale(), mask[..., c] | mask[..., p])
 
 
-def std_scale(std) -> float:
-    """One length scale for the data (mean position std), to keep cm-valued losses O(1)."""
-    return float(torch.as_tensor(std).float().mean())
-
-
-def smooth(pred, mask, mean, std) -> torch.Tensor:
-    """Distance of each predicted frame's positions to the mean of its two neighbours (z-scored)."""
-    p = pred[..., F.POS]
+def smooth(pred, mask, rep: Representation) -> torch.Tensor:
+    """Distance of each predicted frame's positions to the mean of its two neighbours (position units)."""
+    p = pred[..., rep.pos]
     mid = 0.5 * (p[:, :-2] + p[:, 2:])
     return _masked_mean((p[:, 1:-1] - mid).norm(dim=-1), mask[:, 1:-1])
 
 
-def foot(pred, gt, mask, foot_joints: list[int], mean, std, threshold: float = 0.5) -> torch.Tensor:
+def foot(pred, gt, mask, foot_joints: list[int], rep: Representation, threshold: float = 0.5) -> torch.Tensor:
     """Foot sliding: predicted foot velocity where the true foot is in contact (true speed < threshold cm/frame)."""
     if not foot_joints:
         return pred.new_zeros(())
     idx = torch.as_tensor(foot_joints, device=pred.device)
-    pp, gp = F.global_positions(pred, mean, std)[..., idx, :], F.global_positions(gt, mean, std)[..., idx, :]
+    pp, gp = rep.global_positions(pred)[..., idx, :], rep.global_positions(gt)[..., idx, :]
     pv = (pp[:, 1:] - pp[:, :-1]).norm(dim=-1)
     contact = (gp[:, 1:] - gp[:, :-1]).norm(dim=-1) < threshold
-    return _masked_mean(pv / std_scale(std), mask[:, 1:][..., idx] & contact)
+    return _masked_mean(pv / rep.position_scale(), mask[:, 1:][..., idx] & contact)
 
 
 def keyframe(raw: torch.Tensor, gt: torch.Tensor, known: torch.Tensor) -> torch.Tensor:
@@ -90,8 +87,7 @@ def foot_joint_indices(skeleton: Skeleton) -> list[int]:
     return [i for i, n in enumerate(skeleton.names) if "foot" in n.lower() or "toe" in n.lower()]
 
 
-def total_loss(pred, gt, mask, weights: dict, skeleton: Skeleton, mean, std, raw=None,
-               known=None) -> tuple[torch.Tensor, dict]:
+def total_loss(pred, gt, mask, weights: dict, rep: Representation, raw=None, known=None) -> tuple[torch.Tensor, dict]:
     """Weighted sum of the enabled terms and a dict of every computed term (for logging).  ``raw`` / ``known``:
     the network's output before the keyframes are copied back and the known mask, needed by ``keyframe``."""
     unknown = [k for k in weights if k not in LOSS_TERMS]
@@ -104,15 +100,15 @@ def total_loss(pred, gt, mask, weights: dict, skeleton: Skeleton, mean, std, raw
         if name == "l1":
             terms[name] = l1(pred, gt, mask)
         elif name == "fk_pos":
-            terms[name] = fk_pos(pred, gt, mask, skeleton, mean, std)
+            terms[name] = fk_pos(pred, gt, mask, rep)
         elif name == "quat":
-            terms[name] = quat(pred, gt, mask)
+            terms[name] = quat(pred, gt, mask, rep)
         elif name == "bone":
-            terms[name] = bone(pred, gt, mask, skeleton, mean, std)
+            terms[name] = bone(pred, gt, mask, rep)
         elif name == "smooth":
-            terms[name] = smooth(pred, mask, mean, std)
+            terms[name] = smooth(pred, mask, rep)
         elif name == "foot":
-            terms[name] = foot(pred, gt, mask, foot_joint_indices(skeleton), mean, std)
+            terms[name] = foot(pred, gt, mask, foot_joint_indices(rep.skeleton), rep)
         elif name == "keyframe":
             if raw is None or known is None:
                 raise ValueError("loss.keyframe: needs the network's raw output and the known mask (raw=, known=)")

@@ -6,19 +6,27 @@ Everything in ``hparams`` is a plain value (dicts, lists, numbers, strings), so
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+import io
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import lightning as L
 import numpy as np
 import torch
 
-from inbetweening.checkpoint import peek_hyper_parameters, upgrade_module_state
-from inbetweening.evaluation.benchmark import N_PAST
+from inbetweening.data.windows import N_PAST
 from inbetweening.evaluation.metrics import BenchmarkMetric, PerJointError
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.predictor.masks import joints_known
+from inbetweening.predictor.checkpoint import (
+    CheckpointError,
+    peek_hyper_parameters,
+    read_checkpoint,
+    read_checkpoint_bytes,
+    upgrade_module_state,
+)
+from inbetweening.predictor.masks import JointGaps
 from inbetweening.predictor.predictor import LEGACY_CENTRE, Predictor
-from inbetweening.predictor.representation import DEFAULT_REPRESENTATION
+from inbetweening.representation import DEFAULT_REPRESENTATION
 from inbetweening.training.losses import total_loss
 from inbetweening.training.schedules import build_optimizers, upgrade_optim
 from inbetweening.training.tb_logging import tb_scalars
@@ -32,7 +40,8 @@ class InbetweenModule(L.LightningModule):
         model: model config (``name`` + constructor kwargs; ``hops`` builds a k-hop relation matrix).
         skeleton: ``Skeleton.to_dict()`` of the training data.
         pos_mean, pos_std: training statistics of global positions, ``J*3`` floats each.
-        mask: ``zero`` | ``lerp`` | ``joints`` (what the network sees in place of unknown values).
+        mask: ``zero`` | ``lerp`` | ``joints`` (what the network sees in place of unknown values), or the ``mask``
+            config group (``name`` + the gap settings of ``joints``), recorded as ``mask`` and ``joint_mask``.
         loss: weights of the loss terms (see :mod:`inbetweening.training.losses`).
         optim: ``optimizer`` and ``scheduler`` partials (``_target_`` dicts, see :mod:`inbetweening.training.schedules`;
             the old form ``name`` adam|adamw|sgd, ``lr``, ``warmup_steps``, ... is upgraded).
@@ -45,7 +54,9 @@ class InbetweenModule(L.LightningModule):
             before the network (no information about the frames to predict leaks through the window's centring);
             ``window`` feeds the benchmark's window-centred data as is.  Checkpoints made before the option load
             with ``window`` (what they did).
-        representation: the feature representation's name (:mod:`inbetweening.predictor.representation`).
+        representation: the feature representation's name (:mod:`inbetweening.representation`).
+        score_stats: ``{"mean": [...], "std": [...]}``, the statistics the benchmark metrics z-score L2P with
+            (``eval.py``: the scored dataset's own training statistics, the protocol's); ``None``: the model's.
     """
 
     def __init__(
@@ -54,7 +65,7 @@ class InbetweenModule(L.LightningModule):
         skeleton: dict,
         pos_mean: Sequence[float],
         pos_std: Sequence[float],
-        mask: str = "lerp",
+        mask: str | Mapping = "lerp",
         loss: dict | None = None,
         optim: dict | None = None,
         val_lengths: Sequence[int] = (5, 15, 30),
@@ -68,22 +79,26 @@ class InbetweenModule(L.LightningModule):
         *,
         centre: str,
         representation: str = DEFAULT_REPRESENTATION,
+        score_stats: dict | None = None,
     ):
         super().__init__()
-        self.save_hyperparameters()
+        if isinstance(mask, Mapping):  # the ``mask`` config group: its name, and the gap settings of mask=joints
+            mask, joint_mask = str(mask["name"]), (dict(mask) if mask["name"] == "joints" else None)
+        self.save_hyperparameters(ignore=["score_stats"])  # (records the name and the gap settings, as always)
         self.predictor = Predictor.from_hparams(dict(self.hparams))
         self.loss_weights = dict(loss or {"l1": 1.0})
         self.optim_cfg = upgrade_optim(optim)  # checkpoints of the old form (optim.name, optim.lr, ...) still load
         self.hparams["optim"] = self.optim_cfg
         j = self.skeleton.num_joints
-        self.val_bench = BenchmarkMetric(self.skeleton, self.mean, self.std, val_lengths)
-        self.test_bench = BenchmarkMetric(self.skeleton, self.mean, self.std, test_lengths)
+        mean, std = (self.mean, self.std) if score_stats is None else (score_stats["mean"], score_stats["std"])
+        self.val_bench = BenchmarkMetric(self.skeleton, mean, std, val_lengths)
+        self.test_bench = BenchmarkMetric(self.skeleton, mean, std, test_lengths)
         self.val_joint = PerJointError(j)
         self.test_joint = PerJointError(j)
         # TensorBoard references: interpolation scored on the same windows (validation: once per fit, cached),
         # and per-joint errors per transition length for the per-joint figure
-        self.val_interp = BenchmarkMetric(self.skeleton, self.mean, self.std, val_lengths)
-        self.test_interp = BenchmarkMetric(self.skeleton, self.mean, self.std, test_lengths)
+        self.val_interp = BenchmarkMetric(self.skeleton, mean, std, val_lengths)
+        self.test_interp = BenchmarkMetric(self.skeleton, mean, std, test_lengths)
         self.val_joint_len = torch.nn.ModuleDict({f"{k}{n}": PerJointError(j) for n in val_lengths for k in "mi"})
         self.test_joint_len = torch.nn.ModuleDict({f"{k}{n}": PerJointError(j) for n in test_lengths for k in "mi"})
         self.val_interp_cache: dict | None = None  # (interp metrics, interp per-joint) of this fit's validation set
@@ -93,7 +108,7 @@ class InbetweenModule(L.LightningModule):
         self.test_interp_results: dict[str, float] = {}
         self.stage_logs: dict[str, dict[str, float]] = {}  # the scalars last logged per stage (test: for train.py)
         self.test_results: dict[str, float] = {}
-        self.joint_mask = {k: v for k, v in (joint_mask or {}).items() if k != "name"}
+        self.joint_gaps = JointGaps.from_config(joint_mask)
         self.val_recovery = PerJointError(j)
         self.test_recovery = PerJointError(j)
         self._train_forward = None  # compile_network(): the network's compiled forward, for training steps only
@@ -166,17 +181,19 @@ class InbetweenModule(L.LightningModule):
 
     # ------------------------------------------------------------------ forward
     def forward(self, x: torch.Tensor, known: torch.Tensor, interp: torch.Tensor | None = None) -> torch.Tensor:
-        """``(B, T, J, 7) masked features, (B, T, J) bool, interp -> (B, T, J, 7)``."""
+        """``(B, T, J, F) masked features, (B, T, J) bool, interp -> (B, T, J, F)``."""
         return self.net(x, known, interp)
 
     def _step_loss(self, batch: dict, stage: str) -> torch.Tensor:
+        """Training batches hold windows (``root``, ``q``), their ``known`` mask and ``loss_mask``; the predictor
+        canonicalises and encodes them (its one centring stage)."""
         net = self._train_forward if stage == "train" else None
         raw = None
         if self.loss_weights.get("keyframe"):  # the network's own output at the keyframes, before they are copied back
-            pred, _, gt, raw = self.predictor(batch["gt"], batch["known"], net=net, with_raw=True)
+            pred, _, gt, raw = self.predictor(batch["root"], batch["q"], batch["known"], net=net, with_raw=True)
         else:
-            pred, _, gt = self.predictor(batch["gt"], batch["known"], net=net)
-        loss, terms = total_loss(pred, gt, batch["loss_mask"], self.loss_weights, self.skeleton, self.mean, self.std,
+            pred, _, gt = self.predictor(batch["root"], batch["q"], batch["known"], net=net)
+        loss, terms = total_loss(pred, gt, batch["loss_mask"], self.loss_weights, self.predictor.representation,
                                  raw=raw, known=batch["known"])
         bs = gt.shape[0]
         self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=bs)
@@ -187,7 +204,7 @@ class InbetweenModule(L.LightningModule):
     def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
         loss = self._step_loss(batch, "train")
         if "n_trans" in batch:  # the sampled transition length (frames), not a metric
-            self.log("train/sampled_transition_frames", batch["n_trans"].float().mean(), batch_size=batch["gt"].shape[0])
+            self.log("train/sampled_transition_frames", batch["n_trans"].float().mean(), batch_size=batch["q"].shape[0])
         return loss
 
     # ------------------------------------------------------------------ benchmark windows
@@ -205,18 +222,18 @@ class InbetweenModule(L.LightningModule):
             if t > root.shape[1]:
                 continue
             known = pr.transition_known(root.shape[0], t, n, device=root.device)
-            feats, pred, interp = pr.predict_windows(root[:, :t], q[:, :t], known)
+            out = pr.predict_windows(root[:, :t], q[:, :t], known)
             unknown = ~known
-            losses.append(total_loss(pred, feats, unknown, {"l1": 1.0}, sk, self.mean, self.std)[0])
+            losses.append(total_loss(out.pred, out.feats, unknown, {"l1": 1.0}, pr.representation)[0])
             sl = slice(self.n_past, self.n_past + n)
-            gt_gq, gt_gp = sk.pose(root[:, :t], q[:, :t])
-            outputs = [(pred, bench, joint, per_len[f"m{n}"] if f"m{n}" in per_len else None)]
+            gt_gq, gt_gp = sk.pose(root[:, :t], q[:, :t])  # FK once per window; the metrics take global poses
+            outputs = [((out.root, out.local_q), bench, joint, per_len[f"m{n}"] if f"m{n}" in per_len else None)]
             if with_interp:
-                outputs.append((interp, interp_bench, None, per_len[f"i{n}"] if f"i{n}" in per_len else None))
-            for out, metric, pooled, by_len in outputs:
-                pr_root, pr_q = pr.decode(out)
-                metric.update(n, pr_root[:, sl], pr_q[:, sl], root[:, sl], q[:, sl])
+                outputs.append(((out.interp_root, out.interp_q), interp_bench, None,
+                                per_len[f"i{n}"] if f"i{n}" in per_len else None))
+            for (pr_root, pr_q), metric, pooled, by_len in outputs:
                 pr_gq, pr_gp = sk.pose(pr_root, pr_q)
+                metric.update(n, pr_gq[:, sl], pr_gp[:, sl], gt_gq[:, sl], gt_gp[:, sl])
                 for m in (pooled, by_len):
                     if m is not None:
                         m.update(pr_gp, gt_gp, pr_gq, gt_gq, unknown)
@@ -228,16 +245,14 @@ class InbetweenModule(L.LightningModule):
         """Mocap recovery: random joints missing over random gaps of the whole window (seeded per batch)."""
         root, q = batch["root"], batch["q"]
         b, t = root.shape[:2]
-        jm = self.joint_mask
         gen = torch.Generator().manual_seed(1000 + batch_idx)
-        known = joints_known(b, t, self.skeleton.num_joints, int(jm.get("gap_min", 10)), int(jm.get("gap_max", 200)),
-                             float(jm.get("frac_min", 0.1)), float(jm.get("frac_max", 0.3)), generator=gen,
-                             device=root.device)
-        _, pred, _ = self.predictor.predict_windows(root, q, known)
-        pr_gq, _ = self.skeleton.pose(*self.predictor.decode(pred))
+        known = self.joint_gaps.known(b, t, self.skeleton.num_joints, generator=gen, device=root.device)
+        out = self.predictor.predict_windows(root, q, known)
+        pr_gq, _ = self.skeleton.pose(out.root, out.local_q)
         gt_gq, gt_gp = self.skeleton.pose(root, q)
-        # recovered positions are the predicted global positions of the missing joints
-        metric.update(self.predictor.global_positions(pred), gt_gp, pr_gq, gt_gq, ~known)
+        # recovered positions are the predicted global positions of the missing joints (the network's own position
+        # channels, taken from the canonical frame back to the window's)
+        metric.update(self.predictor.world_positions(out), gt_gp, pr_gq, gt_gq, ~known)
 
     def validation_step(self, batch: dict, batch_idx: int) -> None:
         self._bench_step(batch, "val")
@@ -330,3 +345,18 @@ class InbetweenModule(L.LightningModule):
         if not params:  # non-trainable baselines: a dummy optimiser keeps Lightning happy
             params = [torch.nn.Parameter(torch.zeros(1))]
         return build_optimizers(self.optim_cfg, params, self._total_steps)
+
+
+def load_module(path: str | Path, **overrides) -> InbetweenModule:
+    """The :class:`InbetweenModule` of a checkpoint, on the CPU, in eval mode (``overrides``: constructor values
+    replacing the recorded ones, e.g. ``score_stats``, ``test_lengths``); a wrong file is one
+    :class:`~inbetweening.predictor.checkpoint.CheckpointError`."""
+    raw = read_checkpoint_bytes(path)
+    read_checkpoint(path, raw)
+    try:
+        module = InbetweenModule.load_from_checkpoint(io.BytesIO(raw), map_location="cpu", weights_only=True,
+                                                      **overrides)
+    except (RuntimeError, KeyError, TypeError, ValueError) as e:
+        msg = " ".join(str(e).split())
+        raise CheckpointError(f"ckpt_path: {path} does not match this version's models ({msg[:300]})") from None
+    return module.eval()

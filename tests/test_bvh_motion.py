@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from inbetweening.data.numbers import _char_class, _fast_decimals, motion_values
+from inbetweening.data.bvh_motion import _char_class, _fast_decimals, motion_values
 
 
 def test_values_are_float_of_each_token():

@@ -1,20 +1,22 @@
 """Forward/inverse kinematics and the benchmark's window normalisation for large float64 numpy batches.
 
 The same arithmetic as :func:`inbetweening.geometry.skeleton.fk` / :func:`~inbetweening.geometry.skeleton.ik` and
-:func:`inbetweening.geometry.canonical.canonicalise_windows`, operation for operation (every product, sum and
+:func:`inbetweening.data.windows.canonicalise_windows`, operation for operation (every product, sum and
 difference in the same order), so the results are bit-identical; only the memory layout differs.  The batch is
 cut into chunks of a few thousand frames that fit in the CPU cache, and inside a chunk every quaternion / vector
 component of every joint is its own contiguous array (component-major), so each numpy call streams over
 contiguous memory instead of the strided ``[..., c]`` views and ``np.stack`` copies of the generic functions.
 
-Tested bit for bit against the generic functions (``tests/test_fastkin.py``).  Used by dataset preparation
-(:func:`inbetweening.evaluation.benchmark.prepare_windows`, :func:`~inbetweening.evaluation.benchmark.position_stats`).
+Tested bit for bit against the generic functions (``tests/test_kinematics_np.py``).  Used by dataset preparation
+(:func:`inbetweening.data.windows.prepare_windows`, :func:`~inbetweening.data.windows.training_stats`).
 """
 from __future__ import annotations
 
 from collections.abc import Sequence
 
 import numpy as np
+
+from inbetweening.geometry.canonical import facing_rotation, masked_mean
 
 CHUNK_FRAMES = 16384  # frames per chunk (~2.9 MB per component array for a 22-joint skeleton): measured fastest with 2 threads
 
@@ -115,8 +117,6 @@ def _canonical_chunk(x: np.ndarray, q: np.ndarray, xz: np.ndarray, parents: Sequ
                      forward_axis: Sequence[float], frame: int):
     """One chunk of :func:`canonicalise_windows_np`: ``x (b, T, J, 3)`` (modified: root XZ centred on ``xz``),
     ``q (b, T, J, 4)`` -> local ``(rotations, positions)`` as per-joint component tuples of ``(b, T)`` arrays."""
-    from inbetweening.geometry.canonical import facing_rotation
-
     x[:, :, 0, 0] = x[:, :, 0, 0] - xz[..., 0]
     x[:, :, 0, 2] = x[:, :, 0, 2] - xz[..., 1]
     gq, gp = _fk_chunk(_components(q), _components(x), parents)  # components (b, T)
@@ -127,10 +127,8 @@ def _canonical_chunk(x: np.ndarray, q: np.ndarray, xz: np.ndarray, parents: Sequ
 
 def canonicalise_windows_np(X: np.ndarray, Q: np.ndarray, parents: Sequence[int], forward_axis: Sequence[float],
                             frame: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`inbetweening.geometry.canonical.canonicalise_windows` of numpy windows ``(B, T, J, 3), (B, T, J, 4)``,
+    """:func:`inbetweening.data.windows.canonicalise_windows` of numpy windows ``(B, T, J, 3), (B, T, J, 4)``,
     bit-identical, chunk by chunk of windows."""
-    from inbetweening.geometry.canonical import masked_mean
-
     X = np.asarray(X)
     Q = np.asarray(Q)
     xz = masked_mean(X[:, :, 0, 0::2])  # (B, 1, 2): over the whole array, as the generic function reduces it
@@ -152,8 +150,6 @@ def canonical_positions_np(root: np.ndarray, rows: np.ndarray, local_q: np.ndarr
 
     ``threads > 1`` runs the chunks in a thread pool (numpy releases the GIL inside its loops); every chunk is
     computed and stored exactly as with one thread, so the result is bit-identical."""
-    from inbetweening.geometry.canonical import masked_mean
-
     r = root[rows]  # (N, T, 3)
     xz = masked_mean(r[:, :, 0::2])
     out = np.empty(rows.shape + offsets.shape, dtype=np.result_type(root, local_q, offsets))

@@ -1,7 +1,8 @@
 """Reading checkpoints safely: no code runs while loading, and a wrong file is one clear error.
 
 Every load of the package (training resume, ``eval.py``, ``predict``, ``export``, ``Inbetweener``) goes
-through :func:`read_checkpoint` / :func:`load_module` / :func:`load_predictor`: ``torch.load(weights_only=True)``
+through :func:`read_checkpoint` / :func:`load_predictor` (and the training module's
+:func:`inbetweening.training.module.load_module`, built on them): ``torch.load(weights_only=True)``
 only rebuilds tensors, numbers, strings, lists and dicts, so a checkpoint carrying a pickled code payload is
 refused before anything in it runs.  Inference tools load a :class:`~inbetweening.predictor.predictor.Predictor`
 straight from the hyper-parameters and state dict (:func:`load_predictor`), never importing the training code.
@@ -21,12 +22,15 @@ from pathlib import Path
 
 import torch
 
+from inbetweening.predictor.predictor import Predictor, upgrade_hparams
+
 
 class CheckpointError(ValueError):
     """A checkpoint is missing, unreadable, unsafe, non-finite or not an inbetweening checkpoint."""
 
 
-def _read_bytes(path: str | Path) -> bytes:
+def read_checkpoint_bytes(path: str | Path) -> bytes:
+    """The file's bytes; :class:`CheckpointError` naming ``ckpt_path`` when it does not exist."""
     p = Path(path)
     if not p.is_file():
         raise CheckpointError(f"ckpt_path: {p} does not exist")
@@ -63,7 +67,7 @@ def read_checkpoint(path: str | Path, raw: bytes | None = None) -> dict:
     """The checkpoint's dict, loaded without running code, checked to be an inbetweening checkpoint with
     finite weights; :class:`CheckpointError` says what is wrong otherwise."""
     p = str(path)
-    ckpt = _load(_read_bytes(path) if raw is None else raw, p)
+    ckpt = _load(read_checkpoint_bytes(path) if raw is None else raw, p)
     hp = ckpt.get("hyper_parameters") if isinstance(ckpt, dict) else None
     if not hp or "model" not in hp or "skeleton" not in hp or "state_dict" not in ckpt:
         raise CheckpointError(f"ckpt_path: {p} is not an inbetweening checkpoint (no model/skeleton hyper-parameters)")
@@ -94,7 +98,7 @@ def peek_hyper_parameters(source) -> dict:
     without running code; ``{}`` when it cannot be read (the real load then says why)."""
     try:
         pos = source.tell() if hasattr(source, "read") else None
-        ckpt = _load(source.read() if pos is not None else _read_bytes(source), str(source))
+        ckpt = _load(source.read() if pos is not None else read_checkpoint_bytes(source), str(source))
         if pos is not None:
             source.seek(pos)
     except (CheckpointError, OSError):
@@ -107,8 +111,6 @@ def load_predictor(path: str | Path, device: str | torch.device = "cpu", ckpt: d
     """The :class:`~inbetweening.predictor.predictor.Predictor` of a checkpoint (training or inference-only, any
     layout; older checkpoints without ``centre`` get ``window``), in eval mode on ``device``, without Lightning.
     ``ckpt``: the checkpoint's dict when already read with :func:`read_checkpoint`."""
-    from inbetweening.predictor.predictor import Predictor, upgrade_hparams
-
     ckpt = read_checkpoint(path) if ckpt is None else ckpt
     try:
         pred = Predictor.from_hparams(upgrade_hparams(ckpt["hyper_parameters"]))
@@ -117,17 +119,3 @@ def load_predictor(path: str | Path, device: str | torch.device = "cpu", ckpt: d
         msg = " ".join(str(e).split())
         raise CheckpointError(f"ckpt_path: {path} does not match this version's models ({msg[:300]})") from None
     return pred.to(device).eval()
-
-
-def load_module(path: str | Path):
-    """The :class:`~inbetweening.training.module.InbetweenModule` of a checkpoint, on the CPU, in eval mode."""
-    from inbetweening.training.module import InbetweenModule
-
-    raw = _read_bytes(path)
-    read_checkpoint(path, raw)
-    try:
-        module = InbetweenModule.load_from_checkpoint(io.BytesIO(raw), map_location="cpu", weights_only=True)
-    except (RuntimeError, KeyError, TypeError, ValueError) as e:
-        msg = " ".join(str(e).split())
-        raise CheckpointError(f"ckpt_path: {path} does not match this version's models ({msg[:300]})") from None
-    return module.eval()

@@ -1,4 +1,5 @@
-"""``train(cfg)`` and ``evaluate(cfg)``: the Hydra-configured jobs behind ``train.py`` and ``eval.py``.
+"""``train(cfg)`` and ``evaluate(cfg)``: the Hydra-configured jobs behind ``train.py`` and ``eval.py`` (their parts
+are built by :mod:`inbetweening.training.builders`).
 
 Both return a metrics dict and write ``benchmark.json`` (``{"dataset", "split", "model", "n_windows",
 "metrics": {"l2q@5": ...}}``) into the run's output directory.
@@ -14,105 +15,23 @@ from pathlib import Path
 
 import lightning as L
 import torch
-from hydra.utils import instantiate
 from lightning.pytorch.utilities.exceptions import SIGTERMException
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from inbetweening.atomic import write_text
-from inbetweening.checkpoint import CheckpointError, load_module, read_checkpoint
 from inbetweening.data.bvh import BVHError
 from inbetweening.data.datasets import DatasetError
 from inbetweening.data.specs import get_spec
 from inbetweening.evaluation import benchmark as B
-from inbetweening.training.callbacks import (
-    AtomicCheckpointIO,
-    InterruptCheckpoint,
-    NonFiniteError,
-    NonFiniteGuard,
-    ResumeState,
-    TrimHeap,
-    trim_heap,
-)
+from inbetweening.predictor.checkpoint import CheckpointError, predictor_state, read_checkpoint
+from inbetweening.training.builders import make_datamodule, make_module, make_trainer, output_dir
+from inbetweening.training.callbacks import NonFiniteError, trim_heap
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
-from inbetweening.training.module import InbetweenModule
-from inbetweening.training.tb_logging import (
-    HParamsSession,
-    RunLogger,
-    TrainStats,
-    curated_hparams,
-    resumed_version,
-    run_label,
-    swept_keys,
-    task_overrides,
-)
+from inbetweening.training.module import InbetweenModule, load_module
+from inbetweening.training.tb_logging import HParamsSession, RunLogger
 
 log = logging.getLogger("inbetweening")
-
-
-# ------------------------------------------------------------------------------------------
-def output_dir(cfg: DictConfig) -> Path:
-    out = Path(cfg.paths.output_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    return out
-
-
-def _plain(node):
-    return OmegaConf.to_container(node, resolve=True)
-
-
-def mask_settings(cfg: DictConfig) -> dict:
-    """The ``mask`` group as the data module and the LightningModule take it: the mask's name, and the gap
-    settings of ``mask=joints`` (``None`` for the other masks)."""
-    return {"mask": cfg.mask.name, "joint_mask": _plain(cfg.mask) if cfg.mask.name == "joints" else None}
-
-
-def make_datamodule(cfg: DictConfig) -> InbetweenDataModule:
-    """``cfg.data`` (``_target_`` and the data module's arguments), completed with the mask settings and the seed."""
-    return instantiate(cfg.data, _convert_="all", **mask_settings(cfg), seed=int(cfg.seed))
-
-
-def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
-    """The LightningModule from the ``model``, ``mask``, ``loss`` and ``optim`` groups, ``centre``, and what the
-    (set up) data module knows: skeleton, statistics, benchmark lengths."""
-    return InbetweenModule(model=_plain(cfg.model), loss=_plain(cfg.loss), optim=_plain(cfg.optim), centre=cfg.centre,
-                           **mask_settings(cfg), **dm.model_kwargs())
-
-
-def _make_logger(cfg: DictConfig, node: DictConfig):
-    """A logger from its config; a :class:`RunLogger` without a ``version`` is named after the run's configuration
-    (:func:`~inbetweening.training.tb_logging.run_label`), or continues the run a resumed fit was logging to."""
-    if str(node.get("_target_", "")).endswith("RunLogger") and node.get("version") is None:
-        version = resumed_version(node.save_dir, bool(cfg.get("ckpt_path")))
-        return instantiate(node, version=version or run_label(cfg, task_overrides(), swept_keys()))
-    return instantiate(node)
-
-
-def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
-    cbs = [instantiate(c) for c in (cfg.get("callbacks") or {}).values() if c is not None] if callbacks else []
-    lgs = [_make_logger(cfg, c) for c in (cfg.get("logger") or {}).values() if c is not None] if loggers else []
-    if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
-        cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
-    elif callbacks:  # TensorBoard: throughput, epoch time, gradient norm; the HParams session from the fit's start
-        hp, shown = curated_hparams(cfg, task_overrides(), swept_keys())
-        cbs += [TrainStats(), HParamsSession(hp, shown, cfg.data.val_lengths, cfg.data.test_lengths,
-                                             end_at_fit_end=not cfg.get("run_test", True))]
-    if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
-        cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # freed heap returned when it has grown
-                InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]
-    return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False, plugins=[AtomicCheckpointIO()])
-
-
-def resume_command(cfg: DictConfig) -> str:
-    """The command line of this run (when launched through Hydra), for the printed resume hint."""
-    try:
-        from hydra.core.hydra_config import HydraConfig
-
-        overrides = [o for o in HydraConfig.get().overrides.task if not o.startswith("ckpt_path=")]
-        out = Path(cfg.paths.output_dir)
-        return " ".join(["python", f"{cfg.get('task_name', 'train')}.py", *overrides, f"hydra.run.dir={out}"])
-    except ValueError:  # not launched by Hydra (compose API, tests)
-        return "python train.py <same overrides>"
 
 
 def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metrics: dict,
@@ -156,7 +75,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
     trainer = make_trainer(cfg)
     ckpt_path = cfg.get("ckpt_path")
     if ckpt_path:
-        check_checkpoint(ckpt_path)
+        check_resume(ckpt_path, module)
     best = None
     if module.trainable and cfg.trainer.get("max_steps", -1) != 0:
         try:
@@ -219,9 +138,30 @@ def with_baselines(name: str, metrics: dict, dm: InbetweenDataModule, lengths) -
     return rows
 
 
-def check_checkpoint(path: str) -> dict:
-    """Load a checkpoint's dict safely, or raise :class:`CheckpointError` saying what is wrong with it."""
-    return read_checkpoint(path)
+def _architecture(model: dict) -> str:
+    return ", ".join(f"{k}={v}" for k, v in sorted(model.items()) if k != "name") or "defaults"
+
+
+def check_resume(path: str, module: InbetweenModule) -> dict:
+    """The checkpoint a fit resumes from, read safely and checked to fit this run's network: same skeleton, same
+    parameter shapes; :class:`CheckpointError` naming both architectures otherwise (never a size-mismatch traceback)."""
+    ckpt = read_checkpoint(path)
+    hp = ckpt["hyper_parameters"]
+    theirs, ours = predictor_state(ckpt["state_dict"]), module.predictor.state_dict()
+    mine = dict(module.hparams["model"])
+    old = dict(hp.get("model", {}))
+    j_old, j_new = len(hp.get("skeleton", {}).get("names", [])), module.skeleton.num_joints
+    if j_old != j_new:
+        raise CheckpointError(f"ckpt_path: {path} was trained on a {j_old}-joint skeleton; this run's data "
+                              f"{module.hparams.get('dataset', '')!r} has {j_new} joints: resume on the same data")
+    bad = sorted(k for k in ours.keys() & theirs.keys() if tuple(ours[k].shape) != tuple(theirs[k].shape))
+    missing = sorted(ours.keys() ^ theirs.keys())
+    if bad or missing or old.get("name") != mine.get("name"):
+        raise CheckpointError(
+            f"ckpt_path: {path} holds another architecture: {old.get('name')} ({_architecture(old)}); this run builds "
+            f"{mine.get('name')} ({_architecture(mine)}): resume with the checkpoint's model settings, or start a new "
+            "run without ckpt_path")
+    return ckpt
 
 
 def evaluate(cfg: DictConfig) -> dict[str, float]:
@@ -237,24 +177,22 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
         if name not in B.BASELINES:
             raise ConfigError(f"ckpt_path: required for model {name!r} (or use model=zero_velocity|interpolation)")
         dm = make_datamodule(cfg)
-        data = dm._load()
+        data = dm.load_data()
         bench = data.benchmark_set()
         metrics = B.evaluate_transitions(bench, B.BASELINES[name], tuple(cfg.data.test_lengths))
         dataset, n = data.name, bench.n_windows
     else:
-        module = load_module(ckpt_path)
         dm = make_datamodule(cfg)
         dm.prepare_data()
         dm.setup("test")
+        # scored with the dataset's own training statistics (the benchmark protocol) at the configured lengths
+        module = load_module(ckpt_path, test_lengths=list(cfg.data.test_lengths),
+                             score_stats={"mean": dm.data.pos_mean.tolist(), "std": dm.data.pos_std.tolist()})
         if not module.skeleton.same_topology(dm.skeleton):
             raise CheckpointError(
                 f"ckpt_path: {ckpt_path} was trained on a {module.skeleton.num_joints}-joint skeleton "
                 f"({module.hparams.dataset}), data {dm.data.name!r} has {dm.skeleton.num_joints} joints"
             )
-        # scored with the dataset's own training statistics (the benchmark protocol)
-        for name in ("test_bench", "test_interp"):
-            setattr(module, name, type(module.test_bench)(module.skeleton, dm.data.pos_mean, dm.data.pos_std,
-                                                          cfg.data.test_lengths))
         trainer = make_trainer(cfg, callbacks=False, loggers=False)
         trainer.test(module, datamodule=dm, verbose=False)
         metrics, dataset, n = dict(module.test_results), dm.data.name, len(dm.test_set)
@@ -276,7 +214,7 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     from inbetweening.tools.inbetweener import Inbetweener
 
     dm = make_datamodule(cfg)
-    data = dm._load()
+    data = dm.load_data()
     ckpt_path, name, fill = cfg.get("ckpt_path"), cfg.model.name, None
     if ckpt_path:
         ib = Inbetweener.from_checkpoint(ckpt_path)

@@ -13,7 +13,7 @@ import pytest
 from inbetweening.data.clips import Clip
 from inbetweening.evaluation import benchmark as B
 from inbetweening.geometry import canonical as C
-from inbetweening.geometry import fastkin as FK
+from inbetweening.geometry import kinematics_np as FK
 from inbetweening.geometry.skeleton import Skeleton, fk, ik
 
 PARENTS = (-1, 0, 1, 2, 1, 4, 0, 6, 7)

@@ -1,0 +1,95 @@
+"""Building a run's parts from its config: the data module, the LightningModule, the trainer (callbacks, loggers).
+
+Every part is built from its own config group (``_target_`` + ``hydra.utils.instantiate``); what one part needs from
+another at run time (the data's skeleton and statistics for the module) is asked of that part, never re-mapped here.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import lightning as L
+from hydra.utils import instantiate
+from omegaconf import DictConfig, OmegaConf
+
+from inbetweening.training.callbacks import AtomicCheckpointIO, InterruptCheckpoint, NonFiniteGuard, ResumeState, TrimHeap
+from inbetweening.training.datamodule import InbetweenDataModule
+from inbetweening.training.module import InbetweenModule
+from inbetweening.training.tb_logging import (
+    HParamsSession,
+    TrainStats,
+    curated_hparams,
+    resumed_version,
+    run_label,
+    swept_keys,
+    task_overrides,
+)
+
+__all__ = ["make_datamodule", "make_module", "make_trainer", "output_dir", "resume_command"]
+
+
+def output_dir(cfg: DictConfig) -> Path:
+    out = Path(cfg.paths.output_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _plain(node):
+    return OmegaConf.to_container(node, resolve=True)
+
+
+def make_datamodule(cfg: DictConfig) -> InbetweenDataModule:
+    """``cfg.data``: ``_target_`` and the data module's arguments (the run's ``mask`` group and ``seed`` reach it by
+    interpolation in ``conf/data/*.yaml``)."""
+    return instantiate(cfg.data, _convert_="all")
+
+
+def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
+    """The LightningModule from the ``model``, ``mask``, ``loss`` and ``optim`` groups, ``centre``, and what the
+    (set up) data module knows: skeleton, statistics, benchmark lengths."""
+    return InbetweenModule(model=_plain(cfg.model), loss=_plain(cfg.loss), optim=_plain(cfg.optim), centre=cfg.centre,
+                           mask=_plain(cfg.mask), **dm.model_kwargs())
+
+
+def _make_logger(cfg: DictConfig, node: DictConfig):
+    """A logger from its config; a :class:`RunLogger` without a ``version`` is named after the run's configuration
+    (:func:`~inbetweening.training.tb_logging.run_label`), or continues the run a resumed fit was logging to."""
+    if str(node.get("_target_", "")).endswith("RunLogger") and node.get("version") is None:
+        version = resumed_version(node.save_dir, bool(cfg.get("ckpt_path")))
+        return instantiate(node, version=version or run_label(cfg, task_overrides(), swept_keys()))
+    return instantiate(node)
+
+
+def _enabled(group) -> list:
+    """The nodes of a ``callbacks`` / ``logger`` group that build something: those with a ``_target_``.  A node
+    without one holds an experiment's settings for a callback this run turned off (``experiment=... callbacks=none``:
+    the experiment's ``callbacks.skeleton_figure.every_n_epochs`` alone), so there is nothing to build."""
+    return [c for c in (group or {}).values() if isinstance(c, DictConfig) and "_target_" in c]
+
+
+def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
+    cbs = [instantiate(c) for c in _enabled(cfg.get("callbacks"))] if callbacks else []
+    lgs = [_make_logger(cfg, c) for c in _enabled(cfg.get("logger"))] if loggers else []
+    if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
+        cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
+    elif callbacks:  # TensorBoard: throughput, epoch time, gradient norm; the HParams session from the fit's start
+        hp, shown = curated_hparams(cfg, task_overrides(), swept_keys())
+        cbs += [TrainStats(), HParamsSession(hp, shown, cfg.data.val_lengths, cfg.data.test_lengths,
+                                             end_at_fit_end=not cfg.get("run_test", True))]
+    if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
+        cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # freed heap returned when it has grown
+                InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]
+    return instantiate(cfg.trainer, callbacks=cbs, logger=lgs or False, plugins=[AtomicCheckpointIO()])
+
+
+def resume_command(cfg: DictConfig) -> str:
+    """The command line of this run (when launched through Hydra), for the printed resume hint."""
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        overrides = [o for o in HydraConfig.get().overrides.task if not o.startswith("ckpt_path=")]
+        out = Path(cfg.paths.output_dir)
+        return " ".join(["python", f"{cfg.get('task_name', 'train')}.py", *overrides, f"hydra.run.dir={out}"])
+    except ValueError:  # not launched by Hydra (compose API, tests)
+        return "python train.py <same overrides>"
+
+

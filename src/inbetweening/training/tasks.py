@@ -1,0 +1,70 @@
+"""The training task drawn on training windows (:class:`inbetweening.data.windows.ClipWindows`).
+
+* :func:`draw_task` - per-sample context length, transition length and intermediate keyframes, and
+  :func:`task_window`, the window cut to that task with its ``known`` mask.
+
+All draws come from the batch's own ``torch.Generator`` (seeded by seed, epoch and batch number), so a batch is a
+pure function of those: resumable and reproducible.
+"""
+from __future__ import annotations
+
+import torch
+
+from inbetweening.data.windows import N_PAST
+from inbetweening.predictor.masks import transition_known
+
+__all__ = ["draw_task", "task_window"]
+
+
+def draw_task(gen: torch.Generator | None, batch: int, transition: tuple[int, int], per_sample: bool,
+              context: tuple[int, int], keyframes_max: int, keyframe_prob: float, n_past: int = N_PAST):
+    """Random task of a training batch: ``(context (B,), n_trans (B,), keyframes (B, T) bool | None)``.
+
+    The transition length is drawn first (per batch or per sample, ``transition = (min, max)``), exactly as before
+    the other options existed, so a run with the defaults (context ``(n_past, n_past)``, no keyframes) draws the same
+    numbers; then the context length per sample, then, with probability ``keyframe_prob`` per sample,
+    ``1..keyframes_max`` keyframes at random frames inside its transition (at least one frame stays unknown).
+    """
+    lo, hi = transition
+    if per_sample:
+        n = torch.randint(lo, hi + 1, (batch,), generator=gen)
+    else:
+        n = torch.randint(lo, hi + 1, (1,), generator=gen).expand(batch)
+    cmin, cmax = context
+    if (cmin, cmax) == (n_past, n_past):
+        c = torch.full((batch,), n_past, dtype=torch.long)
+    else:
+        c = torch.randint(cmin, cmax + 1, (batch,), generator=gen)
+    if keyframes_max <= 0 or keyframe_prob <= 0:
+        return c, n, None
+    t = int((c + n).max()) + 1
+    want = torch.rand(batch, generator=gen) < keyframe_prob
+    k = torch.randint(1, keyframes_max + 1, (batch,), generator=gen)
+    k = torch.where(want, torch.minimum(k, n - 1), torch.zeros_like(k))
+    frame = torch.arange(t)[None, :]
+    inside = (frame >= c[:, None]) & (frame < (c + n)[:, None])
+    score = torch.where(inside, torch.rand(batch, t, generator=gen), torch.full((batch, t), 2.0))
+    rank = score.argsort(dim=1).argsort(dim=1)
+    return c, n, inside & (rank < k[:, None])
+
+
+def task_window(root: torch.Tensor, q: torch.Tensor, context: torch.Tensor, n_trans: torch.Tensor,
+                keyframes: torch.Tensor | None = None,
+                n_past: int = N_PAST) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Cut windows to their task: ``(root (B, T, 3), q (B, T, J, 4), known (B, T, J))``.
+
+    ``root (B, W, 3), q (B, W, J, 4)`` are windows whose frame ``n_past - 1`` is the last context frame; sample ``b``
+    keeps its ``context[b]`` frames up to there, its ``n_trans[b]`` transition frames and the target keyframe; frames
+    after the target repeat it (known, so never in the loss).  ``T = max(context + n_trans) + 1``.  ``keyframes
+    (B, T)`` marks extra known frames inside the transition.
+    """
+    b, _, j, _ = q.shape
+    t = int((context + n_trans).max()) + 1
+    frame = torch.arange(t)[None, :]
+    src = torch.minimum(n_past - context[:, None] + frame, (n_past + n_trans)[:, None])
+    out_root = torch.gather(root, 1, src[:, :, None].expand(b, t, 3))
+    out_q = torch.gather(q, 1, src[:, :, None, None].expand(b, t, j, 4))
+    known = transition_known(b, t, j, context, n_trans)
+    if keyframes is not None:
+        known = known | keyframes[:, :, None]
+    return out_root, out_q, known
