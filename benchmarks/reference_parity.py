@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from inbetweening.data import windows as W
 from inbetweening.data.datasets import load_dataset
 from inbetweening.data.synthetic import generate_dataset
 from inbetweening.evaluation import benchmark as B
@@ -144,7 +145,7 @@ def reorder(files: list[tuple[str, int]], window: int, offset: int) -> np.ndarra
     """Permutation taking windows in the official (listdir) file order to sorted-file-name order."""
     idx, start = {}, 0
     for name, n in files:
-        k = len(B.window_starts(n, window, offset))
+        k = len(W.window_starts(n, window, offset))
         idx[name] = np.arange(start, start + k)
         start += k
     return np.concatenate([idx[name] for name in sorted(idx)] or [np.zeros(0, int)])
@@ -185,7 +186,7 @@ def main() -> int:
         ours = {}
         for name in BASELINES.values():
             ours.update({f"{name}/{k}": v for k, v in B.evaluate_transitions(bench, B.BASELINES[name]).items()})
-        trX, trQ = B.prepare_windows(data.train, data.skeleton, B.TRAIN_WINDOW, B.TRAIN_OFFSET, data.forward_axis)
+        trX, trQ = W.prepare_windows(data.train, data.skeleton, W.TRAIN_WINDOW, W.TRAIN_OFFSET, data.forward_axis)
 
     n_tr_files, n_te_files = len(off["train_files"]), len(off["test_files"])
     print(f"files: {len(top)} .bvh ({n_tr_files} train subject1-4, {n_te_files} test subject5; "
@@ -202,7 +203,7 @@ def main() -> int:
         d = float(np.max(np.abs(off[key] - np.asarray(mine))))
         rows.append((f"{key} ({off[key].size} values; max |value|)", float(np.max(np.abs(off[key]))),
                      float(np.max(np.abs(mine))), d))
-    for n in B.TRANSITION_LENGTHS:
+    for n in W.TRANSITION_LENGTHS:
         for okey, name in BASELINES.items():
             for m_off, m in METRICS.items():
                 a, b = float(off["res"][(f"{okey}_{m_off}_loss", n)]), float(ours[f"{name}/{m}@{n}"])
@@ -218,13 +219,13 @@ def main() -> int:
         pte = reorder(off["test_files"], 65, 40)
         o_offsets = off["offsets"]  # what get_train_stats returned (= xtrain[0, 0, 1:])
         skel = data.skeleton
-        alt = B.BenchmarkSet(bench.X, bench.Q, type(skel)(skel.names, skel.parents,
+        alt = W.BenchmarkSet(bench.X, bench.Q, type(skel)(skel.names, skel.parents,
                              np.concatenate([skel.offsets[:1], o_offsets])), bench.mean, bench.std)
         alt_l2p = 0.0
         for okey, name in BASELINES.items():
             r = B.evaluate_transitions(alt, B.BASELINES[name])
             alt_l2p = max(alt_l2p, *(abs(float(off["res"][(f"{okey}_pos_loss", n)]) - r[f"l2p@{n}"])
-                                     for n in B.TRANSITION_LENGTHS))
+                                     for n in W.TRANSITION_LENGTHS))
         diag = [
             ("train windows, local quaternions", float(np.max(np.abs(off["trQ"][ptr] - trQ)))),
             ("train windows, root positions (cm)", float(np.max(np.abs(off["trX"][ptr][:, :, 0] - trX[:, :, 0])))),

@@ -83,7 +83,7 @@ TINY_CKPT_OVERRIDES = [
 @pytest.fixture(scope="session")
 def tiny_checkpoint(tmp_path_factory, cache_dir) -> Path:
     """A real training checkpoint: a tiny graph_transformer trained 3 steps on synthetic data (~10 s)."""
-    from inbetweening.training.train import train
+    from inbetweening.training.jobs import train
 
     out = tmp_path_factory.mktemp("tiny_checkpoint")
     GlobalHydra.instance().clear()

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from inbetweening.data import windows as W
 from inbetweening.evaluation import benchmark as B
 from inbetweening.geometry.quaternion import qrot
 from inbetweening.geometry.skeleton import Skeleton, fk
@@ -32,12 +33,12 @@ def random_clip(rng, frames, name="c"):
 
 # ------------------------------------------------------------------ windows
 def test_window_starts_bounds_and_errors():
-    assert B.window_starts(5, 1, 1) == [0, 1, 2, 3]  # window and offset of 1 are valid
-    assert B.window_starts(10, 4, 3) == [0, 3]  # strict: start + window < frames
-    assert B.window_starts(3, 5, 1) == []
+    assert W.window_starts(5, 1, 1) == [0, 1, 2, 3]  # window and offset of 1 are valid
+    assert W.window_starts(10, 4, 3) == [0, 3]  # strict: start + window < frames
+    assert W.window_starts(3, 5, 1) == []
     for window, offset in ((0, 1), (1, 0)):
         with pytest.raises(ValueError, match=rf"window \({window}\) and offset \({offset}\) must be >= 1"):
-            B.window_starts(10, window, offset)
+            W.window_starts(10, window, offset)
 
 
 def test_extract_windows_values_dtype_and_empty():
@@ -45,13 +46,13 @@ def test_extract_windows_values_dtype_and_empty():
     clip = random_clip(rng, 12)
     clip.local_q = clip.local_q.astype(np.float32)
     clip.root_pos = clip.root_pos.astype(np.float32)
-    X, Q = B.extract_windows([clip], SK, 5, 4)  # starts 0, 4
+    X, Q = W.extract_windows([clip], SK, 5, 4)  # starts 0, 4
     assert X.shape == (2, 5, 4, 3) and Q.shape == (2, 5, 4, 4)
     assert X.dtype == np.float64 and Q.dtype == np.float64
     np.testing.assert_array_equal(X[1, :, 0], clip.root_pos[4:9])
     np.testing.assert_array_equal(X[1, 2, 1:], OFFSETS[1:])
     np.testing.assert_array_equal(Q[1], clip.local_q[4:9])
-    X0, Q0 = B.extract_windows([random_clip(rng, 3)], SK, 5, 4)
+    X0, Q0 = W.extract_windows([random_clip(rng, 3)], SK, 5, 4)
     assert X0.shape == (0, 5, 4, 3) and Q0.shape == (0, 5, 4, 4)
 
 
@@ -64,7 +65,7 @@ def test_centre_and_rotate_hand_derived_and_leaves_input_alone():
     Q = np.tile(np.array([1.0, 0, 0, 0]), (1, 2, 4, 1))
     Q[0, :, 0] = about([0, 1, 0], -np.pi / 2)  # +x -> +z
     X_in, Q_in = X.copy(), Q.copy()
-    Xn, Qn = B.centre_and_rotate(X, Q, PARENTS, forward_axis=(1.0, 0.0, 0.0), n_past=2)
+    Xn, Qn = W.centre_and_rotate(X, Q, PARENTS, forward_axis=(1.0, 0.0, 0.0), n_past=2)
     np.testing.assert_array_equal(X, X_in)
     np.testing.assert_array_equal(Q, Q_in)
     # centred: mean root XZ (3, 6) removed -> (-1, -2), (1, 2); then turned +90 about y so forward = +x:
@@ -75,18 +76,18 @@ def test_centre_and_rotate_hand_derived_and_leaves_input_alone():
 
 def test_centre_and_rotate_turns_about_y_only_numpy_and_torch_agree():
     rng = np.random.default_rng(1)
-    X, Q = B.extract_windows([random_clip(rng, 30)], SK, 12, 5)
+    X, Q = W.extract_windows([random_clip(rng, 30)], SK, 12, 5)
     axis = (0.3, 0.5, 0.8)  # a forward axis with a vertical component and no exact float32 value
-    Xn, Qn = B.centre_and_rotate(X, Q, PARENTS, forward_axis=axis)
+    Xn, Qn = W.centre_and_rotate(X, Q, PARENTS, forward_axis=axis)
     _, gp = fk(Q, X, PARENTS)
     gq_n, gp_n = fk(Qn, Xn, PARENTS)
     # heights unchanged (a rotation about y), up to the 1e-8 eps of qnormalize kept for parity with the reference
     np.testing.assert_allclose(gp_n[..., 1], gp[..., 1], atol=5e-6)
-    fwd = qrot(gq_n[:, B.N_PAST - 1, 0], np.asarray(axis))
+    fwd = qrot(gq_n[:, W.N_PAST - 1, 0], np.asarray(axis))
     np.testing.assert_allclose(fwd[:, 2], 0.0, atol=1e-6)
     assert (fwd[:, 0] > 0).all()
     np.testing.assert_allclose(Xn[:, :, 0, [0, 2]].mean(axis=1), 0.0, atol=1e-9)  # centred before the turn
-    Xt, Qt = B.centre_and_rotate(torch.from_numpy(X), torch.from_numpy(Q), PARENTS, forward_axis=axis)
+    Xt, Qt = W.centre_and_rotate(torch.from_numpy(X), torch.from_numpy(Q), PARENTS, forward_axis=axis)
     np.testing.assert_allclose(Xt.numpy(), Xn, atol=1e-12, rtol=0)
     np.testing.assert_allclose(Qt.numpy(), Qn, atol=1e-12, rtol=0)
 
@@ -94,12 +95,12 @@ def test_centre_and_rotate_turns_about_y_only_numpy_and_torch_agree():
 def test_prepare_windows_normalises_each_window_with_the_axis_given():
     rng = np.random.default_rng(2)
     clip = random_clip(rng, 14)
-    X, Q = B.prepare_windows([clip], SK, 12, 5, (0.0, 0.0, 1.0))  # exactly one window
-    want = B.centre_and_rotate(*B.extract_windows([clip], SK, 12, 5), PARENTS, forward_axis=(0.0, 0.0, 1.0))
+    X, Q = W.prepare_windows([clip], SK, 12, 5, (0.0, 0.0, 1.0))  # exactly one window
+    want = W.centre_and_rotate(*W.extract_windows([clip], SK, 12, 5), PARENTS, forward_axis=(0.0, 0.0, 1.0))
     assert X.shape == (1, 12, 4, 3)
     np.testing.assert_array_equal(X, want[0])
     np.testing.assert_array_equal(Q, want[1])
-    X0, Q0 = B.prepare_windows([random_clip(rng, 5)], SK, 12, 5, (0.0, 0.0, 1.0))
+    X0, Q0 = W.prepare_windows([random_clip(rng, 5)], SK, 12, 5, (0.0, 0.0, 1.0))
     assert X0.shape == (0, 12, 4, 3) and Q0.shape == (0, 12, 4, 4)
 
 
@@ -109,7 +110,7 @@ def test_position_stats_per_coordinate():
     X[0, :, 0] = [[0.0, 0, 0], [2.0, 0, 0]]
     X[1, :, 0] = [[4.0, 2.0, 0], [6.0, 2.0, 0]]
     Q = np.tile(np.array([1.0, 0, 0, 0]), (2, 2, 4, 1))
-    mean, std = B.position_stats(X, Q, PARENTS)
+    mean, std = W.position_stats(X, Q, PARENTS)
     assert mean.shape == (12,) and std.shape == (12,)
     # root x over 4 frames: 0, 2, 4, 6 -> mean 3, std sqrt(5); root y: 0, 0, 2, 2 -> 1, 1
     np.testing.assert_allclose(mean[:3], [3.0, 1.0, 0.0])
@@ -235,7 +236,7 @@ def test_whole_benchmark_step_by_step_on_a_three_joint_skeleton():
     Q /= np.linalg.norm(Q, axis=-1, keepdims=True)
     mean = rng.normal(size=9) * 3.0  # per coordinate, all different
     std = rng.uniform(0.5, 3.0, size=9)
-    bench = B.BenchmarkSet(X.copy(), Q.copy(), sk, mean, std)
+    bench = W.BenchmarkSet(X.copy(), Q.copy(), sk, mean, std)
 
     def rule(ctx_root, target_root, last_q, target_q, n):
         """A predictor that uses every context frame and the target keyframe."""
@@ -307,12 +308,12 @@ def _bench(rng, windows=3, frames=30):
     X[:, :, 1:] = OFFSETS[1:]
     Q = rng.normal(size=(windows, frames, 4, 4))
     Q /= np.linalg.norm(Q, axis=-1, keepdims=True)
-    return B.BenchmarkSet(X, Q, SK, np.zeros(12), np.ones(12) * 2)
+    return W.BenchmarkSet(X, Q, SK, np.zeros(12), np.ones(12) * 2)
 
 
 def test_transition_inputs_hide_exactly_the_transition():
     bench = _bench(np.random.default_rng(3))
-    root, q = B.transition_inputs(bench, 3, n_past=4)
+    root, q = W.transition_inputs(bench, 3, n_past=4)
     assert root.shape == (3, 8, 3) and q.shape == (3, 8, 4, 4)
     assert np.isnan(root[:, 4:7]).all() and np.isnan(q[:, 4:7]).all()
     np.testing.assert_array_equal(root[:, [0, 1, 2, 3, 7]], bench.X[:, [0, 1, 2, 3, 7], 0])
@@ -338,7 +339,7 @@ def test_evaluate_transitions_scores_the_right_frames_and_checks_predictors():
     assert res == {f"l2q@{n}": pytest.approx(0.0, abs=1e-12), f"l2p@{n}": pytest.approx(1.0, rel=1e-12),
                    f"npss@{n}": pytest.approx(0.0, abs=1e-12)}
     # the longest transition a window allows: n_past + n + N_FUTURE == window
-    ok = B.evaluate_transitions(bench, oracle_plus_one, lengths=(30 - n_past - B.N_FUTURE,), n_past=n_past)
+    ok = B.evaluate_transitions(bench, oracle_plus_one, lengths=(30 - n_past - W.N_FUTURE,), n_past=n_past)
     assert len(ok) == 3
     with pytest.raises(ValueError, match=r"transition length 17 needs windows of 31 frames, have 30"):
         B.evaluate_transitions(bench, oracle_plus_one, lengths=(17,), n_past=n_past)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from inbetweening.data import numbers as bvh_module
+from inbetweening.data import bvh_motion as bvh_module
 from inbetweening.data.bvh import (
     BVH,
     BVHError,

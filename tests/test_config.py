@@ -9,12 +9,12 @@ from pathlib import Path
 
 import pytest
 import torch
-from inbetweening.checkpoint import load_module
 from omegaconf import OmegaConf
 
 from conftest import CONF_DIR, compose_cfg
 from inbetweening.data.datasets import DatasetError, resolve_path
 from inbetweening.training.config import ConfigError, validate
+from inbetweening.training.module import load_module
 from inbetweening.training.schedules import SCHEDULE_TARGET, build_optimizers, lr_factor, upgrade_optim, warmup_decay
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+from inbetweening.data import windows as W
 from inbetweening.data.bvh import BVH, parse_bvh
 from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.datasets import (
@@ -72,11 +73,11 @@ def write_bn_zip(path: Path, takes=range(1, 13), frames: int = 130, contents=("w
 
 # ------------------------------------------------------------------------------------------ windows
 def test_window_starts_strict():
-    assert B.window_starts(100, 50, 20) == [0, 20, 40]  # 40 + 50 < 100, 60 + 50 >= 100
-    assert B.window_starts(110, 50, 20) == [0, 20, 40]  # 60 + 50 == 110 is excluded (strict)
-    assert B.window_starts(111, 50, 20) == [0, 20, 40, 60]
-    assert B.window_starts(50, 50, 20) == []
-    assert B.window_starts(65 + 1, 65, 40) == [0]
+    assert W.window_starts(100, 50, 20) == [0, 20, 40]  # 40 + 50 < 100, 60 + 50 >= 100
+    assert W.window_starts(110, 50, 20) == [0, 20, 40]  # 60 + 50 == 110 is excluded (strict)
+    assert W.window_starts(111, 50, 20) == [0, 20, 40, 60]
+    assert W.window_starts(50, 50, 20) == []
+    assert W.window_starts(65 + 1, 65, 40) == [0]
 
 
 def _toy_skeleton():
@@ -93,7 +94,7 @@ def test_centre_and_rotate_faces_plus_x_and_centres():
     q[:, :, 0] = euler_to_quat_np(np.stack([np.zeros(t), yaw, np.zeros(t)], -1), "xyz")
     root = np.cumsum(rng.normal(size=(2, t, 3)), 1) + np.array([50.0, 90.0, -30.0])
     X = sk.local_positions(root)
-    Xn, Qn = B.centre_and_rotate(X, q, sk.parents, forward_axis=(0, 0, 1))
+    Xn, Qn = W.centre_and_rotate(X, q, sk.parents, forward_axis=(0, 0, 1))
     # root XZ centred over the window; height untouched
     np.testing.assert_allclose(Xn[:, :, 0, [0, 2]].mean(1), 0, atol=1e-9)
     np.testing.assert_allclose(Xn[:, :, 0, 1], X[:, :, 0, 1], atol=1e-9)
@@ -102,7 +103,7 @@ def test_centre_and_rotate_faces_plus_x_and_centres():
     np.testing.assert_allclose(fwd / np.linalg.norm(fwd, axis=-1, keepdims=True), [[1, 0, 0]] * 2, atol=1e-7)
     # non-root local positions stay the offsets; torch path agrees
     np.testing.assert_allclose(Xn[:, :, 1:], X[:, :, 1:], atol=1e-9)
-    Xt, Qt = B.centre_and_rotate(torch.from_numpy(X), torch.from_numpy(q), sk.parents, forward_axis=(0, 0, 1))
+    Xt, Qt = W.centre_and_rotate(torch.from_numpy(X), torch.from_numpy(q), sk.parents, forward_axis=(0, 0, 1))
     np.testing.assert_allclose(Xt.numpy(), Xn, atol=1e-9)
     np.testing.assert_allclose(Qt.numpy(), Qn, atol=1e-12)
 
@@ -140,13 +141,13 @@ def test_npss_hand_computed():
 
 def test_interpolation_baseline_is_exact_on_linear_motion_and_zero_velocity_repeats():
     n = 5
-    t = np.arange(B.N_PAST + n + 1, dtype=float)
+    t = np.arange(W.N_PAST + n + 1, dtype=float)
     root = np.stack([t, np.zeros_like(t), 2 * t], -1)[None]
     q = np.zeros((1, len(t), 2, 4))
     q[..., 0] = 1
     r, qq = B.interpolation(root, q, n)
-    np.testing.assert_allclose(r[0], root[0, B.N_PAST : B.N_PAST + n], atol=1e-6)
-    np.testing.assert_allclose(qq, q[:, B.N_PAST : B.N_PAST + n])
+    np.testing.assert_allclose(r[0], root[0, W.N_PAST : W.N_PAST + n], atol=1e-6)
+    np.testing.assert_allclose(qq, q[:, W.N_PAST : W.N_PAST + n])
     zr, zq = B.zero_velocity(root, q, n)
     np.testing.assert_allclose(zr[0], np.repeat(root[0, 9:10], n, 0))
 
@@ -193,7 +194,7 @@ def test_evaluate_rejects_leaky_predictors(tmp_path):
     bench = load_dataset("lafan1", path=folder, cache_dir=tmp_path / "c").benchmark_set()
 
     def cheat(root, q, n):  # reads the (NaN) transition frames
-        return root[:, B.N_PAST : B.N_PAST + n], q[:, B.N_PAST : B.N_PAST + n]
+        return root[:, W.N_PAST : W.N_PAST + n], q[:, W.N_PAST : W.N_PAST + n]
 
     with pytest.raises(ValueError, match="non-finite"):
         B.evaluate_transitions(bench, cheat, (5,))
@@ -207,11 +208,11 @@ def test_lafan1_folder_and_zip_split_and_protocol(tmp_path):
     d = load_dataset("lafan1", path=folder, cache_dir=tmp_path / "c")
     assert len(d.train) == 8 and len(d.test) == 2
     assert d.forward_axis == (0.0, 1.0, 0.0) and d.skeleton.num_joints == 22
-    expected = sum(len(B.window_starts(c.num_frames, 65, 40)) for c in d.test)
+    expected = sum(len(W.window_starts(c.num_frames, 65, 40)) for c in d.test)
     assert d.test_X.shape == (expected, 65, 22, 3)
     # stats = mean/std of FK global positions over the training windows
-    X, Q = B.prepare_windows(d.train, d.skeleton, 50, 20, d.forward_axis)
-    m, s = B.position_stats(X, Q, d.skeleton.parents)
+    X, Q = W.prepare_windows(d.train, d.skeleton, 50, 20, d.forward_axis)
+    m, s = W.position_stats(X, Q, d.skeleton.parents)
     np.testing.assert_allclose(d.pos_mean, m)
     np.testing.assert_allclose(d.pos_std, s)
     zpath = tmp_path / "lafan1.zip"
@@ -321,10 +322,10 @@ def test_an_unknown_split_names_the_splits_of_the_dataset(tmp_path):
 def test_eval_and_the_data_module_on_the_content_split(tmp_path, capsys):
     import json
 
-    from inbetweening.training.train import evaluate, make_datamodule
-
     from conftest import compose_cfg
+    from inbetweening.training.builders import make_datamodule
     from inbetweening.training.datamodule import split_train_val
+    from inbetweening.training.jobs import evaluate
 
     zpath = write_bn_zip(tmp_path / "bn.zip", takes=(9, 10, 11, 20), frames=110, contents=BN_CONTENTS)
     over = ["data=bandai_namco", f"data.path={zpath}", "data.split=content", "model=interpolation",
@@ -340,7 +341,7 @@ def test_eval_and_the_data_module_on_the_content_split(tmp_path, capsys):
     d = load_dataset("bandai_namco", path=zpath, cache_dir=tmp_path / "c", split="content")
     np.testing.assert_array_equal(dm.test_set.root.numpy(), d.test_X[:, :, 0])
     val = split_train_val(d.train, 0.25)[1]  # validation: clips of the training contents (walk, wave-left-hand)
-    vX, _ = B.prepare_windows(val, d.skeleton, B.TEST_WINDOW, B.TEST_OFFSET, d.forward_axis)
+    vX, _ = W.prepare_windows(val, d.skeleton, W.TEST_WINDOW, W.TEST_OFFSET, d.forward_axis)
     assert len(val) == 2 and {c.name.split("_")[1] for c in val} <= {"walk", "wave-left-hand"}
     np.testing.assert_array_equal(dm.val_set.root.numpy(), vX[:, :, 0])
 

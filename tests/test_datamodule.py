@@ -14,7 +14,7 @@ from inbetweening.predictor.inference import window_features
 from omegaconf import OmegaConf
 
 from conftest import CONF_DIR, TINY, compose_cfg
-from inbetweening.evaluation import benchmark as B
+from inbetweening.data import windows as W
 from inbetweening.training.builders import make_datamodule, make_module
 from inbetweening.training.datamodule import InbetweenDataModule, split_train_val
 
@@ -107,22 +107,22 @@ def test_validation_windows_come_only_from_validation_clips(tmp_path, cache_dir)
     data, sk, axis = dm.data, dm.data.skeleton, dm.data.forward_axis
     train_clips, val_clips = split_train_val(data.train, dm.hparams.val_fraction)
     assert len(val_clips) == 1 and len(train_clips) == len(data.train) - 1
-    vX, vQ = B.prepare_windows(val_clips, sk, B.TEST_WINDOW, B.TEST_OFFSET, axis)
+    vX, vQ = W.prepare_windows(val_clips, sk, W.TEST_WINDOW, W.TEST_OFFSET, axis)
     assert torch.equal(dm.val_set.q, torch.from_numpy(vQ))
     assert torch.equal(dm.val_set.root, torch.from_numpy(vX[:, :, 0]))
     # and no validation window is one of the training clips' windows
-    tX, tQ = B.prepare_windows(train_clips, sk, B.TEST_WINDOW, B.TEST_OFFSET, axis)
+    tX, tQ = W.prepare_windows(train_clips, sk, W.TEST_WINDOW, W.TEST_OFFSET, axis)
     for q in dm.val_set.q.numpy():
         assert not np.any(np.all(np.abs(tQ - q) < 1e-9, axis=(1, 2, 3)))
     # the training windows are the training clips' 50-frame windows, nothing from the validation clips
-    X, Q = B.prepare_windows(train_clips, sk, dm.hparams.train_window, dm.hparams.train_offset, axis)
+    X, Q = W.prepare_windows(train_clips, sk, dm.hparams.train_window, dm.hparams.train_offset, axis)
     assert torch.equal(dm.train_feats, window_features(X[:, :, 0], Q, sk, data.pos_mean, data.pos_std))
 
 
 # ------------------------------------------------------------------------------------------ transitions
 def test_transition_per_sample(tmp_path, cache_dir):
     dm = _dm(tmp_path, cache_dir, "data.transition_per=sample", "data.transition_min=5", "data.transition_max=30")
-    n_past, lo, hi = B.N_PAST, 5, 30
+    n_past, lo, hi = W.N_PAST, 5, 30
     idx = list(range(len(dm.train_feats)))
     batch = dm.collate_train([(0, 0, i) for i in idx])
     gt, known, loss_mask, n = batch["gt"], batch["known"], batch["loss_mask"], batch["n_trans"]
@@ -148,7 +148,7 @@ def test_transition_per_sample(tmp_path, cache_dir):
 
 def test_transition_per_batch_gives_one_length_per_batch(tmp_path, cache_dir):
     dm = _dm(tmp_path, cache_dir, "data.transition_per=batch", "data.transition_min=5", "data.transition_max=30")
-    n_past = B.N_PAST
+    n_past = W.N_PAST
     lengths = []
     for epoch in range(4):
         for batch in _batches(dm, epoch):
@@ -219,7 +219,7 @@ def test_training_features_encoded_in_chunks_equal_one_pass(tmp_path, cache_dir)
     dm = _dm(tmp_path, cache_dir)
     h, d = dm.hparams, dm.data
     train_clips, _ = split_train_val(d.train, h.val_fraction)
-    X, Q = B.prepare_windows(train_clips, d.skeleton, h.train_window, h.train_offset, d.forward_axis)
+    X, Q = W.prepare_windows(train_clips, d.skeleton, h.train_window, h.train_offset, d.forward_axis)
     X, Q = X[: h.max_train_windows], Q[: h.max_train_windows]
     whole = window_features(X[:, :, 0], Q, d.skeleton, d.pos_mean, d.pos_std)
     assert len(whole) > 7

@@ -12,15 +12,16 @@ import numpy as np
 import pytest
 import torch
 from inbetweening.predictor.inference import predict_transitions
-from inbetweening.training.train import evaluate, train
 
 from conftest import TINY, compose_cfg
+from inbetweening.data import windows as W
 from inbetweening.data.bvh import read_bvh
 from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.datasets import load_dataset
 from inbetweening.data.synthetic import generate_dataset
 from inbetweening.evaluation import benchmark as B
 from inbetweening.predictor.checkpoint import CheckpointError, load_module
+from inbetweening.training.jobs import evaluate, train
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = [o for o in TINY if o.startswith("data.")]
@@ -82,9 +83,9 @@ def test_eval_scores_with_the_datasets_statistics(trained, tmp_path, cache_dir):
                                    centre=module.centre)
 
     X, Q = data.test_X[:n], data.test_Q[:n]
-    with_data = B.evaluate_transitions(B.BenchmarkSet(X, Q, data.skeleton, data.pos_mean, data.pos_std), predictor,
+    with_data = B.evaluate_transitions(W.BenchmarkSet(X, Q, data.skeleton, data.pos_mean, data.pos_std), predictor,
                                        LENGTHS)
-    with_ckpt = B.evaluate_transitions(B.BenchmarkSet(X, Q, data.skeleton, module.mean, module.std), predictor,
+    with_ckpt = B.evaluate_transitions(W.BenchmarkSet(X, Q, data.skeleton, module.mean, module.std), predictor,
                                        LENGTHS)
     for k in with_data:
         assert got[k] == pytest.approx(with_data[k], rel=1e-4, abs=1e-6), k

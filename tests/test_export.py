@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from inbetweening.training.train import load_module
 
 from inbetweening.tools import export
+from inbetweening.training.module import load_module
 
 ort = pytest.importorskip("onnxruntime")
 onnx = pytest.importorskip("onnx")

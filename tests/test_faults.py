@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 import torch
-from inbetweening.training.train import train, write_benchmark
 
 from conftest import TINY, compose_cfg
 from inbetweening.training.callbacks import NonFiniteError
+from inbetweening.training.jobs import train, write_benchmark
 
 ROOT = Path(__file__).resolve().parents[1]
 DIVERGE = [o for o in TINY if "max_steps" not in o] + [
@@ -57,9 +57,8 @@ def test_heap_is_trimmed_while_training(tmp_path, monkeypatch):
     """glibc keeps freed activations in a heap that fragments; the trainer returns it every few steps."""
     import platform
 
-    from inbetweening.training.train import make_trainer
-
     from inbetweening.training import callbacks as C
+    from inbetweening.training.builders import make_trainer
 
     assert C.trim_heap() == (platform.libc_ver()[0] == "glibc")
     cfg = compose_cfg("train", ["logger=none", "callbacks=none"], tmp_path, tmp_path / "cache")

@@ -13,6 +13,7 @@ from inbetweening.predictor.inference import (
     window_features,
 )
 
+from inbetweening.data import windows as W
 from inbetweening.evaluation import benchmark as B
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.models import build_model
@@ -91,7 +92,7 @@ def test_known_and_last_centring_are_leak_free_and_window_centring_is_not(mask):
     for centre in ("known", "last", "window"):
         outs = []
         for r, qq in ((root, q), (other_root, other_q)):
-            Xn, Qn = B.centre_and_rotate(SK.local_positions(r), qq, PARENTS, forward_axis=(0.0, 0.0, 1.0))
+            Xn, Qn = W.centre_and_rotate(SK.local_positions(r), qq, PARENTS, forward_axis=(0.0, 0.0, 1.0))
             feats = window_features(Xn[:, :, 0], Qn, SK, MEAN, STD, dtype=torch.float64)
             known = transition_known(2, n_past + n + 1, 4, n_past, n)
             pred, _ = predict_features(model.double(), mask, feats, known, centre, STD)

@@ -6,7 +6,6 @@ import json
 
 import numpy as np
 import pytest
-from inbetweening.training.train import evaluate, write_benchmark
 
 from conftest import TINY, compose_cfg
 from inbetweening.data.clips import Clip
@@ -17,6 +16,7 @@ from inbetweening.evaluation.collect import collect, to_markdown
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.training.callbacks import NonFiniteError
 from inbetweening.training.config import ConfigError, validate
+from inbetweening.training.jobs import evaluate, write_benchmark
 
 FPS = 30.0
 H, S = 5.0, 60.0  # contact height (cm) and speed (cm/s) of the hand-made cases

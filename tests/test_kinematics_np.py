@@ -10,9 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from inbetweening.data import windows as W
 from inbetweening.data.clips import Clip
-from inbetweening.evaluation import benchmark as B
-from inbetweening.geometry import canonical as C
 from inbetweening.geometry import kinematics_np as FK
 from inbetweening.geometry.skeleton import Skeleton, fk, ik
 
@@ -45,10 +44,10 @@ def test_canonicalise_windows_np_is_the_generic_definition_bit_for_bit(chunk):
     rng = np.random.default_rng(1)
     X = rng.normal(size=(6, 12, len(PARENTS), 3)) * 50
     Q = _quats(rng, (6, 12, len(PARENTS)))
-    want = C._canonicalise_windows_generic(X, Q, PARENTS, (0.0, 0.0, 1.0), 4)
+    want = W._canonicalise_windows_generic(X, Q, PARENTS, (0.0, 0.0, 1.0), 4)
     got = FK.canonicalise_windows_np(X, Q, PARENTS, (0.0, 0.0, 1.0), 4)
     assert np.array_equal(want[0], got[0]) and np.array_equal(want[1], got[1])
-    assert C.canonicalise_windows(X, Q, PARENTS, (0.0, 0.0, 1.0), 4)[1] is not None  # numpy dispatch works
+    assert W.canonicalise_windows(X, Q, PARENTS, (0.0, 0.0, 1.0), 4)[1] is not None  # numpy dispatch works
     # and the round trip is the windows' own FK turned about Y (not a no-op)
     assert not np.allclose(got[0][:, :, 0], X[:, :, 0])
     gq, _ = fk(*ik(*fk(Q, X, PARENTS), PARENTS), PARENTS)
@@ -63,24 +62,24 @@ def test_training_stats_and_windows_equal_the_loop_per_window_definition(chunk, 
     # the definition: one window at a time, stacked, then the generic normalisation and FK
     xs, qs = [], []
     for c in clips:
-        for s in B.window_starts(len(c.root_pos), 12, 5):
+        for s in W.window_starts(len(c.root_pos), 12, 5):
             xs.append(sk.local_positions(c.root_pos[s : s + 12]))
             qs.append(c.local_q[s : s + 12])
     X0, Q0 = np.stack(xs), np.stack(qs)
-    X, Q = B.extract_windows(clips, sk, 12, 5)
+    X, Q = W.extract_windows(clips, sk, 12, 5)
     assert np.array_equal(X, X0) and np.array_equal(Q, Q0)
-    Xn, Qn = C._canonicalise_windows_generic(X0, Q0, PARENTS, (0.0, 0.0, 1.0), B.N_PAST - 1)
-    Xf, Qf = B.prepare_windows(clips, sk, 12, 5, (0.0, 0.0, 1.0))
+    Xn, Qn = W._canonicalise_windows_generic(X0, Q0, PARENTS, (0.0, 0.0, 1.0), W.N_PAST - 1)
+    Xf, Qf = W.prepare_windows(clips, sk, 12, 5, (0.0, 0.0, 1.0))
     assert np.array_equal(Xn, Xf) and np.array_equal(Qn, Qf)
     gp = fk(Qn, Xn, PARENTS)[1].reshape(-1, len(PARENTS) * 3)
-    mean, std = B.training_stats(clips, sk, 12, 5, (0.0, 0.0, 1.0))
+    mean, std = W.training_stats(clips, sk, 12, 5, (0.0, 0.0, 1.0))
     assert np.array_equal(mean, gp.mean(axis=0)) and np.array_equal(std, gp.std(axis=0))
-    m2, s2 = B.position_stats(Xf, Qf, PARENTS)
+    m2, s2 = W.position_stats(Xf, Qf, PARENTS)
     assert np.array_equal(m2, mean) and np.array_equal(s2, std)
-    assert B.training_stats(clips[1:2], sk, 12, 5, (0.0, 0.0, 1.0)) is None
+    assert W.training_stats(clips[1:2], sk, 12, 5, (0.0, 0.0, 1.0)) is None
     # the threaded path (many small chunks, blocks of columns) gives the same bits
     monkeypatch.setattr(FK, "CHUNK_FRAMES", 24)
-    mt, st = B.training_stats(clips, sk, 12, 5, (0.0, 0.0, 1.0), threads=3)
+    mt, st = W.training_stats(clips, sk, 12, 5, (0.0, 0.0, 1.0), threads=3)
     assert np.array_equal(mt, mean) and np.array_equal(st, std)
 
 

@@ -6,12 +6,12 @@ import json
 import numpy as np
 import pytest
 import torch
-from inbetweening.training.train import train
 
 from conftest import TINY, TINY_PARENTS, compose_cfg, sinusoid_batch, tiny_model
 from inbetweening.models import MODELS
 from inbetweening.predictor.masks import apply_mask
 from inbetweening.training.config import ConfigError, validate
+from inbetweening.training.jobs import train
 from inbetweening.training.module import InbetweenModule
 
 BASE = [*TINY, "callbacks=none", "logger=none", "threads=1"]

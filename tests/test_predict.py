@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from inbetweening.training.train import CheckpointError
 
 from inbetweening import Inbetweener
 from inbetweening.data.bvh import BVH, parse_bvh, read_bvh
@@ -18,6 +17,7 @@ from inbetweening.data.datasets import fold_static_root
 from inbetweening.data.synthetic import generate_clip, make_bvh
 from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.quaternion import qinv, qmul, qrot
+from inbetweening.predictor.checkpoint import CheckpointError
 from inbetweening.tools import predict
 from inbetweening.tools.inbetweener import InbetweenError
 from inbetweening.training.module import InbetweenModule

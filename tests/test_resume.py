@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 import torch
-from inbetweening.checkpoint import predictor_state
+
+from inbetweening.predictor.checkpoint import predictor_state
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN = ["model.d_model=16", "model.depth=1", "model.heads=2", "model.dropout=0.1", "data.synthetic.num_clips=10",

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
+from inbetweening.data import windows as W
 from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.clips import Clip
 from inbetweening.data.datasets import load_dataset, resolve_path
@@ -15,7 +16,6 @@ from inbetweening.data.errors import DatasetError
 from inbetweening.data.mirror import side_pairs
 from inbetweening.data.specs import DATASETS, DatasetSpec, get_spec, lafan_split, register
 from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip, make_bvh
-from inbetweening.evaluation import benchmark as B
 from inbetweening.geometry.skeleton import Skeleton
 
 LAFAN_MIRROR = side_pairs("Left{}", "UpLeg Leg Foot Toe Shoulder Arm ForeArm Hand")
@@ -62,9 +62,9 @@ def test_a_registered_bvh_spec_loads_with_no_other_change(tmp_path, registry, mo
     assert [c.name for c in d.test] == ["take4-C", "take5-C"]
     assert d.skeleton.names == NAMES and d.mirror == LAFAN_MIRROR  # derived from the Left*/Right* names
     # the spec's forward axis is the one the windows were normalised with (+X local turned to +X)
-    X, Q = B.prepare_windows(d.test, d.skeleton, B.TEST_WINDOW, B.TEST_OFFSET, (1.0, 0.0, 0.0))
+    X, Q = W.prepare_windows(d.test, d.skeleton, W.TEST_WINDOW, W.TEST_OFFSET, (1.0, 0.0, 0.0))
     np.testing.assert_array_equal(d.test_X, X)
-    other, _ = B.prepare_windows(d.test, d.skeleton, B.TEST_WINDOW, B.TEST_OFFSET, (0.0, 0.0, 1.0))
+    other, _ = W.prepare_windows(d.test, d.skeleton, W.TEST_WINDOW, W.TEST_OFFSET, (0.0, 0.0, 1.0))
     assert not np.allclose(other, X)
     # cached under the spec's name; the second load is served from the cache, identical
     assert [p.name.split("-")[0] for p in (tmp_path / "c" / "prepared").iterdir()] == ["mini"]

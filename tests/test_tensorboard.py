@@ -18,8 +18,9 @@ import pytest
 import torch
 
 from conftest import TINY, compose_cfg
-from inbetweening.training.builders import make_datamodule, make_module, train
+from inbetweening.training.builders import make_datamodule, make_module
 from inbetweening.training.figures import frames_to_draw, per_joint_figure, transition_figure
+from inbetweening.training.jobs import train
 from inbetweening.training.tb_logging import curated_hparams, hparams_metrics, resumed_version, run_label, tb_scalars
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 import torch
 from inbetweening.predictor.inference import predict_transitions
-from inbetweening.training.train import CheckpointError, load_module, make_datamodule, make_module, train
 
 from conftest import TINY, compose_cfg, model_overrides
 from inbetweening.evaluation import benchmark as B
@@ -19,7 +18,15 @@ from inbetweening.evaluation.collect import collect
 from inbetweening.evaluation.collect import main as collect_main
 from inbetweening.models import MODELS
 from inbetweening.predictor import features as F
-from inbetweening.predictor.checkpoint import load_predictor, predictor_state
+from inbetweening.predictor.checkpoint import (
+    CheckpointError,
+    load_module,
+    load_predictor,
+    make_datamodule,
+    make_module,
+    predictor_state,
+    train,
+)
 from inbetweening.predictor.masks import apply_mask, transition_known
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.module import InbetweenModule
@@ -89,7 +96,7 @@ def test_reported_test_metrics_equal_the_checkpoint_scored_by_the_numpy_benchmar
 def test_interpolation_model_matches_numpy_baseline(tmp_path, cache_dir):
     """The torch Interpolation model through the Lightning test loop scores like the numpy reference baseline."""
     torch_metrics, cfg = run_train(tmp_path, cache_dir, BASE + ["model=interpolation"])
-    from inbetweening.training.train import evaluate
+    from inbetweening.training.jobs import evaluate
 
     ecfg = compose_cfg("eval", ["model=interpolation", "data.synthetic.num_clips=10", "data.synthetic.min_frames=120",
                                 "data.synthetic.max_frames=160"], tmp_path / "eval", cache_dir)
@@ -367,8 +374,9 @@ def test_known_centring_removes_the_window_centring_leak(centre, equivariant):
 def test_ddp_trainer_config_builds_a_ddp_trainer(tmp_path, cache_dir):
     """``trainer=ddp`` composes, validates and instantiates a Trainer with a DDP strategy (nothing is launched)."""
     from hydra.utils import instantiate
-    from inbetweening.training.train import make_trainer
     from lightning.pytorch.strategies import DDPStrategy
+
+    from inbetweening.training.builders import make_trainer
 
     cfg = compose_cfg("train", ["trainer=ddp", "trainer.accelerator=cpu", "trainer.devices=2", "logger=none"],
                       tmp_path, cache_dir)

@@ -5,15 +5,16 @@ import numpy as np
 import pytest
 import torch
 from inbetweening.predictor.features import anchor_xz, known_centre_shift
-from inbetweening.training.train import make_datamodule
-from inbetweening.training.windows import ClipWindows, draw_task, task_window
 
 from conftest import TINY, compose_cfg
+from inbetweening.data import windows as W
 from inbetweening.data.datasets import load_dataset
 from inbetweening.data.mirror import fit_mirror_frames, mirror_motion, mirror_permutation
-from inbetweening.evaluation import benchmark as B
+from inbetweening.data.windows import ClipWindows
 from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.training.builders import make_datamodule
 from inbetweening.training.config import ConfigError, validate
+from inbetweening.training.tasks import draw_task, task_window
 
 DATA = [o for o in TINY if o.startswith("data.")]
 SHARED_BN2 = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared/datasets/bandai-namco-2.zip"
@@ -28,11 +29,11 @@ def _dm(tmp_path, cache_dir, *extra):
 
 def _old_task(gt, n, per_sample):
     """The training task as it was cut before context/keyframe options existed (kept here as the reference)."""
-    t = B.N_PAST + int(n.max()) + 1
+    t = W.N_PAST + int(n.max()) + 1
     gt = gt[:, :t].clone()
     if per_sample:
         tt = torch.arange(t)[None, :]
-        src = torch.minimum(tt, (B.N_PAST + n)[:, None])
+        src = torch.minimum(tt, (W.N_PAST + n)[:, None])
         gt = torch.gather(gt, 1, src[:, :, None, None].expand_as(gt))
     return gt
 
@@ -58,10 +59,10 @@ def test_variable_context_keeps_the_last_context_frame_and_the_target():
     assert out.shape[1] == int((c + n).max()) + 1
     for b in range(8):
         cb, nb = int(c[b]), int(n[b])
-        assert out[b, cb - 1, 0, 0] == B.N_PAST - 1  # the last context frame is the window's frame 9
-        assert out[b, 0, 0, 0] == B.N_PAST - cb  # no frame before the context
-        assert out[b, cb + nb, 0, 0] == B.N_PAST + nb  # the target keyframe
-        assert (out[b, cb + nb :, 0, 0] == B.N_PAST + nb).all()  # padding repeats the target
+        assert out[b, cb - 1, 0, 0] == W.N_PAST - 1  # the last context frame is the window's frame 9
+        assert out[b, 0, 0, 0] == W.N_PAST - cb  # no frame before the context
+        assert out[b, cb + nb, 0, 0] == W.N_PAST + nb  # the target keyframe
+        assert (out[b, cb + nb :, 0, 0] == W.N_PAST + nb).all()  # padding repeats the target
         assert known[b, :cb].all() and not known[b, cb : cb + nb].any() and known[b, cb + nb :].all()
 
 
@@ -83,7 +84,7 @@ def test_intermediate_keyframes_lie_inside_the_transition_and_leave_frames_to_pr
 # ------------------------------------------------------------------------------------------ clip windows
 def test_clip_windows_at_the_benchmark_stride_are_the_prepared_windows(cache_dir):
     d = load_dataset("synthetic", cache_dir=cache_dir, synthetic={"num_clips": 6, "min_frames": 120, "max_frames": 160})
-    X, Q = B.prepare_windows(d.train, d.skeleton, 50, 20, d.forward_axis)
+    X, Q = W.prepare_windows(d.train, d.skeleton, 50, 20, d.forward_axis)
     cw = ClipWindows(d.train, d.skeleton, 50, 20, d.forward_axis)
     assert len(cw) == len(X)
     root, q = cw.windows(np.arange(len(cw)))
@@ -155,7 +156,7 @@ def test_clip_sampling_data_module_mirrors_about_half_the_windows(tmp_path, cach
 
 # ------------------------------------------------------------------------------------------ time warp (data.speed)
 def _normalised(cw, root, q):
-    X, Q = B.centre_and_rotate(cw.skeleton.local_positions(root), q, cw.skeleton.parents, cw.forward_axis)
+    X, Q = W.centre_and_rotate(cw.skeleton.local_positions(root), q, cw.skeleton.parents, cw.forward_axis)
     return X[:, :, 0], Q
 
 
