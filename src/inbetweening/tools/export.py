@@ -18,9 +18,11 @@ them is stored in the model's ``metadata_props``, one JSON value per key: ``skel
 ``skeleton_parents``, ``skeleton_offsets``, ``pos_mean``, ``pos_std``, ``mask``, ``forward_axis``, ``n_past``,
 ``fps``, ``train_window``, ``max_frames``, ``model``, ``dataset``, ``centre``, the feature layout
 (``representation``, ``features_per_joint``, ``position_slice``, ``quaternion_slice``, ``features``) and
-``inputs`` (the graph's input names).  With ``centre="known"`` (``"last"``) the features are first shifted so that
-the known frames' mean root XZ (the last context frame's root XZ) is the origin, and the output shifted back (as
-:meth:`Predictor.predict <inbetweening.predictor.predictor.Predictor.predict>` does).
+``inputs`` (the graph's input names).  The windows are first moved into their canonical frame, decided by their
+known frames only (:meth:`Predictor.canonical_frame <inbetweening.predictor.predictor.Predictor.canonical_frame>`:
+``centre="known"`` / ``"window"``: the known frames' mean root XZ at the origin, ``"last"``: the last context
+frame's root XZ; the root's ``forward_axis`` at the last context frame turned to +X about +Y), and the prediction
+taken back (as :meth:`Predictor.predict_windows <inbetweening.predictor.predictor.Predictor.predict_windows>` does).
 """
 from __future__ import annotations
 

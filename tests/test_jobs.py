@@ -1,0 +1,58 @@
+"""The jobs behind train.py / eval.py (``inbetweening.training.jobs``): faults that must be one line and exit 2, and
+configurations that must compose, as a table run through the real command line."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from conftest import TINY_CKPT_OVERRIDES
+
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = [o for o in TINY_CKPT_OVERRIDES if not o.startswith(("trainer.max_steps", "callbacks=", "logger=", "model.d_model"))]
+
+# (case, overrides ({ckpt}: the tiny checkpoint, trained with model.d_model=16), exit code, stderr pattern or None)
+CLI_CASES = [
+    ("resume with another model size names both architectures",
+     [*SMALL, "model.d_model=32", "trainer.max_steps=4", "callbacks=none", "logger=none", "ckpt_path={ckpt}"], 2,
+     r"^error: ckpt_path: \S+ holds another architecture: graph_transformer \(.*d_model=16.*\); this run builds "
+     r"graph_transformer \(.*d_model=32.*\)"),
+    ("resume with another model names both",
+     [*[o for o in SMALL if not o.startswith("model.")], "model=unet1d", "trainer.max_steps=4", "callbacks=none",
+      "logger=none", "ckpt_path={ckpt}"], 2,
+     r"^error: ckpt_path: \S+ holds another architecture: graph_transformer \(.*\); this run builds unet1d"),
+    ("an experiment composes with callbacks=none",
+     ["experiment=bn2_reference", "data=synthetic", *SMALL, "model.d_model=16", "trainer.max_steps=1",
+      "trainer.max_time=null", "callbacks=none", "logger=none"], 0, None),
+    ("an experiment composes with logger=none and its callbacks",
+     ["experiment=bn2_reference", "data=synthetic", *SMALL, "model.d_model=16", "trainer.max_steps=1",
+      "trainer.max_time=null", "logger=none"], 0, None),
+]
+
+
+@pytest.fixture(scope="module")
+def d16_checkpoint(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("d16")
+    r = subprocess.run([sys.executable, "train.py", *SMALL, "model.d_model=16", "trainer.max_steps=2", "callbacks=none",
+                        "logger=none", f"hydra.run.dir={out}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    ckpts = sorted((out / "checkpoints").glob("*.ckpt"))
+    assert ckpts, r.stdout[-2000:]
+    return ckpts[-1]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case, overrides, code, pattern", CLI_CASES, ids=[c[0] for c in CLI_CASES])
+def test_train_cli_table(case, overrides, code, pattern, d16_checkpoint, tmp_path):
+    import re
+
+    args = [o.replace("{ckpt}", str(d16_checkpoint)) for o in overrides]
+    r = subprocess.run([sys.executable, "train.py", *args, f"hydra.run.dir={tmp_path}"], cwd=ROOT, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == code, (case, r.stderr[-2000:])
+    if pattern is not None:
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
+        assert re.search(pattern, lines[0]), lines[0]
