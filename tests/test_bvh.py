@@ -12,13 +12,12 @@ from inbetweening.data import bvh_motion as bvh_module
 from inbetweening.data.bvh import (
     BVH,
     BVHError,
-    format_bvh,
     iter_bvh_sources,
     parse_bvh,
     read_bvh,
     read_bvh_many,
-    write_bvh,
 )
+from inbetweening.data.bvh_writer import format_bvh, write_bvh
 from inbetweening.geometry.quaternion import euler_to_quat_np
 from inbetweening.geometry.skeleton import Skeleton
 

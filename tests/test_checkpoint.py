@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from inbetweening.predictor.checkpoint import CheckpointError, load_module, non_finite_tensor, read_checkpoint
+from inbetweening.predictor.checkpoint import CheckpointError, non_finite_tensor, read_checkpoint
+from inbetweening.training.module import load_module
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "models" / "bn2_reference" / "model.ckpt"

@@ -10,7 +10,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import torch
-from inbetweening.predictor.inference import window_features
 from omegaconf import OmegaConf
 
 from conftest import CONF_DIR, TINY, compose_cfg
@@ -46,7 +45,7 @@ def _same_batches(a: list[dict], b: list[dict]) -> bool:
 
 
 # ------------------------------------------------------------------------------------------ built from the config
-FROM_OTHER_GROUPS = {"mask", "joint_mask", "seed"}  # what make_datamodule adds to cfg.data
+FROM_OTHER_GROUPS = {"mask": "${mask}", "seed": "${seed}"}  # cfg.data's keys that take the run's own values
 
 
 @pytest.mark.parametrize("data", sorted(p.stem for p in (Path(CONF_DIR) / "data").glob("*.yaml")))
@@ -54,7 +53,10 @@ def test_data_yamls_hold_exactly_the_data_modules_arguments(data, tmp_path):
     cfg = compose_cfg("train", [f"data={data}"], tmp_path, tmp_path)
     assert cfg.data._target_ == "inbetweening.training.datamodule.InbetweenDataModule"
     params = set(inspect.signature(InbetweenDataModule.__init__).parameters) - {"self"}
-    assert set(cfg.data) - {"_target_"} == params - FROM_OTHER_GROUPS
+    assert set(cfg.data) - {"_target_"} == params
+    raw = OmegaConf.to_container(cfg.data, resolve=False)
+    for k, ref in FROM_OTHER_GROUPS.items():  # one source each: the mask group and the seed, never a copy
+        assert raw[k] == ref, k
 
 
 def test_data_module_is_instantiated_from_the_config_unmapped(tmp_path, cache_dir):
@@ -65,12 +67,14 @@ def test_data_module_is_instantiated_from_the_config_unmapped(tmp_path, cache_di
     dm = make_datamodule(cfg)
     assert type(dm) is InbetweenDataModule and dm.data is None
     want = OmegaConf.to_container(cfg.data, resolve=True)
-    assert set(dm.hparams) == set(want) - {"_target_"} | FROM_OTHER_GROUPS
+    assert set(dm.hparams) == set(want) - {"_target_"}
     for k in set(want) - {"_target_"}:
         assert dm.hparams[k] == want[k], k
     assert dm.hparams.eval_batch_size == 7 and dm.hparams.test_lengths == [5, 10] and dm.hparams.train_offset == 13
     assert isinstance(dm.hparams.test_lengths, list) and isinstance(dm.hparams.synthetic, dict)  # plain values
-    assert dm.hparams.seed == 5 and dm.hparams.mask == "joints" and dm.hparams.joint_mask["gap_min"] == 4
+    assert dm.hparams.seed == 5 and dm.hparams.mask["name"] == "joints" and dm.hparams.mask["gap_min"] == 4
+    assert dm.hparams.mask == OmegaConf.to_container(cfg.mask, resolve=True)
+    assert dm.mask_name == "joints" and dm.joint_gaps.gap_min == 4 and dm.joint_gaps.gap_max == cfg.mask.gap_max
 
 
 def test_benchmark_lengths_reach_the_module_through_the_data_module(tmp_path, cache_dir):
@@ -114,30 +118,36 @@ def test_validation_windows_come_only_from_validation_clips(tmp_path, cache_dir)
     tX, tQ = W.prepare_windows(train_clips, sk, W.TEST_WINDOW, W.TEST_OFFSET, axis)
     for q in dm.val_set.q.numpy():
         assert not np.any(np.all(np.abs(tQ - q) < 1e-9, axis=(1, 2, 3)))
-    # the training windows are the training clips' 50-frame windows, nothing from the validation clips
-    X, Q = W.prepare_windows(train_clips, sk, dm.hparams.train_window, dm.hparams.train_offset, axis)
-    assert torch.equal(dm.train_feats, window_features(X[:, :, 0], Q, sk, data.pos_mean, data.pos_std))
+    # the training windows are the training clips' 50-frame windows (their own frame), nothing from the validation clips
+    X, Q = W.extract_windows(train_clips, sk, dm.hparams.train_window, dm.hparams.train_offset)
+    root, q = dm.clip_windows.windows(np.arange(len(dm.clip_windows)))
+    assert np.array_equal(root, X[:, :, 0]) and np.array_equal(q, Q)
 
 
 # ------------------------------------------------------------------------------------------ transitions
 def test_transition_per_sample(tmp_path, cache_dir):
     dm = _dm(tmp_path, cache_dir, "data.transition_per=sample", "data.transition_min=5", "data.transition_max=30")
     n_past, lo, hi = W.N_PAST, 5, 30
-    idx = list(range(len(dm.train_feats)))
+    idx = list(range(len(dm.clip_windows)))
     batch = dm.collate_train([(0, 0, i) for i in idx])
-    gt, known, loss_mask, n = batch["gt"], batch["known"], batch["loss_mask"], batch["n_trans"]
-    b, t, j, _ = gt.shape
+    assert set(batch) == {"root", "q", "known", "loss_mask", "n_trans"}
+    root, q, known, loss_mask, n = batch["root"], batch["q"], batch["known"], batch["loss_mask"], batch["n_trans"]
+    b, t, j, _ = q.shape
+    assert root.shape == (b, t, 3) and root.dtype == q.dtype == torch.float64
     assert b == len(idx) and n.shape == (b,)
     assert int(n.min()) >= lo and int(n.max()) <= hi
     assert len(set(n.tolist())) > 5  # lengths vary within the batch
     assert t == n_past + int(n.max()) + 1
-    src = dm.train_feats[torch.as_tensor(idx)]
+    src_root, src_q = (torch.from_numpy(a) for a in dm.clip_windows.windows(idx))
     for i in range(b):
         target = n_past + int(n[i])
         frame_known = torch.tensor([f < n_past or f >= target for f in range(t)])
         assert torch.equal(known[i], frame_known[:, None].expand(t, j)), i
-        assert torch.equal(gt[i, : target + 1], src[i, : target + 1]), i  # the sample's own frames up to its target
-        assert torch.equal(gt[i, target:], gt[i, target : target + 1].expand(t - target, j, 7)), i  # then the target
+        # the sample's own frames up to its target, then the target repeated
+        assert torch.equal(root[i, : target + 1], src_root[i, : target + 1]), i
+        assert torch.equal(q[i, : target + 1], src_q[i, : target + 1]), i
+        assert torch.equal(root[i, target:], root[i, target : target + 1].expand(t - target, 3)), i
+        assert torch.equal(q[i, target:], q[i, target : target + 1].expand(t - target, j, 4)), i
         assert not loss_mask[i, target:].any() and not loss_mask[i, :n_past].any(), i
         assert loss_mask[i, n_past:target].all(), i
     assert torch.equal(loss_mask, ~known)
@@ -154,7 +164,8 @@ def test_transition_per_batch_gives_one_length_per_batch(tmp_path, cache_dir):
         for batch in _batches(dm, epoch):
             n = batch["n_trans"]
             assert len(set(n.tolist())) == 1
-            t = batch["gt"].shape[1]
+            t = batch["q"].shape[1]
+            assert batch["root"].shape[1] == t
             assert t == n_past + int(n[0]) + 1  # context, transition, target: nothing after it
             assert torch.equal(batch["loss_mask"], ~batch["known"])
             assert batch["known"][:, :n_past].all() and batch["known"][:, -1].all()
@@ -189,7 +200,7 @@ def test_batches_are_a_function_of_seed_and_epoch(extra, tmp_path, cache_dir):
     assert not _same_batches(draws(dm, 1), draws(dm, 2)) and not _same_batches(draws(dm, 1), draws(seven, 1))
     # the same windows each epoch, once each
     idx = [i for batch in dm.train_dataloader().batch_sampler for _, _, i in batch]
-    assert sorted(idx) == list(range(len(dm.train_feats)))
+    assert sorted(idx) == list(range(len(dm.clip_windows)))
 
 
 def test_batches_with_worker_processes_equal_in_process_batches(tmp_path, cache_dir):
@@ -210,18 +221,18 @@ def test_test_stage_builds_no_training_windows(tmp_path, cache_dir):
     cfg = compose_cfg("train", DATA, tmp_path, cache_dir)
     dm = make_datamodule(cfg)
     dm.setup("test")
-    assert dm.train_feats is None and len(dm.test_set) > 0
+    assert dm.clip_windows is None and len(dm.test_set) > 0
     dm.setup("fit")  # fitting afterwards still gets its windows
-    assert dm.train_feats is not None and len(dm.val_set) > 0
+    assert dm.clip_windows is not None and len(dm.clip_windows) > 0 and len(dm.val_set) > 0
 
 
-def test_training_features_encoded_in_chunks_equal_one_pass(tmp_path, cache_dir):
-    dm = _dm(tmp_path, cache_dir)
-    h, d = dm.hparams, dm.data
-    train_clips, _ = split_train_val(d.train, h.val_fraction)
-    X, Q = W.prepare_windows(train_clips, d.skeleton, h.train_window, h.train_offset, d.forward_axis)
-    X, Q = X[: h.max_train_windows], Q[: h.max_train_windows]
-    whole = window_features(X[:, :, 0], Q, d.skeleton, d.pos_mean, d.pos_std)
-    assert len(whole) > 7
-    assert torch.equal(dm._encode_in_chunks(X[:, :, 0], Q, chunk=3), whole)
-    assert torch.equal(dm.train_feats, whole)
+
+
+def test_max_train_windows_keeps_the_first_training_windows(tmp_path, cache_dir):
+    full = _dm(tmp_path, cache_dir)
+    capped = _dm(tmp_path, cache_dir, "data.max_train_windows=5")
+    assert len(full.clip_windows) > 5 and len(capped.clip_windows) == 5
+    a, b = full.clip_windows.windows(range(5)), capped.clip_windows.windows(range(5))
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    idx = [i for batch in capped.train_dataloader().batch_sampler for _, _, i in batch]
+    assert sorted(idx) == list(range(5))

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from inbetweening.predictor.inference import predict_transitions
 
 from conftest import TINY, compose_cfg
 from inbetweening.data import windows as W
@@ -20,8 +19,10 @@ from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.datasets import load_dataset
 from inbetweening.data.synthetic import generate_dataset
 from inbetweening.evaluation import benchmark as B
-from inbetweening.predictor.checkpoint import CheckpointError, load_module
+from inbetweening.predictor.checkpoint import CheckpointError
+from inbetweening.predictor.predictor import Predictor
 from inbetweening.training.jobs import evaluate, train
+from inbetweening.training.module import load_module
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = [o for o in TINY if o.startswith("data.")]
@@ -79,8 +80,9 @@ def test_eval_scores_with_the_datasets_statistics(trained, tmp_path, cache_dir):
     assert not np.allclose(module.std, data.pos_std)
 
     def predictor(root, q, k):  # the network with the checkpoint's own normalisation, as eval.py runs it
-        return predict_transitions(module.net, module.mask_name, root, q, k, module.skeleton, module.mean, module.std,
-                                   centre=module.centre)
+        return Predictor(module.net, module.skeleton, module.mean, module.std, mask=module.mask_name,
+                         centre=module.centre, n_past=module.n_past,
+                         forward_axis=module.forward_axis).predict_transitions(root, q, k)
 
     X, Q = data.test_X[:n], data.test_Q[:n]
     with_data = B.evaluate_transitions(W.BenchmarkSet(X, Q, data.skeleton, data.pos_mean, data.pos_std), predictor,

@@ -3,7 +3,21 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening.predictor.masks import MASK_NAMES, MASKS, apply_mask, joints_known, lerp_fill, transition_known, zero_fill
+from inbetweening.geometry.quaternion import qnormalize, slerp_np
+from inbetweening.predictor.masks import (
+    MASK_NAMES,
+    MASKS,
+    JointGaps,
+    apply_mask,
+    joints_known,
+    lerp_fill,
+    transition_known,
+    zero_fill,
+)
+from inbetweening.representation import GlobalPosLocalQuat
+from inbetweening.representation.base import Representation
+
+LAYOUT = GlobalPosLocalQuat  # the default representation's channels: position 0:3, rotation 3:7
 
 
 def about_y(rad):
@@ -75,7 +89,7 @@ def test_lerp_fill_hand_values_with_leading_trailing_and_extra_features():
     x[0, 6, 0] = torch.tensor([8.0, 2.0, 4.0, *about_y(1.2), 9.0], dtype=torch.float64)
     known = torch.zeros(1, t, 1, dtype=torch.bool)
     known[0, [2, 6], 0] = True
-    out = lerp_fill(x, known)[0, :, 0].numpy()
+    out = lerp_fill(x, known, LAYOUT)[0, :, 0].numpy()
     want_pos = {0: [0, 10, -4], 1: [0, 10, -4], 3: [2, 8, -2], 4: [4, 6, 0], 5: [6, 4, 2], 7: [8, 2, 4]}
     want_ang = {0: 0.0, 1: 0.0, 3: 0.3, 4: 0.6, 5: 0.9, 7: 1.2}
     want_extra = {0: 5.0, 1: 5.0, 3: 5.0, 4: 5.0, 5: 5.0, 7: 9.0}  # extra features hold the previous known value
@@ -93,7 +107,7 @@ def test_lerp_fill_several_gaps_per_joint_and_per_joint_masks():
     x[0, :, 1, 0] = torch.tensor([0, 10, 20, 30, 40, 50, 60, 70, 80, 90], dtype=torch.float64)
     known = torch.ones(1, 10, 2, dtype=torch.bool)
     known[0, [1, 2, 4, 5, 6, 8], 0] = False
-    out = lerp_fill(x, known)
+    out = lerp_fill(x, known, LAYOUT)
     np.testing.assert_allclose(out[0, :, 0, 0], np.arange(10.0), atol=1e-12)  # each gap between its own neighbours
     assert torch.equal(out[0, :, 1], x[0, :, 1])  # the fully known joint is untouched
 
@@ -102,7 +116,7 @@ def test_lerp_fill_no_known_frame_for_a_joint_keeps_finite_zeros():
     x = torch.randn(1, 5, 2, 7, dtype=torch.float64)
     known = torch.ones(1, 5, 2, dtype=torch.bool)
     known[0, :, 1] = False
-    out = lerp_fill(x, known)
+    out = lerp_fill(x, known, LAYOUT)
     assert torch.isfinite(out).all() and torch.equal(out[0, :, 0], x[0, :, 0])
     np.testing.assert_array_equal(out[0, :, 1, :3], 0.0)
 
@@ -115,7 +129,7 @@ def test_apply_mask_shown_and_interpolation(name):
     known = transition_known(1, 6, 1, 2, 3)  # frames 2, 3, 4 unknown
     xn = x.clone()
     xn[~known] = float("nan")
-    shown, interp = apply_mask(name, xn, known)
+    shown, interp = apply_mask(name, xn, known, LAYOUT)
     np.testing.assert_allclose(interp[0, :, 0, 0], [0, 2, 4, 6, 8, 10], atol=1e-12)
     if name == "zero":
         np.testing.assert_array_equal(shown[0, 2:5, 0], 0.0)
@@ -127,4 +141,84 @@ def test_apply_mask_shown_and_interpolation(name):
 
 def test_apply_mask_unknown_name():
     with pytest.raises(ValueError, match=r"unknown mask 'blur'; choose one of \['joints', 'lerp', 'zero'\]"):
-        apply_mask("blur", torch.zeros(1, 2, 1, 7), torch.ones(1, 2, 1, dtype=torch.bool))
+        apply_mask("blur", torch.zeros(1, 2, 1, 7), torch.ones(1, 2, 1, dtype=torch.bool), LAYOUT)
+
+
+def test_transition_known_per_batch_and_per_sample():
+    k = transition_known(2, 20, 3, 10, 5)
+    assert k[:, :10].all() and not k[:, 10:15].any() and k[:, 15:].all()
+    k2 = transition_known(2, 20, 3, 10, torch.tensor([3, 6]))
+    assert not k2[0, 10:13].any() and k2[0, 13].all() and not k2[1, 10:16].any() and k2[1, 16].all()
+
+
+def test_joints_known_fraction_and_gap_ranges():
+    g = torch.Generator().manual_seed(0)
+    k = joints_known(16, 60, 20, 10, 30, 0.1, 0.3, generator=g)
+    assert k[:, 0].all() and k[:, -1].all()
+    missing_joints = (~k).any(1).sum(-1)
+    assert (missing_joints >= 2).all() and (missing_joints <= 6).all()
+    gap = (~k).any(2).sum(1)
+    assert (gap >= 10).all() and (gap <= 30).all()
+
+
+def test_zero_and_lerp_fill_against_numpy_slerp():
+    x = torch.randn(2, 12, 3, 7, dtype=torch.float64)
+    x[..., 3:] = qnormalize(x[..., 3:])
+    known = transition_known(2, 12, 3, 4, 6)  # frames 4..9 unknown, 3 and 10 known
+    z = zero_fill(x, known, LAYOUT)
+    assert (z[:, 4:10] == 0).all() and torch.equal(z[known], x[known])
+    lf = lerp_fill(x, known, LAYOUT)
+    w = (7 - 3) / (10 - 3)
+    np.testing.assert_allclose(lf[:, 7, :, :3], x[:, 3, :, :3] + w * (x[:, 10, :, :3] - x[:, 3, :, :3]), atol=1e-12)
+    ref = slerp_np(x[:, 3, :, 3:].numpy(), x[:, 10, :, 3:].numpy(), w)
+    np.testing.assert_allclose(lf[:, 7, :, 3:].numpy(), ref, atol=1e-9)
+    # unknown values are never read, even when they are NaN
+    xn = x.clone()
+    xn[~known] = float("nan")
+    assert torch.isfinite(lerp_fill(xn, known, LAYOUT)).all() and torch.isfinite(zero_fill(xn, known)).all()
+    with pytest.raises(ValueError, match="unknown mask"):
+        apply_mask("blur", x, known, LAYOUT)
+
+
+def test_lerp_fill_per_joint_gaps_hold_at_edges():
+    x = torch.arange(10, dtype=torch.float64)[None, :, None, None].expand(1, 10, 2, 7).clone()
+    known = torch.ones(1, 10, 2, dtype=torch.bool)
+    known[0, 2:5, 0] = False  # interior gap on joint 0
+    known[0, 7:, 1] = False  # trailing gap on joint 1: hold the last known value
+    out = lerp_fill(x, known, LAYOUT)
+    np.testing.assert_allclose(out[0, 2:5, 0, 0], [2, 3, 4])
+    np.testing.assert_allclose(out[0, 7:, 1, 0], [6, 6, 6])
+
+class _RotationFirst(Representation):
+    """A layout with the rotation before the position and one extra channel: lerp_fill follows the layout."""
+
+    features, quat, pos = 8, slice(0, 4), slice(4, 7)
+
+
+def test_lerp_fill_reads_the_channels_from_the_layout():
+    x = torch.zeros(1, 5, 1, 8, dtype=torch.float64)
+    x[0, 0, 0] = torch.tensor([*about_y(0.0), 0.0, 4.0, -8.0, 1.0], dtype=torch.float64)
+    x[0, 4, 0] = torch.tensor([*about_y(0.8), 8.0, 0.0, 8.0, 3.0], dtype=torch.float64)
+    known = transition_known(1, 5, 1, 1, 3)  # frames 1..3 unknown
+    out = lerp_fill(x, known, _RotationFirst)[0, :, 0].numpy()
+    for f in (1, 2, 3):
+        np.testing.assert_allclose(out[f, 4:7], [2.0 * f, 4.0 - f, -8.0 + 4.0 * f], atol=1e-12)
+        np.testing.assert_allclose(out[f, 0:4], about_y(0.2 * f), atol=1e-12)
+        assert out[f, 7] == 1.0  # the extra channel holds
+    # the same values read with the default layout are not interpolated as positions/rotations
+    assert not np.allclose(lerp_fill(x, known, LAYOUT)[0, :, 0].numpy(), out)
+
+
+def test_joint_gaps_defaults_config_and_known():
+    g = JointGaps()
+    assert (g.gap_min, g.gap_max, g.frac_min, g.frac_max) == (10, 200, 0.1, 0.3)
+    assert JointGaps.from_config(None) == g and JointGaps.from_config({"name": "joints"}) == g
+    c = JointGaps.from_config({"name": "joints", "gap_min": 3, "gap_max": 7, "frac_max": 0.5})
+    assert (c.gap_min, c.gap_max, c.frac_min, c.frac_max) == (3, 7, 0.1, 0.5)
+    with pytest.raises(TypeError):
+        JointGaps.from_config({"gap": 3})
+    k = c.known(8, 40, 20, generator=torch.Generator().manual_seed(4))
+    want = joints_known(8, 40, 20, 3, 7, 0.1, 0.5, generator=torch.Generator().manual_seed(4))
+    assert torch.equal(k, want)
+    gap = (~k).any(2).sum(1)
+    assert (gap >= 3).all() and (gap <= 7).all()

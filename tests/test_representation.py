@@ -1,14 +1,26 @@
-"""Model features ``[z-scored global position, local quaternion]`` pinned by a hand-derived pose."""
+"""The representation package: GlobalPosLocalQuat (``[z-scored global position, local quaternion]``) pinned by a
+hand-derived pose, numpy/torch encoding, the registry and the layout every other part asks for."""
+import json
+
 import numpy as np
+import pytest
 import torch
 
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.predictor import features as F
+from inbetweening.representation import (
+    DEFAULT_REPRESENTATION,
+    REPRESENTATIONS,
+    GlobalPosLocalQuat,
+    Representation,
+    build_representation,
+    representation_class,
+)
 
 S2 = np.sqrt(0.5)
 SK = Skeleton(("root", "arm"), (-1, 0), np.array([[0.0, 0, 0], [2.0, 0, 0]]))
 MEAN = np.array([1.0, 0.0, -1.0, 0.5, 1.0, 2.0])
 STD = np.array([2.0, 4.0, 0.5, 1.0, 8.0, 0.25])
+REP = GlobalPosLocalQuat(SK, MEAN, STD)
 
 
 def pose():
@@ -21,24 +33,71 @@ def pose():
 
 def test_encode_hand_derived():
     root, q, gp = pose()
-    f = F.encode(root, q, SK, MEAN, STD)
-    assert f.shape == (1, 2, 7) and F.FEATURES == 7
+    f = REP.encode(root, q)
+    assert f.shape == (1, 2, 7) and REP.features == 7
+    assert (REP.pos, REP.quat) == (slice(0, 3), slice(3, 7))
     want_pos = (gp - MEAN.reshape(2, 3)) / STD.reshape(2, 3)  # per joint coordinate
-    np.testing.assert_allclose(f[0, :, F.POS].numpy(), want_pos, atol=1e-14, rtol=0)
-    assert torch.equal(f[0, :, F.QUAT], q[0])  # local rotations as given
+    np.testing.assert_allclose(f[0, :, REP.pos].numpy(), want_pos, atol=1e-14, rtol=0)
+    assert torch.equal(f[0, :, REP.quat], q[0])  # local rotations as given
 
 
 def test_decode_and_global_positions_invert_encode():
     root, q, gp = pose()
-    f = F.encode(root, q, SK, MEAN, STD)
+    f = REP.encode(root, q)
     scaled = f.clone()
-    scaled[..., F.QUAT] *= 3.0  # decode normalises
-    r, lq = F.decode(scaled, MEAN, STD)
+    scaled[..., REP.quat] *= 3.0  # decode normalises
+    r, lq = REP.decode(scaled)
     np.testing.assert_allclose(r.numpy(), root.numpy(), atol=1e-14, rtol=0)
     np.testing.assert_allclose(lq.numpy(), q.numpy(), atol=1e-8, rtol=0)
-    np.testing.assert_allclose(F.global_positions(f, MEAN, STD)[0].numpy(), gp, atol=1e-14, rtol=0)
+    np.testing.assert_allclose(REP.global_positions(f)[0].numpy(), gp, atol=1e-14, rtol=0)
+    # normalise_positions is the inverse of global_positions on the position channels
+    np.testing.assert_allclose(REP.normalise_positions(REP.global_positions(f)).numpy(), f[..., REP.pos].numpy(),
+                               atol=1e-14, rtol=0)
     # batched and float32: statistics follow the features' dtype
     f32 = f.float()[None].expand(3, 1, 2, 7)
-    r32, _ = F.decode(f32, MEAN, STD)
+    r32, _ = REP.decode(f32)
     assert r32.dtype == torch.float32 and r32.shape == (3, 1, 3)
     np.testing.assert_allclose(r32[2].numpy(), root.numpy(), atol=1e-5)
+
+
+def _windows(seed=0, b=3, t=20, j=2):
+    rng = np.random.default_rng(seed)
+    root = np.cumsum(rng.normal(size=(b, t, 3)), axis=1)
+    q = rng.normal(size=(b, t, j, 4))
+    return root, q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def test_encode_windows_numpy_torch_and_nan():
+    root, q = _windows()
+    root[0, 5] = np.nan
+    f = REP.encode_windows(root, q)
+    ft = REP.encode_windows(torch.from_numpy(root), torch.from_numpy(q), dtype=torch.float64)
+    assert f.dtype == torch.float32 and ft.dtype == torch.float64 and f.shape == (3, 20, 2, 7)
+    assert torch.isnan(f[0, 5, :, :3]).all() and torch.isfinite(f[1]).all()
+    np.testing.assert_allclose(f[1].numpy(), ft[1].numpy(), rtol=1e-6, atol=1e-6)
+    # the numpy fast path is the torch path's arithmetic, bit for bit (float64)
+    f64 = REP.encode_windows(root, q, dtype=torch.float64)
+    assert torch.equal(f64[1:], ft[1:])
+    assert torch.equal(torch.from_numpy(REP.encode_np(root, q))[1:], REP.encode(*map(torch.from_numpy, (root, q)))[1:])
+
+
+def test_position_scale_is_the_mean_std():
+    assert REP.position_scale() == pytest.approx(float(STD.mean()), rel=1e-6)
+
+
+def test_registry_and_layout():
+    assert DEFAULT_REPRESENTATION == "global_pos_local_quat" and REPRESENTATIONS[DEFAULT_REPRESENTATION] is GlobalPosLocalQuat
+    assert issubclass(GlobalPosLocalQuat, Representation)
+    rep = build_representation("global_pos_local_quat", SK, MEAN, STD)
+    assert isinstance(rep, GlobalPosLocalQuat) and np.array_equal(rep.mean, MEAN) and np.array_equal(rep.std, STD)
+    assert representation_class("global_pos_local_quat") is GlobalPosLocalQuat
+    for bad in (lambda: build_representation("euler", SK, MEAN, STD), lambda: representation_class("euler")):
+        with pytest.raises(ValueError, match=r"representation: unknown representation 'euler'"):
+            bad()
+    layout = GlobalPosLocalQuat.layout()
+    assert layout == {"features": 7, "position": [0, 3], "rotation": [3, 7]}
+    assert json.loads(json.dumps(layout)) == layout  # plain values
+    assert GlobalPosLocalQuat.channels() == {"position": slice(0, 3), "rotation": slice(3, 7)}
+    meta = rep.metadata()
+    assert meta["representation"] == "global_pos_local_quat" and meta["features_per_joint"] == 7
+    assert meta["position_slice"] == [0, 3] and meta["quaternion_slice"] == [3, 7]

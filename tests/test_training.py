@@ -10,26 +10,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from inbetweening.predictor.inference import predict_transitions
 
 from conftest import TINY, compose_cfg, model_overrides
 from inbetweening.evaluation import benchmark as B
 from inbetweening.evaluation.collect import collect
 from inbetweening.evaluation.collect import main as collect_main
 from inbetweening.models import MODELS
-from inbetweening.predictor import features as F
-from inbetweening.predictor.checkpoint import (
-    CheckpointError,
-    load_module,
-    load_predictor,
-    make_datamodule,
-    make_module,
-    predictor_state,
-    train,
-)
+from inbetweening.predictor.checkpoint import CheckpointError, load_predictor, predictor_state
 from inbetweening.predictor.masks import apply_mask, transition_known
+from inbetweening.predictor.predictor import Predictor
+from inbetweening.representation import GlobalPosLocalQuat
+from inbetweening.training.builders import make_datamodule, make_module
 from inbetweening.training.config import ConfigError, validate
-from inbetweening.training.module import InbetweenModule
+from inbetweening.training.jobs import train
+from inbetweening.training.module import InbetweenModule, load_module
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL_TINY = {name: model_overrides(name) for name in MODELS}  # every registered model, its declared TINY sizes
@@ -75,9 +69,12 @@ def test_reported_test_metrics_equal_the_checkpoint_scored_by_the_numpy_benchmar
     dm.setup("test")
     bench = dm.test_benchmark_set()
 
+    def bare(net):  # a Predictor built from the bare network and the checkpoint's plain values
+        return Predictor(net, module.skeleton, module.mean, module.std, mask=module.mask_name, centre=module.centre,
+                         n_past=module.n_past, forward_axis=module.forward_axis)
+
     def predictor(root, q, n):
-        return predict_transitions(module.net, module.mask_name, root, q, n, module.skeleton, module.mean, module.std,
-                                   n_past=module.n_past, centre=module.centre)
+        return bare(module.net).predict_transitions(root, q, n)
 
     want = B.evaluate_transitions(bench, predictor, (5, 15, 30, 45))
     assert metrics.keys() == want.keys()
@@ -86,9 +83,8 @@ def test_reported_test_metrics_equal_the_checkpoint_scored_by_the_numpy_benchmar
     assert json.loads((tmp_path / "run" / "benchmark.json").read_text())["metrics"] == pytest.approx(want, rel=1e-4)
     # the score is the trained network's, not an untrained one's nor a baseline's
     untrained = InbetweenModule(**{**module.hparams}).eval()
-    for name, predict in (("untrained", lambda r, q, n: predict_transitions(
-            untrained.net, module.mask_name, r, q, n, module.skeleton, module.mean, module.std, centre=module.centre)),
-            ("interpolation", B.interpolation)):
+    for name, predict in (("untrained", lambda r, q, n: bare(untrained.net).predict_transitions(r, q, n)),
+                          ("interpolation", B.interpolation)):
         other = B.evaluate_transitions(bench, predict, (15,))
         assert other["l2p@15"] != pytest.approx(want["l2p@15"], rel=1e-3), name  # 10x the tolerance above
 
@@ -150,9 +146,9 @@ def test_load_from_checkpoint_without_hydra_and_keyframes_exact(tmp_path, cache_
     module.eval()
     root = torch.randn(2, 26, 3, dtype=torch.float64) * 10
     q = torch.nn.functional.normalize(torch.randn(2, 26, 22, 4, dtype=torch.float64), dim=-1)
-    feats = F.encode(root, q, module.skeleton, module.mean, module.std).float()
+    feats = GlobalPosLocalQuat(module.skeleton, module.mean, module.std).encode(root, q).float()
     known = transition_known(2, 26, 22, 10, 15)
-    x, interp = apply_mask(module.mask_name, feats, known)
+    x, interp = apply_mask(module.mask_name, feats, known, module.predictor.representation)
     with torch.no_grad():
         out = module(x, known, interp)
     assert torch.equal(out[known], feats[known])  # keyframes and context pass through bit-exactly
@@ -341,13 +337,14 @@ def test_ablation_name_launches_multirun(tmp_path, cache_dir):
         f"+variant={v}" for v in ("base", "mask_zero", "graph_none", "norm_batch", "depth_12", "heads_8"))
 
 
-@pytest.mark.parametrize("centre,equivariant", [("known", True), ("window", False)])
-def test_known_centring_removes_the_window_centring_leak(centre, equivariant):
-    """Shifting a whole window in XZ (what a different whole-window centre does) shifts a centre=known model's
-    prediction by exactly that much; a centre=window model sees the absolute position and changes its answer."""
-    from inbetweening.predictor.inference import predict_features
-
+@pytest.mark.parametrize("centre", ["known", "last", "window"])
+def test_the_canonical_frame_removes_the_window_centring_leak(centre):
+    """Moving a whole window in XZ and turning it about Y (what a different whole-window normalisation does) moves
+    the prediction by exactly that rigid motion, whatever the centre mode (legacy ``window`` included: the one
+    centring stage uses the known frames only); moving only the target keyframe changes the answer (the check can
+    tell)."""
     from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS
+    from inbetweening.geometry.quaternion import qmul, qrot
     from inbetweening.geometry.skeleton import Skeleton
 
     torch.manual_seed(0)
@@ -357,18 +354,27 @@ def test_known_centring_removes_the_window_centring_leak(centre, equivariant):
                              skeleton=sk.to_dict(), pos_mean=mean.tolist(), pos_std=std.tolist(), centre=centre).eval()
     with torch.no_grad():  # a non-trivial head so the prediction depends on the input
         module.net.out_weight.normal_(0, 0.3)
+    pr = module.predictor
     root = torch.randn(2, 21, 3, dtype=torch.float64) * 20
     q = torch.nn.functional.normalize(torch.randn(2, 21, 22, 4, dtype=torch.float64), dim=-1)
     known = transition_known(2, 21, 22, 10, 10)
     shift = torch.tensor([35.0, 0.0, -20.0], dtype=torch.float64)
+    yaw = torch.tensor([np.cos(0.35), 0.0, np.sin(0.35), 0.0], dtype=torch.float64)  # 0.7 rad about +Y
+    moved_q = q.clone()
+    moved_q[:, :, 0] = qmul(yaw.expand(2, 21, 4), q[:, :, 0])
     outs = []
-    for r in (root, root + shift):
-        feats = F.encode(r, q, sk, mean, std).float()
-        pred, _ = predict_features(module.net, "lerp", feats, known, centre, std)
-        assert torch.equal(pred[known], feats[known])
-        outs.append(F.global_positions(pred.double(), mean, std))
-    moved = torch.allclose(outs[1], outs[0] + shift, atol=1e-3)
-    assert moved == equivariant
+    for r, qq in ((root, q), (qrot(yaw.expand(2, 21, 4), root) + shift, moved_q)):
+        out = pr.predict_windows(r, qq, known)
+        assert torch.equal(out.root[known[..., 0]], r[known[..., 0]])  # keys bit-exact, in the input's frame
+        assert torch.equal(out.local_q[known], qq[known])
+        outs.append(pr.world_positions(out))
+    want = qrot(yaw.expand(2, 21, 22, 4), outs[0]) + shift
+    assert torch.allclose(outs[1], want, atol=1e-3)
+    # control: moving the target keyframe alone is not a rigid motion of the window, and the answer changes
+    r2 = root.clone()
+    r2[:, 20] += shift
+    other = pr.world_positions(pr.predict_windows(r2, q, known))
+    assert not torch.allclose(other[:, 10:20], outs[0][:, 10:20], atol=1e-3)
 
 
 def test_ddp_trainer_config_builds_a_ddp_trainer(tmp_path, cache_dir):

@@ -1,10 +1,9 @@
-"""Training windows and tasks: clip sampling, mirroring, variable context, intermediate keyframes, last-frame centring."""
+"""The window protocol's training side (data/windows.py): ClipWindows sampling, mirroring, time warp, task options."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import torch
-from inbetweening.predictor.features import anchor_xz, known_centre_shift
 
 from conftest import TINY, compose_cfg
 from inbetweening.data import windows as W
@@ -14,7 +13,6 @@ from inbetweening.data.windows import ClipWindows
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.training.builders import make_datamodule
 from inbetweening.training.config import ConfigError, validate
-from inbetweening.training.tasks import draw_task, task_window
 
 DATA = [o for o in TINY if o.startswith("data.")]
 SHARED_BN2 = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared/datasets/bandai-namco-2.zip"
@@ -27,70 +25,22 @@ def _dm(tmp_path, cache_dir, *extra):
     return dm
 
 
-def _old_task(gt, n, per_sample):
-    """The training task as it was cut before context/keyframe options existed (kept here as the reference)."""
-    t = W.N_PAST + int(n.max()) + 1
-    gt = gt[:, :t].clone()
-    if per_sample:
-        tt = torch.arange(t)[None, :]
-        src = torch.minimum(tt, (W.N_PAST + n)[:, None])
-        gt = torch.gather(gt, 1, src[:, :, None, None].expand_as(gt))
-    return gt
-
-
-# ------------------------------------------------------------------------------------------ tasks
-@pytest.mark.parametrize("per_sample", [False, True])
-def test_default_task_draws_and_cuts_what_it_did_before(per_sample):
-    gt = torch.randn(6, 50, 5, 7)
-    g1, g2 = torch.Generator().manual_seed(3), torch.Generator().manual_seed(3)
-    c, n, keys = draw_task(g1, 6, (5, 30), per_sample, (10, 10), 0, 0.0)
-    old_n = torch.randint(5, 31, (6,) if per_sample else (1,), generator=g2).expand(6)
-    assert torch.equal(n, old_n) and keys is None and (c == 10).all()
-    out, known = task_window(gt, c, n)
-    assert torch.equal(out, _old_task(gt, n, per_sample))
-    assert known[:, :10].all() and not known[0, 10 : 10 + int(n[0])].any() and known[0, 10 + int(n[0])].all()
-
-
-def test_variable_context_keeps_the_last_context_frame_and_the_target():
-    gt = torch.arange(50.0)[None, :, None, None].expand(8, 50, 3, 7).clone()
-    c, n, _ = draw_task(torch.Generator().manual_seed(0), 8, (5, 20), True, (1, 10), 0, 0.0)
-    assert c.min() >= 1 and c.max() <= 10 and len(set(c.tolist())) > 1
-    out, known = task_window(gt, c, n)
-    assert out.shape[1] == int((c + n).max()) + 1
-    for b in range(8):
-        cb, nb = int(c[b]), int(n[b])
-        assert out[b, cb - 1, 0, 0] == W.N_PAST - 1  # the last context frame is the window's frame 9
-        assert out[b, 0, 0, 0] == W.N_PAST - cb  # no frame before the context
-        assert out[b, cb + nb, 0, 0] == W.N_PAST + nb  # the target keyframe
-        assert (out[b, cb + nb :, 0, 0] == W.N_PAST + nb).all()  # padding repeats the target
-        assert known[b, :cb].all() and not known[b, cb : cb + nb].any() and known[b, cb + nb :].all()
-
-
-def test_intermediate_keyframes_lie_inside_the_transition_and_leave_frames_to_predict():
-    c, n, keys = draw_task(torch.Generator().manual_seed(1), 64, (2, 30), True, (1, 10), 4, 0.5)
-    gt = torch.zeros(64, 50, 3, 7)
-    _, known = task_window(gt, c, n, keys)
-    counts = keys.sum(1)
-    assert 0 < (counts > 0).float().mean() < 1  # about half the samples get keyframes
-    assert counts.max() <= 4
-    for b in range(64):
-        cb, nb = int(c[b]), int(n[b])
-        inside = keys[b].nonzero().flatten()
-        assert ((inside >= cb) & (inside < cb + nb)).all()
-        assert (~known[b, cb : cb + nb, 0]).sum() >= 1  # something is left to predict
-        assert known[b, inside].all()
-
-
 # ------------------------------------------------------------------------------------------ clip windows
 def test_clip_windows_at_the_benchmark_stride_are_the_prepared_windows(cache_dir):
     d = load_dataset("synthetic", cache_dir=cache_dir, synthetic={"num_clips": 6, "min_frames": 120, "max_frames": 160})
-    X, Q = W.prepare_windows(d.train, d.skeleton, 50, 20, d.forward_axis)
-    cw = ClipWindows(d.train, d.skeleton, 50, 20, d.forward_axis)
+    X, Q = W.extract_windows(d.train, d.skeleton, 50, 20)
+    cw = ClipWindows(d.train, d.skeleton, 50, 20)
     assert len(cw) == len(X)
-    root, q = cw.windows(np.arange(len(cw)))
+    root, q = cw.windows(np.arange(len(cw)))  # the clips' own frame: the raw protocol windows, bit for bit
     np.testing.assert_array_equal(root, X[:, :, 0])
     np.testing.assert_array_equal(q, Q)
-    assert len(ClipWindows(d.train, d.skeleton, 50, 2, d.forward_axis)) > 8 * len(X)  # dense sampling
+    # normalised the protocol's way, they are the prepared (scored) windows, bit for bit
+    Xn, Qn = W.prepare_windows(d.train, d.skeleton, 50, 20, d.forward_axis)
+    Xc, Qc = W.centre_and_rotate(d.skeleton.local_positions(root), q, d.skeleton.parents, d.forward_axis)
+    np.testing.assert_array_equal(Xc, Xn)
+    np.testing.assert_array_equal(Qc, Qn)
+    assert not np.allclose(root, Xn[:, :, 0])  # and ClipWindows does not normalise
+    assert len(ClipWindows(d.train, d.skeleton, 50, 2)) > 8 * len(X)  # dense sampling
 
 
 def _dcc_skeleton() -> Skeleton:
@@ -140,29 +90,26 @@ def test_clip_sampling_data_module_mirrors_about_half_the_windows(tmp_path, cach
     dm = _dm(tmp_path, cache_dir, "data.sampling=clips", "data.train_offset=5", "data.mirror=true",
              "data.context_min=1", "data.keyframes_max=3", "data.keyframe_prob=0.5")
     plain = _dm(tmp_path, cache_dir, "data.sampling=clips", "data.train_offset=5")
-    assert dm.train_feats is None and len(dm.clip_windows) == len(plain.clip_windows) > 0
+    assert len(dm.clip_windows) == len(plain.clip_windows) > 0
     loader = dm.train_dataloader()
     batch = next(iter(loader))
     again = next(iter(dm.train_dataloader()))
+    assert set(batch) == {"root", "q", "known", "loss_mask", "n_trans"}
     assert all(torch.equal(batch[k], again[k]) for k in batch)  # a pure function of seed, epoch, batch
-    assert batch["gt"].shape[:3] == batch["known"].shape and torch.equal(batch["loss_mask"], ~batch["known"])
+    assert batch["q"].shape[:3] == batch["known"].shape and batch["root"].shape == batch["q"].shape[:2] + (3,)
+    assert torch.equal(batch["loss_mask"], ~batch["known"])
     idx = [i for *_, i in next(iter(loader.batch_sampler))]
     g = torch.Generator().manual_seed(0)
-    feats_plain = plain._train_features(idx, None)
-    feats_mirror = dm._train_features(idx, g)
-    same = [torch.allclose(a, b) for a, b in zip(feats_plain, feats_mirror)]
+    plain_root, plain_q = plain._train_windows(idx, None)
+    mirror_root, mirror_q = dm._train_windows(idx, g)
+    same = [torch.equal(a, b) and torch.equal(c, d) for a, b, c, d in zip(plain_root, mirror_root, plain_q, mirror_q)]
     assert 0 < sum(same) < len(same)
 
 
 # ------------------------------------------------------------------------------------------ time warp (data.speed)
-def _normalised(cw, root, q):
-    X, Q = W.centre_and_rotate(cw.skeleton.local_positions(root), q, cw.skeleton.parents, cw.forward_axis)
-    return X[:, :, 0], Q
-
-
 def test_time_warp_plays_the_clip_faster_and_stays_inside_it(cache_dir):
     d = load_dataset("synthetic", cache_dir=cache_dir, synthetic={"num_clips": 6, "min_frames": 120, "max_frames": 160})
-    cw = ClipWindows(d.train, d.skeleton, 30, 10, d.forward_axis)
+    cw = ClipWindows(d.train, d.skeleton, 30, 10)
     idx = np.arange(len(cw))
     plain = cw.windows(idx)
     for a, b in zip(plain, cw.windows(idx, speed=np.ones(len(idx)))):  # speed 1: the very same frames
@@ -171,7 +118,7 @@ def test_time_warp_plays_the_clip_faster_and_stays_inside_it(cache_dir):
     s = cw.starts[first]
     frames = s + 2 * np.arange(30)
     root, q = cw.windows([first], speed=[2.0])
-    want = _normalised(cw, cw.root[frames][None], cw.q[frames][None])
+    want = cw.root[frames][None], cw.q[frames][None]  # the clip's own frames, not normalised
     np.testing.assert_array_equal(root, want[0])  # whole frames are exact
     np.testing.assert_array_equal(q, want[1])
     # 1.5x: odd frames fall half-way between two frames: root lerp and slerp of the clip's own poses
@@ -180,7 +127,7 @@ def test_time_warp_plays_the_clip_faster_and_stays_inside_it(cache_dir):
     f0 = np.floor(t).astype(int)
     r_mid, q_mid = interpolate_pose(cw.root[f0], cw.q[f0], cw.root[f0 + 1], cw.q[f0 + 1], t - f0)
     root, q = cw.windows([first], speed=[1.5])
-    want = _normalised(cw, r_mid[None], q_mid[None])
+    want = r_mid[None], q_mid[None]
     np.testing.assert_allclose(root, want[0], atol=1e-6)
     np.testing.assert_allclose(q, want[1], atol=1e-6)
     assert not np.allclose(root, plain[0][first])
@@ -197,27 +144,11 @@ def test_data_module_time_warp_is_seeded_and_changes_the_windows(tmp_path, cache
     batch, again = (next(iter(warp.train_dataloader())) for _ in range(2))
     assert all(torch.equal(batch[k], again[k]) for k in batch)  # a pure function of seed, epoch, batch
     idx = [i for *_, i in next(iter(warp.train_dataloader().batch_sampler))]
-    a, b = warp._train_features(idx, torch.Generator().manual_seed(0)), plain._train_features(idx, None)
-    assert a.shape == b.shape and torch.isfinite(a).all()
-    assert not torch.allclose(a, b)
-    assert torch.equal(plain._train_features(idx, None), b)  # no speed: nothing drawn, the plain windows
-
-
-# ------------------------------------------------------------------------------------------ centring on the last frame
-def test_last_frame_anchor_is_the_root_at_the_last_context_frame():
-    feats = torch.randn(3, 12, 4, 7)
-    known = torch.zeros(3, 12, 4, dtype=torch.bool)
-    known[0, :5] = True
-    known[0, 11] = True
-    known[1, 3:7] = True  # starts unknown: the last known frame of its first known block
-    known[2, 0] = True
-    feats[~known] = float("nan")  # never read
-    xz = anchor_xz(feats, known, "last")
-    torch.testing.assert_close(xz[0], feats[0, 4, 0, [0, 2]])
-    torch.testing.assert_close(xz[1], feats[1, 3, 0, [0, 2]])
-    torch.testing.assert_close(xz[2], feats[2, 0, 0, [0, 2]])
-    std = torch.ones(12)
-    assert torch.isfinite(known_centre_shift(feats, known, std, "last")).all()
+    (ar, aq), (br, bq) = warp._train_windows(idx, torch.Generator().manual_seed(0)), plain._train_windows(idx, None)
+    assert ar.shape == br.shape and aq.shape == bq.shape and torch.isfinite(ar).all() and torch.isfinite(aq).all()
+    assert not torch.allclose(ar, br)
+    again_r, again_q = plain._train_windows(idx, torch.Generator().manual_seed(0))
+    assert torch.equal(again_r, br) and torch.equal(again_q, bq)  # no speed: nothing drawn, the plain windows
 
 
 def test_config_rejects_bad_task_options(tmp_path, cache_dir):

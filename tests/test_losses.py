@@ -1,4 +1,4 @@
-"""Masks (transition / mocap-recovery, zero / lerp fill) and loss terms."""
+"""Training loss terms (training/losses.py), each asking the representation what its channels mean."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,59 +6,14 @@ import pytest
 import torch
 
 from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS
-from inbetweening.geometry.quaternion import qnormalize, slerp_np
+from inbetweening.geometry.quaternion import qnormalize
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.predictor.masks import apply_mask, joints_known, lerp_fill, transition_known, zero_fill
+from inbetweening.representation import GlobalPosLocalQuat
 from inbetweening.training import losses as L
 
 SK = Skeleton(NAMES, PARENTS, OFFSETS)
 MEAN, STD = np.zeros(66), np.ones(66)
-
-
-def test_transition_known_per_batch_and_per_sample():
-    k = transition_known(2, 20, 3, 10, 5)
-    assert k[:, :10].all() and not k[:, 10:15].any() and k[:, 15:].all()
-    k2 = transition_known(2, 20, 3, 10, torch.tensor([3, 6]))
-    assert not k2[0, 10:13].any() and k2[0, 13].all() and not k2[1, 10:16].any() and k2[1, 16].all()
-
-
-def test_joints_known_fraction_and_gap():
-    g = torch.Generator().manual_seed(0)
-    k = joints_known(16, 60, 20, 10, 30, 0.1, 0.3, generator=g)
-    assert k[:, 0].all() and k[:, -1].all()
-    missing_joints = (~k).any(1).sum(-1)
-    assert (missing_joints >= 2).all() and (missing_joints <= 6).all()
-    gap = (~k).any(2).sum(1)
-    assert (gap >= 10).all() and (gap <= 30).all()
-
-
-def test_zero_and_lerp_fill():
-    x = torch.randn(2, 12, 3, 7, dtype=torch.float64)
-    x[..., 3:] = qnormalize(x[..., 3:])
-    known = transition_known(2, 12, 3, 4, 6)  # frames 4..9 unknown, 3 and 10 known
-    z = zero_fill(x, known)
-    assert (z[:, 4:10] == 0).all() and torch.equal(z[known], x[known])
-    lf = lerp_fill(x, known)
-    w = (7 - 3) / (10 - 3)
-    np.testing.assert_allclose(lf[:, 7, :, :3], x[:, 3, :, :3] + w * (x[:, 10, :, :3] - x[:, 3, :, :3]), atol=1e-12)
-    ref = slerp_np(x[:, 3, :, 3:].numpy(), x[:, 10, :, 3:].numpy(), w)
-    np.testing.assert_allclose(lf[:, 7, :, 3:].numpy(), ref, atol=1e-9)
-    # unknown values are never read, even when they are NaN
-    xn = x.clone()
-    xn[~known] = float("nan")
-    assert torch.isfinite(lerp_fill(xn, known)).all() and torch.isfinite(zero_fill(xn, known)).all()
-    with pytest.raises(ValueError, match="unknown mask"):
-        apply_mask("blur", x, known)
-
-
-def test_lerp_fill_per_joint_gaps_hold_at_edges():
-    x = torch.arange(10, dtype=torch.float64)[None, :, None, None].expand(1, 10, 2, 7).clone()
-    known = torch.ones(1, 10, 2, dtype=torch.bool)
-    known[0, 2:5, 0] = False  # interior gap on joint 0
-    known[0, 7:, 1] = False  # trailing gap on joint 1: hold the last known value
-    out = lerp_fill(x, known)
-    np.testing.assert_allclose(out[0, 2:5, 0, 0], [2, 3, 4])
-    np.testing.assert_allclose(out[0, 7:, 1, 0], [6, 6, 6])
+REP = GlobalPosLocalQuat(SK, MEAN, STD)
 
 
 def _features(b=2, t=12, noise=0.0, seed=0):
@@ -81,35 +36,33 @@ def test_l1_only_counts_masked_entries():
 
 @pytest.mark.parametrize("term", ["fk_pos", "quat", "bone", "smooth", "foot"])
 def test_each_term_is_zero_on_truth_and_positive_when_wrong(term):
-    from inbetweening.predictor import features as F
-
     rng = np.random.default_rng(0)
     root = torch.from_numpy(np.cumsum(rng.normal(size=(2, 12, 3)), 1) * 3)
     q = qnormalize(torch.from_numpy(rng.normal(size=(2, 12, 22, 4))) * 0.1 + torch.tensor([1.0, 0, 0, 0]))
-    gt = F.encode(root, q, SK, MEAN, STD)
+    gt = REP.encode(root, q)
     mask = torch.zeros(2, 12, 22, dtype=torch.bool)
     mask[:, 4:8] = True
     weights = {"l1": 0.0, term: 1.0}
-    zero, _ = L.total_loss(gt, gt, mask, weights, SK, MEAN, STD)
+    zero, _ = L.total_loss(gt, gt, mask, weights, REP)
     wrong = gt.clone()
     wrong[:, 4:8, :, :3] += torch.randn(2, 4, 22, 3, dtype=torch.float64)  # positions off
     wrong[:, 4:8, :, 3:] = qnormalize(wrong[:, 4:8, :, 3:] + 0.5)  # rotations off
-    bad, terms = L.total_loss(wrong, gt, mask, weights, SK, MEAN, STD)
+    bad, terms = L.total_loss(wrong, gt, mask, weights, REP)
     if term == "smooth":  # zero on linear motion, positive once frames are jittered
         lin = gt.clone()
         lin[..., :3] = torch.linspace(0, 1, 12, dtype=torch.float64)[None, :, None, None] * gt[:, -1:, :, :3]
-        assert float(L.total_loss(lin, lin, mask, weights, SK, MEAN, STD)[0]) == pytest.approx(0.0, abs=1e-9)
+        assert float(L.total_loss(lin, lin, mask, weights, REP)[0]) == pytest.approx(0.0, abs=1e-9)
         jitter = lin.clone()
         jitter[:, 4:8, :, :3] += torch.randn(2, 4, 22, 3, dtype=torch.float64)
-        assert float(L.total_loss(jitter, lin, mask, weights, SK, MEAN, STD)[0]) > 0.1
+        assert float(L.total_loss(jitter, lin, mask, weights, REP)[0]) > 0.1
     elif term == "foot":
         gt_static = gt.clone()
         gt_static[:, :, :, :3] = gt[:, :1, :, :3]  # feet in contact all along
         w2 = gt_static.clone()
         w2[:, 4:8, :, :3] += 1.0
         w2[:, 6, :, :3] += 1.0
-        assert float(L.total_loss(gt_static, gt_static, mask, weights, SK, MEAN, STD)[0]) == 0.0
-        assert float(L.total_loss(w2, gt_static, mask, weights, SK, MEAN, STD)[0]) > 0.0
+        assert float(L.total_loss(gt_static, gt_static, mask, weights, REP)[0]) == 0.0
+        assert float(L.total_loss(w2, gt_static, mask, weights, REP)[0]) > 0.0
     else:
         assert float(zero) == pytest.approx(0.0, abs=1e-6)
         assert float(bad) > 1e-3
@@ -119,7 +72,7 @@ def test_each_term_is_zero_on_truth_and_positive_when_wrong(term):
 def test_unknown_loss_term_raises():
     gt = _features()
     with pytest.raises(ValueError, match="unknown term"):
-        L.total_loss(gt, gt, torch.ones(2, 12, 22, dtype=torch.bool), {"l1": 1.0, "l3": 1.0}, SK, MEAN, STD)
+        L.total_loss(gt, gt, torch.ones(2, 12, 22, dtype=torch.bool), {"l1": 1.0, "l3": 1.0}, REP)
 
 
 def test_foot_joints_found_by_name():
@@ -129,15 +82,13 @@ def test_foot_joints_found_by_name():
 
 def _all_terms_nonzero_case():
     """Prediction/truth where every loss term is non-zero: feet still in the first frames (contact), then moving."""
-    from inbetweening.predictor import features as F
-
     rng = np.random.default_rng(7)
     steps = rng.normal(size=(2, 12, 3)) * 3
     steps[:, :6] = 0.0  # frames 0-5: the whole body stands still, so the feet are in contact
     root = torch.from_numpy(np.cumsum(steps, 1))
     q = qnormalize(torch.from_numpy(rng.normal(size=(2, 12, 22, 4))) * 0.1 + torch.tensor([1.0, 0, 0, 0]))
     q[:, :6] = q[:, :1]
-    gt = F.encode(root, q, SK, MEAN, STD)
+    gt = REP.encode(root, q)
     pred = gt.clone()
     g = torch.Generator().manual_seed(1)
     pred[:, 2:9, :, :3] += torch.randn(2, 7, 22, 3, generator=g, dtype=torch.float64)
@@ -153,22 +104,22 @@ def test_loss_weights_scale_each_term_and_zero_removes_it():
     alone = {}
     for term in L.LOSS_TERMS:
         weights = {"l1": 0.0, term: 1.0} if term != "l1" else {"l1": 1.0}
-        total, terms = L.total_loss(pred, gt, mask, weights, SK, MEAN, STD, **raw)
+        total, terms = L.total_loss(pred, gt, mask, weights, REP, **raw)
         alone[term] = float(total)
         assert alone[term] > 1e-3, term  # every term is active in this case
         assert float(terms[term]) == pytest.approx(alone[term], rel=1e-12)
         for w in (0.25, 3.0):  # weight w on a term alone: w times the term
-            scaled, _ = L.total_loss(pred, gt, mask, {**weights, term: w}, SK, MEAN, STD, **raw)
+            scaled, _ = L.total_loss(pred, gt, mask, {**weights, term: w}, REP, **raw)
             assert float(scaled) == pytest.approx(w * alone[term], rel=1e-12), (term, w)
     # l1 by hand: mean absolute feature difference over the masked entries (7 features each)
     sel = mask[..., None].expand_as(pred)
     assert alone["l1"] == pytest.approx(float((pred - gt).abs()[sel].mean()), rel=1e-12)
     # all terms together: the weighted sum; a weight of 0 removes exactly that term
     w = {"l1": 0.5, "fk_pos": 2.0, "quat": 3.0, "bone": 0.7, "smooth": 1.5, "foot": 4.0, "keyframe": 2.5}
-    total, terms = L.total_loss(pred, gt, mask, w, SK, MEAN, STD, **raw)
+    total, terms = L.total_loss(pred, gt, mask, w, REP, **raw)
     assert float(total) == pytest.approx(sum(w[k] * alone[k] for k in w), rel=1e-12)
     for term in L.LOSS_TERMS:
-        total0, terms0 = L.total_loss(pred, gt, mask, {**w, term: 0.0}, SK, MEAN, STD, **raw)
+        total0, terms0 = L.total_loss(pred, gt, mask, {**w, term: 0.0}, REP, **raw)
         assert float(total0) == pytest.approx(sum(w[k] * alone[k] for k in w if k != term), rel=1e-12), term
         if term != "l1":  # disabled terms are not even computed (l1 is always logged)
             assert term not in terms0

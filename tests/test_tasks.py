@@ -1,0 +1,67 @@
+"""The training task (training/tasks.py): transition/context/keyframe draws and the windows cut to them."""
+from __future__ import annotations
+
+import pytest
+import torch
+
+from inbetweening.data import windows as W
+from inbetweening.training.tasks import draw_task, task_window
+
+
+def _old_task(x, n, per_sample):
+    """The training task as it was cut before context/keyframe options existed (kept here as the reference);
+    ``x (B, W, ...)``: frames first after the batch."""
+    t = W.N_PAST + int(n.max()) + 1
+    x = x[:, :t].clone()
+    if per_sample:
+        tt = torch.arange(t)[None, :]
+        src = torch.minimum(tt, (W.N_PAST + n)[:, None])
+        src = src.reshape(*src.shape, *([1] * (x.dim() - 2)))
+        x = torch.gather(x, 1, src.expand_as(x))
+    return x
+
+
+@pytest.mark.parametrize("per_sample", [False, True])
+def test_default_task_draws_and_cuts_what_it_did_before(per_sample):
+    root, q = torch.randn(6, 50, 3, dtype=torch.float64), torch.randn(6, 50, 5, 4, dtype=torch.float64)
+    g1, g2 = torch.Generator().manual_seed(3), torch.Generator().manual_seed(3)
+    c, n, keys = draw_task(g1, 6, (5, 30), per_sample, (10, 10), 0, 0.0)
+    old_n = torch.randint(5, 31, (6,) if per_sample else (1,), generator=g2).expand(6)
+    assert torch.equal(n, old_n) and keys is None and (c == 10).all()
+    out_root, out_q, known = task_window(root, q, c, n)
+    assert torch.equal(out_root, _old_task(root, n, per_sample))
+    assert torch.equal(out_q, _old_task(q, n, per_sample))
+    assert known.shape == out_q.shape[:3] and known.dtype == torch.bool
+    assert known[:, :10].all() and not known[0, 10 : 10 + int(n[0])].any() and known[0, 10 + int(n[0])].all()
+
+
+def test_variable_context_keeps_the_last_context_frame_and_the_target():
+    root = torch.arange(50.0, dtype=torch.float64)[None, :, None].expand(8, 50, 3).clone()
+    q = torch.arange(50.0, dtype=torch.float64)[None, :, None, None].expand(8, 50, 3, 4).clone()
+    c, n, _ = draw_task(torch.Generator().manual_seed(0), 8, (5, 20), True, (1, 10), 0, 0.0)
+    assert c.min() >= 1 and c.max() <= 10 and len(set(c.tolist())) > 1
+    out_root, out_q, known = task_window(root, q, c, n)
+    assert out_q.shape[1] == out_root.shape[1] == int((c + n).max()) + 1
+    for out in (out_root[..., None, :], out_q):  # root and rotations are cut alike
+        for b in range(8):
+            cb, nb = int(c[b]), int(n[b])
+            assert out[b, cb - 1, 0, 0] == W.N_PAST - 1  # the last context frame is the window's frame 9
+            assert out[b, 0, 0, 0] == W.N_PAST - cb  # no frame before the context
+            assert out[b, cb + nb, 0, 0] == W.N_PAST + nb  # the target keyframe
+            assert (out[b, cb + nb :, 0, 0] == W.N_PAST + nb).all()  # padding repeats the target
+            assert known[b, :cb].all() and not known[b, cb : cb + nb].any() and known[b, cb + nb :].all()
+
+
+def test_intermediate_keyframes_lie_inside_the_transition_and_leave_frames_to_predict():
+    c, n, keys = draw_task(torch.Generator().manual_seed(1), 64, (2, 30), True, (1, 10), 4, 0.5)
+    root, q = torch.zeros(64, 50, 3), torch.zeros(64, 50, 3, 4)
+    _, _, known = task_window(root, q, c, n, keys)
+    counts = keys.sum(1)
+    assert 0 < (counts > 0).float().mean() < 1  # about half the samples get keyframes
+    assert counts.max() <= 4
+    for b in range(64):
+        cb, nb = int(c[b]), int(n[b])
+        inside = keys[b].nonzero().flatten()
+        assert ((inside >= cb) & (inside < cb + nb)).all()
+        assert (~known[b, cb : cb + nb, 0]).sum() >= 1  # something is left to predict
+        assert known[b, inside].all()
