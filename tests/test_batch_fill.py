@@ -10,6 +10,7 @@ import torch
 
 from inbetweening.geometry import canonical
 from inbetweening.predictor.checkpoint import load_predictor
+from inbetweening.predictor.masks import apply_mask
 from inbetweening.tools.inbetweener import Inbetweener, InbetweenError
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "bn2_reference" / "model.ckpt"
@@ -30,7 +31,8 @@ def _motion(rng, frames: int, joints: int, yaw: float = 0.0):
 
 
 def _old_fill_window(pr, root, q):
-    """The single-window path as it was: torch float64 FK features, predict, decode, taken back."""
+    """The single-window path by hand: canonical frame of the known frames, torch float64 FK features, mask, network,
+    decode, taken back."""
     p, t = pr.n_past, len(root)
     n = t - p - 1
     known_t = np.zeros(t, dtype=bool)
@@ -38,7 +40,10 @@ def _old_fill_window(pr, root, q):
     centre, rot = canonical.canonical_frame(root, q, pr.forward_axis, p - 1, known_t)
     wr, wq = canonical.canonicalise(root, q, centre, rot)
     feats = pr.representation.encode(torch.from_numpy(wr[None]), torch.from_numpy(wq[None])).float()
-    _, pred, _ = (feats, *pr.predict(feats, pr.transition_known(1, t, n)))
+    known = pr.transition_known(1, t, n)
+    with torch.no_grad():
+        x, interp = apply_mask(pr.mask_name, feats, known, pr.representation)
+        pred = pr.net(x, known, interp)
     dr, dq = pr.representation.decode(pred.double())
     dr, dq = dr[0, p : p + n].numpy(), dq[0, p : p + n].numpy()
     dq /= np.linalg.norm(dq, axis=-1, keepdims=True)

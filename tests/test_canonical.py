@@ -13,6 +13,7 @@ from inbetweening.geometry import canonical as C
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_pose, lerp
 from inbetweening.geometry.quaternion import qmul, qrot, slerp_np
 from inbetweening.predictor.masks import lerp_fill
+from inbetweening.representation import GlobalPosLocalQuat
 
 
 def _windows(seed=0, b=3, t=9, j=4):
@@ -145,7 +146,7 @@ def test_lerp_fill_features_agree_with_interpolate_pose():
     feats = torch.from_numpy(np.concatenate([pos, q], axis=-1))
     known = torch.zeros(1, 6, 3, dtype=torch.bool)
     known[:, [0, 5]] = True
-    filled = lerp_fill(feats, known).numpy()
+    filled = lerp_fill(feats, known, GlobalPosLocalQuat).numpy()
     w = (np.arange(6) / 5.0)[:, None]
     np.testing.assert_allclose(filled[0, :, :, :3], lerp(pos[0, 0], pos[0, 5], w[..., None]), atol=1e-12)
     np.testing.assert_allclose(filled[0, 1:5, :, 3:], slerp_np(q[0, 0], q[0, 5], w)[1:5], atol=1e-7)

@@ -76,8 +76,9 @@ def test_benchmark_metric_accumulates_like_one_score_call():
     mean, std = np.zeros(6), np.array([1.0, 2.0, 3.0, 1.0, 2.0, 3.0])
     metric = BenchmarkMetric(sk, mean, std, lengths=(3, 5))
     parts = [(batch(2, 5), batch(2, 5)), (batch(3, 5), batch(3, 5))]
-    for (pr, pq), (gr, gq) in parts:
-        metric.update(5, torch.from_numpy(pr), torch.from_numpy(pq), torch.from_numpy(gr), torch.from_numpy(gq))
+    for (pr, pq), (gr, gq) in parts:  # the metric takes global poses (FK done once by the caller)
+        metric.update(5, *sk.pose(torch.from_numpy(pr), torch.from_numpy(pq)),
+                      *sk.pose(torch.from_numpy(gr), torch.from_numpy(gq)))
     res = metric.compute()
     assert set(res) == {"l2q@5", "l2p@5", "npss@5"}  # length 3 never updated: not reported
     cat = [np.concatenate([p[i][j] for p in parts]) for i in range(2) for j in range(2)]
@@ -90,17 +91,18 @@ def test_recovery_rmse_of_a_zero_velocity_model_hand_derived(monkeypatch):
     """The mocap-recovery score end to end: every joint moves at 5 cm/frame (root velocity (3, 0, 4), no
     rotation); zero-velocity holds each missing joint at its last known position, so the k-th missing frame of a
     gap is 5k cm off.  Missing: joint 1 at frames 2-4 (5, 10, 15), joint 2 at frames 6-7 (5, 10)."""
-    import inbetweening.training.module as module_mod
+    from types import SimpleNamespace
+
     from inbetweening.training.module import InbetweenModule
 
     sk = Skeleton(("r", "a", "b"), (-1, 0, 1), np.array([[0.0, 0, 0], [0.0, 10.0, 0], [5.0, 0.0, 0]]))
     known = torch.ones(1, 9, 3, dtype=torch.bool)
     known[0, 2:5, 1] = False
     known[0, 6:8, 2] = False
-    monkeypatch.setattr(module_mod, "joints_known", lambda *a, **k: known.clone())
     module = InbetweenModule(model={"name": "zero_velocity"}, skeleton=sk.to_dict(),
                              pos_mean=np.linspace(-3, 3, 9).tolist(), pos_std=np.linspace(0.5, 4, 9).tolist(),
                              mask="joints", centre="window")
+    monkeypatch.setattr(module, "joint_gaps", SimpleNamespace(known=lambda *a, **k: known.clone()))
     monkeypatch.setattr(module, "log_dict", lambda *a, **k: None)  # no trainer to log to
     root = torch.arange(9, dtype=torch.float64)[None, :, None] * torch.tensor([3.0, 0.0, 4.0], dtype=torch.float64)
     q = torch.zeros(1, 9, 3, 4, dtype=torch.float64)
@@ -149,8 +151,8 @@ def test_benchmark_metric_merges_like_ddp_gathering():
     a, b, both = (BenchmarkMetric(sk, mean, std, lengths=(5,)) for _ in range(3))
     parts = [(batch(2), batch(2)), (batch(3), batch(3))]
     for metric, (p, g) in ((a, parts[0]), (b, parts[1])):
-        metric.update(5, *p, *g)
+        metric.update(5, *sk.pose(*p), *sk.pose(*g))
     for p, g in parts:
-        both.update(5, *p, *g)
+        both.update(5, *sk.pose(*p), *sk.pose(*g))
     a.merge_state(b)
     assert a.compute() == pytest.approx(both.compute(), rel=1e-12)
