@@ -15,7 +15,7 @@ import torch
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from inbetweening.tools.render import PALETTE
+from inbetweening.tools.skeleton_plot import PALETTE
 
 #: Drawing colours: ground truth grey, the model in colour, interpolation dashed.
 GT_COLOR, MODEL_COLOR, INTERP_COLOR = "0.6", "tab:blue", "tab:orange"
