@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Check that the commands of README.md and docs/*.md still run as written, cheaply (a few minutes on 2 CPU cores):
+# Check that the commands of README.md and docs/*.md still run as written, cheaply (about 4 CPU-minutes; 8 minutes
+# of wall time on a loaded 2-core machine):
 #   bash docs/check_commands.sh            # synthetic data and the shipped model only
 #   BN2=1 bash docs/check_commands.sh      # also the Bandai-Namco-2 baseline evaluations (needs ../shared; the
-#                                          # first run prepares the dataset cache)
+#                                          # first run prepares the dataset cache); KEEP=1 keeps the outputs
 # 1. Every `python train.py ...` / `python eval.py ...` line of the docs is composed with Hydra's `--cfg job` (the
 #    config is printed, nothing runs). A sweep (-m a=x,y) is composed for its first value, and its launcher with
 #    `--cfg hydra`; placeholders (<run>, ...) are replaced by a real checkpoint.
@@ -80,4 +81,5 @@ Inbetweener.from_checkpoint('models/bn2_reference/model.ckpt').fill('$W/clip.bvh
 fi
 run python -m inbetweening.export --help
 run python -m inbetweening.export ckpt_path=models/bn2_reference/model.ckpt format=onnx output="$W/model.onnx"
-echo "all commands ran ($W)"
+echo "all commands ran"
+[ "${KEEP:-0}" = 1 ] && echo "outputs kept in $W" || rm -rf "$W"
