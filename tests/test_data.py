@@ -152,19 +152,19 @@ def test_interpolation_baseline_is_exact_on_linear_motion_and_zero_velocity_repe
     np.testing.assert_allclose(zr[0], np.repeat(root[0, 9:10], n, 0))
 
 
-TABLE_KEYS = [f"{m}@{n}" for m in ("l2q", "l2p", "npss") for n in (5, 15, 30, 45)]  # README column order
+TABLE_KEYS = [f"{m}@{n}" for m in ("l2q", "l2p", "npss") for n in (5, 15, 30, 45)]  # the docs tables' column order
 
 
 def _check_table(res: dict, readme: list[float], exact: list[float]) -> None:
-    """``res`` against a README table row (as printed: 3 decimals, NPSS 4) and against the full-precision values."""
+    """``res`` against a docs table row (as printed: 3 decimals, NPSS 4) and against the full-precision values."""
     for key, shown, value in zip(TABLE_KEYS, readme, exact, strict=True):
         half_unit = 0.5e-4 if key.startswith("npss") else 0.5e-3
-        assert abs(value - shown) <= half_unit + 1e-12, (key, value, shown)  # the guard agrees with the README
+        assert abs(value - shown) <= half_unit + 1e-12, (key, value, shown)  # the guard agrees with the docs table
         # 1e-10: far above float64 noise (platform sin/cos ulps), below real changes such as the float32 weights
         assert res[key] == pytest.approx(value, rel=1e-10), key
 
 
-# regression guard: values from the code's own output, see README ("Quick start" table, synthetic, 52 windows)
+# regression guard: values from the code's own output, see docs/configuration.md ("The default run" table, 52 windows)
 SYNTHETIC_README = {
     "zero_velocity": [0.685, 1.221, 1.253, 1.298, 4.110, 6.147, 8.235, 10.939, 0.0085, 0.0887, 0.2737, 0.4559],
     "interpolation": [0.245, 0.875, 0.976, 1.012, 2.119, 4.444, 4.760, 5.031, 0.0032, 0.0968, 0.2393, 0.4166],
@@ -180,7 +180,7 @@ SYNTHETIC_EXACT = {
 
 
 def test_synthetic_baselines_regression_guard(tmp_path):
-    """The default synthetic dataset (40 clips, seed 0): test windows and both baselines as in the README table.
+    """The default synthetic dataset (40 clips, seed 0): test windows and both baselines as in docs/configuration.md.
     The independent checks of the metrics are in test_benchmark.py; this guards the whole pipeline's numbers."""
     d = load_dataset("synthetic", cache_dir=tmp_path / "c")
     bench = d.benchmark_set()
@@ -403,7 +403,7 @@ def test_bandai_namco_2_integration(tmp_path):
     assert d.test_X.shape[1:] == (65, 21, 3) and np.isfinite(d.test_X).all()
     bench = d.benchmark_set()
     assert bench.n_windows == 542
-    # regression guard: values from the code's own output, see README ("Baselines on Bandai-Namco-2" table)
+    # regression guard: values from the code's own output, see docs/protocols.md ("Baselines on Bandai-Namco-2" tables)
     readme = {
         "zero_velocity": [0.483, 0.891, 0.994, 1.054, 2.274, 3.895, 5.514, 7.448, 0.0046, 0.0435, 0.1717, 0.2634],
         "interpolation": [0.167, 0.517, 0.748, 0.772, 1.010, 2.433, 3.127, 3.558, 0.0019, 0.0349, 0.1587, 0.2426],

@@ -1,4 +1,4 @@
-"""Re-draw what TensorBoard serves for a log folder as small PNGs (the README's TensorBoard section).
+"""Re-draw what TensorBoard serves for a log folder as small PNGs (docs/tensorboard.md).
 
 No headless browser is available on this project's machines, so these are not browser screenshots: the script
 starts TensorBoard on 127.0.0.1, reads the same HTTP API the web page reads (scalar series, the HParams session
