@@ -15,7 +15,7 @@ reader (the BVH reader by default; a non-BVH source plugs in its own).  A new BV
                      3-digit take number is divisible by 10, train = the rest (split ``standard``), or
                      test = every take of the contents ``run`` and ``wave-both-hands``, train = the other
                      contents (split ``content``: motions never seen in training); forward = root local +Z
-                     (measured on walk clips, see README).
+                     (measured on walk clips, see docs/datasets.md).
 * ``synthetic``    - procedurally generated LAFAN-format BVH files (see :mod:`inbetweening.data.synthetic`),
                      read back through the same BVH reader; test = subject5; forward = root local +Z.
 """

@@ -44,10 +44,10 @@ def make_datamodule(cfg: DictConfig) -> InbetweenDataModule:
 
 
 def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
-    """The LightningModule from the ``model``, ``mask``, ``loss`` and ``optim`` groups, ``centre``, and what the
-    (set up) data module knows: skeleton, statistics, benchmark lengths."""
+    """The LightningModule from the ``model``, ``mask``, ``loss`` and ``optim`` groups, ``centre``, ``representation``,
+    and what the (set up) data module knows: skeleton, statistics, benchmark lengths."""
     return InbetweenModule(model=_plain(cfg.model), loss=_plain(cfg.loss), optim=_plain(cfg.optim), centre=cfg.centre,
-                           mask=_plain(cfg.mask), **dm.model_kwargs())
+                           representation=cfg.representation, mask=_plain(cfg.mask), **dm.model_kwargs())
 
 
 def _make_logger(cfg: DictConfig, node: DictConfig):

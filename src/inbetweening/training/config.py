@@ -9,6 +9,7 @@ from inbetweening.data.specs import DATASETS, DEFAULT_SPLIT
 from inbetweening.data.windows import N_PAST
 from inbetweening.predictor.masks import MASK_NAMES
 from inbetweening.predictor.predictor import CENTRES
+from inbetweening.representation import DEFAULT_REPRESENTATION, REPRESENTATIONS
 from inbetweening.training.losses import LOSS_TERMS
 
 
@@ -238,6 +239,9 @@ def validate(cfg: DictConfig) -> None:
     centre = _get(cfg, "centre", "known")
     if centre not in CENTRES:
         raise ConfigError(f"centre: must be one of {list(CENTRES)}, got {centre!r}")
+    rep = _get(cfg, "representation", DEFAULT_REPRESENTATION)
+    if rep not in REPRESENTATIONS:
+        raise ConfigError(f"representation: unknown representation {rep!r}; choose one of {sorted(REPRESENTATIONS)}")
     per = _get(cfg, "data.transition_per", "batch")
     if per not in ("batch", "sample"):
         raise ConfigError(f"data.transition_per: must be 'batch' or 'sample', got {per!r}")
