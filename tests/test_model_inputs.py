@@ -15,6 +15,7 @@ from inbetweening.training.config import ConfigError, validate
 from test_model_contract import make_batch, onnx_round_trip
 
 J = len(TINY_PARENTS)
+POS, QUAT = slice(0, 3), slice(3, 7)  # the default representation's channels (GlobalPosLocalQuat)
 TRAINABLE = [n for n in sorted(MODELS) if MODELS[n].trainable]
 BOTH = ("rot6d", "velocity")
 
@@ -35,11 +36,11 @@ def test_rot6d_is_the_first_two_matrix_columns_and_sign_free():
 
 def test_velocity_input_is_the_scaled_frame_difference_of_the_positions():
     x, _, _ = make_batch(2, 9)
-    v = velocity_input(x)
+    v = velocity_input(x, POS, QUAT)
     assert v.shape == (2, 9, J, 3)
     assert torch.equal(v[:, 0], torch.zeros_like(v[:, 0]))
     torch.testing.assert_close(v[:, 1:], (x[:, 1:, :, :3] - x[:, :-1, :, :3]) * VELOCITY_SCALE)
-    assert rot6d_input(x).shape == (2, 9, J, 6)
+    assert rot6d_input(x, POS, QUAT).shape == (2, 9, J, 6)
 
 
 @pytest.mark.parametrize("name", TRAINABLE)
@@ -78,8 +79,8 @@ def test_the_network_reads_the_derived_channels(name):
     assert seen["x"].shape[-1] == 16
     with torch.no_grad():
         assert torch.equal(seen["x"][..., :7], x)
-        torch.testing.assert_close(seen["x"][..., 7:13], rot6d_input(x))
-        torch.testing.assert_close(seen["x"][..., 13:], velocity_input(x))
+        torch.testing.assert_close(seen["x"][..., 7:13], rot6d_input(x, POS, QUAT))
+        torch.testing.assert_close(seen["x"][..., 13:], velocity_input(x, POS, QUAT))
     out[~known].sum().backward()
     assert seen["x"].grad[..., 7:].abs().sum() > 0
 
@@ -127,6 +128,6 @@ def test_keyframe_loss_is_zero_on_its_keyframes_and_needs_raw():
     raw[known] += 1.0
     assert float(L.keyframe(raw, x, known)) == pytest.approx(1.0)
     with pytest.raises(ValueError, match="loss.keyframe: needs the network's raw output"):
-        L.total_loss(x, x, ~known, {"l1": 1.0, "keyframe": 1.0}, None, None, None)
-    total, terms = L.total_loss(x, x, ~known, {"l1": 0.0, "keyframe": 2.0}, None, None, None, raw=raw, known=known)
+        L.total_loss(x, x, ~known, {"l1": 1.0, "keyframe": 1.0}, None)
+    total, terms = L.total_loss(x, x, ~known, {"l1": 0.0, "keyframe": 2.0}, None, raw=raw, known=known)
     assert float(total) == pytest.approx(2.0) and set(terms) == {"l1", "keyframe"}

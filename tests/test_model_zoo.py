@@ -11,6 +11,7 @@ from conftest import TINY_PARENTS, sinusoid_batch, tiny_model
 from conftest import tiny_adjacency as adjacency
 from inbetweening.models import MODELS, Interpolation, ZeroVelocity
 from inbetweening.predictor.masks import apply_mask
+from inbetweening.representation import GlobalPosLocalQuat
 
 J = len(TINY_PARENTS)
 ALL = sorted(MODELS)
@@ -123,7 +124,7 @@ def test_interpolation_model_is_lerp_and_slerp_in_closed_form():
     x_in[~known] = float("nan")  # unknown values are never read
     model = Interpolation(num_joints=J, adjacency=adjacency())
     for mask in ("lerp", "zero"):  # with the zero mask the model's input holds zeros: the result must come from interp
-        shown, interp = apply_mask(mask, x_in, known)
+        shown, interp = apply_mask(mask, x_in, known, GlobalPosLocalQuat)
         out = model(shown, known, interp)
         np.testing.assert_allclose(out[..., :3].numpy(), want[..., :3].numpy(), rtol=0, atol=1e-12)
         np.testing.assert_allclose(out[..., 3:].numpy(), want[..., 3:].numpy(), rtol=0, atol=1e-7)  # 1e-8 eps of qnormalize

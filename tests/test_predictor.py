@@ -147,8 +147,8 @@ def _yaw(angle: float) -> np.ndarray:
 
 def test_canonical_frame_hand_derived_known_and_last():
     """forward_axis +Z; the root at the last context frame (9) is turned 0.3 rad about +Y, so it faces
-    Ry(0.3) +Z = Ry(0.3 - pi/2) +X: the rotation is that yaw (the other frames' yaws do not count).  ``known``: the known frames' mean root XZ (unknown frames are NaN: never read);
-    ``last``: frame 9's root XZ; Y is 0 in both."""
+    Ry(0.3) +Z = Ry(0.3 - pi/2) +X: the rotation is that yaw (the other frames' yaws do not count).  ``known``:
+    the known frames' mean root XZ (unknown frames are NaN: never read); ``last``: frame 9's root XZ; Y is 0."""
     t = 14
     root = np.zeros((1, t, 3))
     root[0, :, 0] = np.arange(t) * 2.0
