@@ -40,7 +40,7 @@ BAD = [
     (["data.synthetic.min_frames=30"], r"^data.synthetic.min_frames/max_frames: need 66 <= min <= max"),
     (["data.path=/nonexistent"], r"^data.path: data=synthetic generates its clips and reads no path"),
     (["optim.optimizer.lr=0"], r"^optim.optimizer.lr: must be > 0"),
-    (["centre=middle"], r"^centre: must be one of \['window', 'known', 'last'\]"),
+    (["centre=middle"], r"^centre: must be one of \['known', 'last', 'window'\]"),
     (["mask.name=blur"], r"^mask.name: unknown mask 'blur'"),
     (["+optim.lr=1e-3"], r"^optim.lr: not a setting of optim; set optim.optimizer.\* \(e.g. optim.optimizer.lr\)"),
     (["optim=sgd", "+optim.optimizer.betas=[0.9,0.99]"], r"^optim.optimizer.betas: not an argument of torch.optim.SGD"),
@@ -51,7 +51,8 @@ BAD = [
     (["optim.scheduler.min_lr_ratio=2"], r"^optim.scheduler.min_lr_ratio: must be in \[0, 1\]"),
     (["~optim.scheduler.decay"], r"^optim.scheduler.decay: missing \(a required argument of "),
     (["+data.foo=1"], r"^data.foo: not an argument of inbetweening.training.datamodule.InbetweenDataModule"),
-    (["+data.seed=1"], r"^data.seed: not an argument of .*InbetweenDataModule; its settings are \['batch_size'"),
+    (["+data.shuffle_seed=1"], r"^data.shuffle_seed: not an argument of .*InbetweenDataModule; its settings are "
+                                 r"\['batch_size'"),
     (["~data.batch_size"], r"^data.batch_size: missing \(a required argument of "),
     (["data.split=content"], r"^data.split: dataset 'synthetic' has no split 'content'; its splits are \['standard'\]$"),
     (["data=lafan1", "data.split=content"], r"^data.split: dataset 'lafan1' has no split 'content'; its splits are "

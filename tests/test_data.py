@@ -260,7 +260,7 @@ def test_lafan1_missing_path_offline_says_where_to_put_it(tmp_path, monkeypatch)
 
 def test_bandai_namco_fold_root_preserves_animation_and_split(tmp_path):
     rng = np.random.default_rng(3)
-    bvh = parse_bvh(__import__("inbetweening.data.bvh", fromlist=["format_bvh"]).format_bvh(bn_bvh(rng, 40)), "x.bvh")
+    bvh = parse_bvh(__import__("inbetweening.data.bvh_writer", fromlist=["format_bvh"]).format_bvh(bn_bvh(rng, 40)), "x.bvh")
     clip, sk = fold_static_root(bvh, "x")
     assert sk.names[0] == "Hips" and sk.num_joints == bvh.num_joints - 1
     _, full = bvh.skeleton().fk(bvh.local_rotations(), bvh.channel_positions())

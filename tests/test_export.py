@@ -51,6 +51,7 @@ def _ort_vs_torch(path, module, batch: int, gap: int, seed: int) -> tuple[np.nda
     """Run the .onnx file with ONNX Runtime on inputs built here (not by the exporter's helpers) and the torch
     network on the same inputs.  Returns ``(onnx output, torch output)``."""
     from inbetweening.predictor.masks import apply_mask
+    from inbetweening.representation import GlobalPosLocalQuat
 
     g = torch.Generator().manual_seed(seed)
     j, n_past = module.skeleton.num_joints, module.n_past
@@ -60,7 +61,7 @@ def _ort_vs_torch(path, module, batch: int, gap: int, seed: int) -> tuple[np.nda
     known = torch.zeros(batch, t, j, dtype=torch.bool)
     known[:, :n_past] = True
     known[:, n_past + gap] = True
-    x, interp = apply_mask(module.mask_name, feats, known)
+    x, interp = apply_mask(module.mask_name, feats, known, GlobalPosLocalQuat)  # [pos 0:3, quat 3:7]
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     names = [i.name for i in session.get_inputs()]
     assert names[:2] == ["x", "known"] and set(names) <= {"x", "known", "interp"}

@@ -10,6 +10,7 @@ import torch
 from conftest import TINY, TINY_PARENTS, compose_cfg, sinusoid_batch, tiny_model
 from inbetweening.models import MODELS
 from inbetweening.predictor.masks import apply_mask
+from inbetweening.representation import GlobalPosLocalQuat
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.jobs import train
 from inbetweening.training.module import InbetweenModule
@@ -31,7 +32,7 @@ def test_outputs_stay_float32_with_unit_quaternions_under_bf16_autocast(name, re
     """The contract under ``torch.autocast("cpu", bfloat16)``: float32 out, unit quaternions at float32 precision,
     known values bit-exact (before the fix, four models returned quaternions 7e-3 off unit norm)."""
     _, known, y = sinusoid_batch(len(TINY_PARENTS))
-    x, interp = apply_mask("lerp", y, known)
+    x, interp = apply_mask("lerp", y, known, GlobalPosLocalQuat)
     model = tiny_model(name, residual_to_interpolation=residual)
     with torch.autocast("cpu", dtype=torch.bfloat16):
         out = model(x, known, interp)
