@@ -51,10 +51,14 @@ def test_bf16_mixed_training_gives_finite_metrics_and_a_float32_checkpoint(tmp_p
     floats = {k: v.dtype for k, v in state.items() if v.is_floating_point()}
     assert floats and set(floats.values()) == {torch.float32}, floats
     module = InbetweenModule.load_from_checkpoint(ckpt, map_location="cpu").eval()
-    x, known, _ = module.predictor.example_inputs(batch=2, gap=5)
-    feats = x.clone()
-    pred, interp = module.predictor.predict(feats, known)
+    pr, j = module.predictor, module.skeleton.num_joints
+    g = torch.Generator().manual_seed(0)
+    root = torch.randn(2, pr.n_past + 6, 3, generator=g, dtype=torch.float64) * 10
+    q = torch.nn.functional.normalize(torch.randn(2, pr.n_past + 6, j, 4, generator=g, dtype=torch.float64), dim=-1)
+    out = pr.predict_windows(root, q, pr.transition_known(2, pr.n_past + 6, 5))
+    pred = out.pred
     assert pred.dtype == torch.float32 and torch.isfinite(pred).all()
+    assert torch.isfinite(out.root).all() and torch.isfinite(out.local_q).all()
     assert (pred[..., 3:7].norm(dim=-1) - 1).abs().max() < 1e-5
 
 
