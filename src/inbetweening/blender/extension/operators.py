@@ -14,6 +14,7 @@ MODEL_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "model")
 LICENCE = ("The bundled model is trained on Bandai-Namco-Research-Motiondataset-2 (CC BY-NC 4.0): "
            "non-commercial use only.")
 _MODELS: dict = {}
+LAST_FILL: dict = {}  # the summary of the last fill (for benchmarks)
 
 
 def bundled_model() -> str:
@@ -137,6 +138,8 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         context.view_layer.update()
+        LAST_FILL.clear()
+        LAST_FILL.update(info, seconds=time.perf_counter() - t0)
         self.report({"INFO"}, f"In-between: {info['frames']} frames in {info['gaps']} gap(s) between "
                               f"{info['keys']} keys ({time.perf_counter() - t0:.2f} s)")
         return {"FINISHED"}
