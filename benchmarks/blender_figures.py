@@ -24,7 +24,8 @@ from inbetweening.tools.render import render_png
 
 ROOT = Path(__file__).resolve().parents[1]
 CLIP = "Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk-turn-left_normal_030.bvh"
-CHANNELS = [["Hips", "location", 1], ["UpperLeg_L", "rotation_euler", 1], ["LowerLeg_L", "rotation_euler", 1]]
+# sampled; the figure shows the Hips' forward location and, per leg bone, its Euler angle with the largest range
+CHANNELS = [["Hips", "location", 1]] + [[b, "rotation_euler", i] for b in ("UpperLeg_L", "LowerLeg_L") for i in range(3)]
 
 
 def main() -> None:
@@ -54,11 +55,14 @@ def main() -> None:
     keys, frames, grid = list(d["keys"]), list(d["frames"]), d["grid"]
     fig = Figure(figsize=(10, 7.5), dpi=100)
     FigureCanvasAgg(fig)
-    axes = fig.subplots(len(CHANNELS), 1, sharex=True)
+    rng = np.ptp(d["truth_c"], axis=1)
+    show_c = [0] + [1 + 3 * k + int(np.argmax(rng[1 + 3 * k : 4 + 3 * k])) for k in range(2)]
+    axes = fig.subplots(len(show_c), 1, sharex=True)
     on_frame = np.isclose(grid % 1, 0)
     gen = np.array([g not in keys for g in grid]) & on_frame
     at_key = np.array([g in keys for g in grid])
-    for ax, label, t, b, f in zip(axes, d["labels"], d["truth_c"], d["bezier_c"], d["fill_c"]):
+    for ax, c in zip(axes, show_c):
+        label, t, b, f = d["labels"][c], d["truth_c"][c], d["bezier_c"][c], d["fill_c"][c]
         scale = 1.0 if "location" in str(label) else 180 / np.pi
         ax.plot(grid, t * scale, color="0.6", lw=2.5, label="original clip (every frame a key)")
         ax.plot(grid, b * scale, "--", color="tab:blue", lw=1.5, label="Blender's Bezier (auto-clamped) through the keys")
@@ -75,11 +79,12 @@ def main() -> None:
     fig.savefig(out_dir / "timeline.png")
     # poses across the second gap, every 5 frames
     a, b = keys[1], keys[2]
-    show = list(range(a - frames[0], b - frames[0] + 1, 5))
-    render_png({"original clip": d["truth"], "Bezier": d["bezier"], "fill": d["fill"]}, d["parents"].tolist(),
-               out_dir / "poses.png", frames=show, highlight=np.isin(np.arange(len(frames)), [k - frames[0] for k in keys]),
-               up_axis=2,
-               title=f"frames {a}-{b} (keys at both ends, red)")
+    gap = slice(a - frames[0], b - frames[0] + 1)
+    show = list(range(0, b - a + 1, 5))
+    seqs = {"original clip": d["truth"][gap], "Blender Bezier": d["bezier"][gap], "fill": d["fill"][gap]}
+    render_png(seqs, d["parents"].tolist(), out_dir / "poses.png", frames=show,
+               highlight=np.isin(np.arange(b - a + 1), [0, b - a]), up_axis=2, view=(10.0, -75.0),
+               title=f"Blender frames {a}-{b} (shown as 0-{b - a}), every 5th: keys at both ends (red)")
     print(f"wrote {out_dir / 'timeline.png'} and {out_dir / 'poses.png'}")
 
 
