@@ -178,12 +178,13 @@ class Rig:
                 qb[t, k] = _to_np(_rot_quat(pb, vals))
         local = engine.qmul(engine.qmul(engine.qinv(self.A)[None], qb), self.A[None])
         cinv = np.linalg.inv(self.C)
+        rots = np.zeros((f, 4))
         for t, fr in enumerate(frames):
             m = self.parent_matrix(fr) @ self._basis(self.pbones[0], fr)
-            rot = _to_np(m.to_quaternion())
-            g = engine.qmul(engine.qmul(engine.qinv(self.c), rot), engine.qmul(engine.qinv(self.r[0]), self.c))
-            local[t, 0] = g
+            rots[t] = _to_np(m.to_quaternion())
             root[t] = cinv @ np.array(m.translation) / self.s
+        local[:, 0] = engine.qmul(engine.qmul(engine.qinv(self.c)[None], rots),
+                                  engine.qmul(engine.qinv(self.r[0]), self.c)[None])
         return root, engine.qnormalize(local, 0.0), raw
 
     def basis_values(self, frames, root, local_q, raw_prev):
@@ -192,9 +193,10 @@ class Rig:
         rotation channel values at the frame before each run of frames: ``{frame: [J values]}``)."""
         qb = engine.qmul(engine.qmul(self.A[None], local_q), engine.qinv(self.A)[None])
         locs = np.zeros((len(frames), 3))
+        rots = engine.qmul(engine.qmul(self.c[None], local_q[:, 0]), engine.qmul(engine.qinv(self.c), self.r[0])[None])
+        heads = (root @ self.C.T) * self.s
         for t, fr in enumerate(frames):
-            rot = engine.qmul(engine.qmul(self.c, local_q[t, 0]), engine.qmul(engine.qinv(self.c), self.r[0]))
-            m = Matrix.LocRotScale(Vector((self.C @ root[t]) * self.s), Quaternion(rot), None)
+            m = Matrix.LocRotScale(Vector(heads[t]), Quaternion(rots[t]), None)
             basis = (self.parent_matrix(fr)).inverted() @ m
             locs[t] = np.array(basis.translation)
             qb[t, 0] = _to_np(basis.to_quaternion())
