@@ -137,6 +137,7 @@ def test_fill_in_blender(bpy_exe, built, tmp_path):
         {"name": "selected", "keys_every": 15, "select": [31, 46], "select_span": [31, 46], "only_selected_range": True},
         {"name": "preview", "keys_every": 15, "select": [-9, -9], "preview": [44, 80], "select_span": [46, 76],
          "only_selected_range": True},
+        {"name": "sparse", "keys_every": 15, "drop_curves": ["Head"], "drop_key": ["Neck", "rotation_euler", 0, 31]},
         {"name": "bad_model", "keys_every": 15, "model_path": str(tmp_path / "bad.onnx")},
         {"name": "no_model", "keys_every": 15, "model_path": str(tmp_path / "missing.onnx")},
         {"name": "wrong_armature", "keys_every": 15, "rename": ["Toes_R", "Toe_R"]},
@@ -170,6 +171,15 @@ def test_fill_in_blender(bpy_exe, built, tmp_path):
     p = res["preview"]
     assert p["result"] == ["FINISHED"] and p["max_change_outside"] == 0.0
     assert all(g == list(range(47, 61)) + list(range(62, 76)) for g in p["gained"].values())
+
+    sp = res["sparse"]  # channels without a curve, or without a key at a key frame: created / keyed
+    assert sp["result"] == ["FINISHED"] and sp["n_lost_keys"] == 0 and sp["max_change_outside"] == 0.0
+    assert sp["new_curves"] == [f'pose.bones["Head"].rotation_euler[{i}]' for i in range(3)]
+    keys = sp["in_range_keys"]
+    assert sp["gained"]['pose.bones["Head"].rotation_euler[0]'] == list(range(keys[0], keys[-1] + 1))
+    between = [f for a, b in zip(keys, keys[1:]) for f in range(a + 1, b)]
+    assert sp["gained"]['pose.bones["Neck"].rotation_euler[0]'] == sorted(between + [31])
+    assert sp["gained"]['pose.bones["Neck"].rotation_euler[1]'] == between
 
     for name, needle in (("bad_model", "not a readable ONNX model"), ("no_model", "model file not found"),
                          ("wrong_armature", "missing bones Toe_R")):

@@ -128,6 +128,14 @@ def scenario(cfg: dict, sc: dict, out_dir: str) -> dict:
     if sc.get("rename"):
         old, new = sc["rename"]
         obj.data.bones[old].name = new
+    if sc.get("drop_curves"):  # remove every F-curve of these bones' rotations
+        cb = channelbag(obj)
+        for fc in [fc for fc in cb.fcurves if any(f'"{b}"].rotation' in fc.data_path for b in sc["drop_curves"])]:
+            cb.fcurves.remove(fc)
+    if sc.get("drop_key"):  # remove one key of one channel: [bone, property, index, frame]
+        b, prop, i, frame = sc["drop_key"]
+        fc = channelbag(obj).fcurves.find(f'pose.bones["{b}"].{prop}', index=i)
+        fc.keyframe_points.remove(next(k for k in fc.keyframe_points if round(k.co[0]) == frame))
     in_range = [k for k in keys if scene.frame_start <= k <= scene.frame_end]
     res = {"name": sc["name"], "keys": keys, "in_range_keys": in_range, "frame_start": scene.frame_start,
            "frame_end": scene.frame_end, "fps": scene.render.fps, "rotation_mode": obj.pose.bones[names[0]].rotation_mode,
@@ -162,12 +170,14 @@ def scenario(cfg: dict, sc: dict, out_dir: str) -> dict:
                 lost.append([key[0], key[1], float(x)])
     res["lost_keys"] = lost[:20]
     res["n_lost_keys"] = len(lost)
-    res["changed_curves"] = sum(not np.array_equal(values_before[k], values_after[k]) for k in values_before)
+    res["changed_curves"] = sum(not np.array_equal(values_before[k], values_after.get(k)) for k in values_before)
+    res["new_curves"] = sorted(f"{k[0]}[{k[1]}]" for k in values_after if k not in values_before)
     # which frames gained keys, per model channel
     chans = [c for c in after if any(f'"{n}"' in c[0] for n in names)]
     gained = {}
     for key in chans:
-        new = sorted(set(np.round(after[key][0][:, 0]).astype(int)) - set(np.round(before[key][0][:, 0]).astype(int)))
+        had = set(np.round(before[key][0][:, 0]).astype(int)) if key in before else set()
+        new = sorted(set(np.round(after[key][0][:, 0]).astype(int)) - had)
         gained[f"{key[0]}[{key[1]}]"] = [int(f) for f in new]
     res["gained"] = gained
     res["model_channels"] = len(chans)
@@ -176,7 +186,7 @@ def scenario(cfg: dict, sc: dict, out_dir: str) -> dict:
         lo, hi = (sc["select_span"] if sc.get("select_span") else (in_range[0], in_range[-1]))
         outside = (grid <= lo) | (grid >= hi)
         res["max_change_outside"] = float(max(np.abs(values_before[k][outside] - values_after[k][outside]).max()
-                                              for k in values_before))
+                                              for k in values_before if k in values_after))
     if in_range and result == ["FINISHED"]:
         frames = list(range(in_range[0], in_range[-1] + 1))
         h = heads(obj, names, frames)

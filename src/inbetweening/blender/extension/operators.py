@@ -138,6 +138,11 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         context.view_layer.update()
+        fps = context.scene.render.fps / context.scene.render.fps_base
+        model_fps = float(model.meta.get("fps", fps) or fps)
+        if abs(fps - model_fps) > 0.5:
+            self.report({"WARNING"}, f"the scene runs at {fps:.3g} fps, the model was trained at {model_fps:.3g} fps; "
+                                     "gaps are counted in frames")
         LAST_FILL.clear()
         LAST_FILL.update(info, seconds=time.perf_counter() - t0)
         self.report({"INFO"}, f"In-between: {info['frames']} frames in {info['gaps']} gap(s) between "
