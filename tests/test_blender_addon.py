@@ -141,6 +141,8 @@ def test_fill_in_blender(bpy_exe, built, tmp_path):
         {"name": "bad_model", "keys_every": 15, "model_path": str(tmp_path / "bad.onnx")},
         {"name": "no_model", "keys_every": 15, "model_path": str(tmp_path / "missing.onnx")},
         {"name": "wrong_armature", "keys_every": 15, "rename": ["Toes_R", "Toe_R"]},
+        {"name": "not_armature", "keys_every": 15, "active_mesh": True},
+        {"name": "no_animation", "keys_every": 15, "no_animation": True},
     ]
     res = run_blender(bpy_exe, zip_path, bvh_path, scenarios, tmp_path)
 
@@ -182,7 +184,8 @@ def test_fill_in_blender(bpy_exe, built, tmp_path):
     assert sp["gained"]['pose.bones["Neck"].rotation_euler[1]'] == between
 
     for name, needle in (("bad_model", "not a readable ONNX model"), ("no_model", "model file not found"),
-                         ("wrong_armature", "missing bones Toe_R")):
+                         ("wrong_armature", "missing bones Toe_R"), ("not_armature", "select an armature"),
+                         ("no_animation", "has no animation")):
         r = res[name]
         assert r["result"] == ["CANCELLED"] and needle.replace("Toe_R", "Toes_R") in r["error"], r["error"]
         assert r["n_lost_keys"] == 0 and r["changed_curves"] == 0
