@@ -125,6 +125,17 @@ def test_zips_hold_the_model_and_wheels(built):
         assert "[permissions]" in manifest and "CC BY-NC" in zipfile.ZipFile(z).read("README.md").decode()
 
 
+def test_blender_validates_every_zip(bpy_exe, built):
+    """Blender's own extension validator (``blender --command extension validate``) accepts each zip."""
+    found = list(Path(bpy_exe).parents[1].glob("lib/python3.11/site-packages/bpy/*/scripts/addons_core/bl_pkg/cli/"
+                                              "blender_ext.py"))
+    if not found:
+        pytest.skip("Blender's extension command-line tool not found next to bpy")
+    for z in sorted(built.glob("inbetweening-*.zip")):
+        proc = subprocess.run([str(bpy_exe), str(found[0]), "validate", str(z)], capture_output=True, text=True)
+        assert proc.returncode == 0 and "Success" in proc.stdout + proc.stderr, (z.name, proc.stdout, proc.stderr)
+
+
 def test_fill_in_blender(bpy_exe, built, tmp_path):
     bvh_path = tmp_path / "clip.bvh"
     model_skeleton_bvh(bvh_path)

@@ -24,7 +24,6 @@ PYTHON_VERSION = "3.11"
 ONNXRUNTIME = "1.19.2"  # the newest with a cp311 wheel for macOS 11 on arm64 (Blender 4.2's minimum macOS)
 SKIP_WHEELS = ("numpy",)  # Blender bundles numpy
 DEFAULT_CKPT = "models/bn2_reference/model.ckpt"
-WEBSITE = "https://github.com/inbetweening/inbetweening"
 
 
 class BuildError(ValueError):
@@ -130,7 +129,6 @@ def build(out_dir: str | Path, ckpt_path: str | Path = DEFAULT_CKPT, platforms=t
             log(f"wheels for {platform} (onnxruntime {onnxruntime})")
             whls = download_wheels(platform, onnxruntime, Path(wheels) if wheels else None)
             manifest = (manifest_in.replace("@VERSION@", version).replace("@PLATFORM@", platform)
-                        .replace("@WEBSITE@", WEBSITE)
                         .replace("@WHEELS@", "\n".join(f'  "./wheels/{w.name}",' for w in whls)))
             target = out_dir / f"inbetweening-{version}-{platform}.zip"
             part = target.with_suffix(".zip.part")
