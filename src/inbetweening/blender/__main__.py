@@ -9,6 +9,7 @@ from inbetweening.tools._cli import UsageError, fail, parse_args
 USAGE = """\
 usage: python -m inbetweening.blender build OUT_DIR [ckpt_path=models/bn2_reference/model.ckpt]
                                          [platforms=linux-x64,windows-x64,macos-arm64] [onnxruntime=1.19.2]
+                                         (platforms may also name macos-x64)
                                          [wheels=CACHE_DIR]
        python -m inbetweening.blender export ckpt_path=<model.ckpt> output=<model.onnx>
 
@@ -31,7 +32,7 @@ def run(argv: Sequence[str]) -> int:
         print(USAGE)
         return 0 if argv else 2
     command, rest = argv[0], argv[1:]
-    from inbetweening.blender.build import DEFAULT_CKPT, ONNXRUNTIME, PLATFORMS, BuildError, build, export
+    from inbetweening.blender.build import DEFAULT_CKPT, DEFAULT_PLATFORMS, ONNXRUNTIME, BuildError, build, export
 
     try:
         if command == "build":
@@ -45,7 +46,7 @@ def run(argv: Sequence[str]) -> int:
             if args is None:
                 print(USAGE)
                 return 0
-            build(out_dir, args.get("ckpt_path", DEFAULT_CKPT), args.get("platforms", list(PLATFORMS)),
+            build(out_dir, args.get("ckpt_path", DEFAULT_CKPT), args.get("platforms", list(DEFAULT_PLATFORMS)),
                   args.get("onnxruntime", ONNXRUNTIME), args.get("wheels"))
             return 0
         if command == "export":

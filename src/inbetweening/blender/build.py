@@ -19,7 +19,9 @@ PLATFORMS = {
     "linux-x64": "manylinux_2_28_x86_64",
     "windows-x64": "win_amd64",
     "macos-arm64": "macosx_11_0_arm64",
+    "macos-x64": "macosx_11_0_x86_64",  # not built by default
 }
+DEFAULT_PLATFORMS = ("linux-x64", "windows-x64", "macos-arm64")
 PYTHON_VERSION = "3.11"
 ONNXRUNTIME = "1.19.2"  # the newest with a cp311 wheel for macOS 11 on arm64 (Blender 4.2's minimum macOS)
 SKIP_WHEELS = ("numpy",)  # Blender bundles numpy
@@ -102,7 +104,7 @@ def model_licence(meta: dict) -> str:
     return (f"The bundled model was trained on the dataset {ds!r}; its weights carry that dataset's licence terms.\n")
 
 
-def build(out_dir: str | Path, ckpt_path: str | Path = DEFAULT_CKPT, platforms=tuple(PLATFORMS),
+def build(out_dir: str | Path, ckpt_path: str | Path = DEFAULT_CKPT, platforms=DEFAULT_PLATFORMS,
           onnxruntime: str = ONNXRUNTIME, wheels: str | Path | None = None, log=print) -> list[Path]:
     """Write ``out_dir/inbetweening-<version>-<platform>.zip`` for each platform; returns their paths."""
     out_dir = Path(out_dir)
