@@ -30,9 +30,9 @@ SCRIPT = REPO / "tests" / "blender" / "bpy_fill_check.py"
 def model_skeleton_bvh(path: Path, frames: int = 121, seed: int = 0) -> BVH:
     """A BVH of the model's own skeleton (names, parents, offsets from the checkpoint): ZXY Euler channels, a
     root walking forward and turning, limbs swinging."""
-    from inbetweening.checkpoint import load_predictor
+    from inbetweening.tools.inbetweener import Inbetweener
 
-    sk = load_predictor(str(CKPT)).skeleton
+    sk = Inbetweener.from_checkpoint(CKPT).skeleton
     j = sk.num_joints
     rng = np.random.default_rng(seed)
     t = np.arange(frames)[:, None]

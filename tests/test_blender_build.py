@@ -15,7 +15,7 @@ from inbetweening.blender.extension import engine
 from inbetweening.geometry import canonical
 from inbetweening.geometry.quaternion import remove_discontinuities, slerp_np
 from inbetweening.predictor import masks
-from inbetweening.tools.export import _neighbour_known_onnx, export_onnx, export_window_onnx
+from inbetweening.tools.export import WindowPath, _neighbour_known_onnx, export_onnx, export_window_onnx
 
 REPO = Path(__file__).resolve().parents[1]
 CKPT = REPO / "models" / "bn2_reference" / "model.ckpt"
@@ -80,23 +80,23 @@ def window_model(inbetweener, tmp_path_factory):
 
 
 def test_window_graph_matches_the_predictor(inbetweener, window_model):
-    """ONNX Runtime on the window graph vs the Predictor's own encode -> predict -> decode in PyTorch."""
+    """ONNX Runtime on the window graph vs PyTorch: the graph's own module on canonical windows, and
+    ``Predictor.fill_windows`` (world space; the extension's numpy canonical frame around the graph)."""
     p = inbetweener.predictor
     rng = np.random.default_rng(3)
     for gap in (1, 15, 40):
         t = p.n_past + gap + 1
         root = np.array([0.0, 90.0, 0.0]) + rng.normal(0, 20, (2, t, 3))
+        root[..., [0, 2]] += rng.normal(0, 300, (2, 1, 2))  # anywhere on the floor
         q = rng.normal(size=(2, t, p.skeleton.num_joints, 4))
         q /= np.linalg.norm(q, axis=-1, keepdims=True)
         known = p.transition_known(2, t, gap)
         got_r, got_q = window_model.predict(root, q, known.numpy())
         with torch.no_grad():
-            _, pred, _ = p.predict_windows(root, q, known)
-            ref_r, ref_q = p.decode(pred)
+            ref_r, ref_q = WindowPath(p)(torch.from_numpy(root), torch.from_numpy(q), known)
         sl = slice(p.n_past, p.n_past + gap)
         assert np.abs(got_r[:, sl] - ref_r[:, sl].numpy()).max() <= 1e-4
         assert np.abs(got_q[:, sl] - ref_q[:, sl].numpy()).max() <= 1e-4
-        # and in world space, with the extension's numpy canonical frame
         wr, wq = window_model.fill_windows(root, q)
         pr, pq = p.fill_windows(root, q)
         assert np.abs(wr - pr).max() <= 1e-4 and np.abs(wq - pq).max() <= 1e-4

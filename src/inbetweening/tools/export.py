@@ -239,20 +239,31 @@ class WindowPath(torch.nn.Module):
         self.predictor = predictor
 
     def forward(self, root, local_q, known):
+        from inbetweening.predictor import masks
+
         p = self.predictor
         feats = p.representation.encode(root, local_q).to(torch.float32)
-        pred, _ = p.predict(feats, known)
+        if hasattr(p, "predict"):  # mask, feature-space centring, network, shift back, known values copied
+            pred, _ = p.predict(feats, known)
+        else:  # a predictor whose only centring is the world-space canonical frame: the windows already are in it
+            x, interp = masks.apply_mask(p.mask_name, feats, known, p.representation)
+            pred = torch.where(known[..., None], feats, p.net(x, known, interp))
         return p.decode(pred)
 
 
 def window_metadata(model, trained_gap: int | None = None) -> dict[str, str]:
-    """:func:`metadata` of the window graph: the network's keys plus ``format``, ``inputs``, ``outputs`` and
-    ``trained_gap`` (the longest transition generated in one window; default ``train_window - n_past - 1``)."""
+    """:func:`metadata` of the window graph: the network's keys plus ``format``, ``inputs``, ``outputs``,
+    ``trained_gap`` (the longest transition generated in one window; default ``train_window - n_past - 1``) and
+    ``frame_centre`` (``known``: windows are centred on the known frames' mean root XZ; ``last``: on the last
+    context frame's)."""
     predictor = _predictor(model)
     meta = metadata(predictor, ["root", "local_q", "known"])
     gap = trained_gap or predictor.train_window - predictor.n_past - 1
+    # where the caller centres the windows: the known frames' mean root XZ, or (a predictor whose canonical frame
+    # is its only centring, with centre="last") the last context frame's root XZ
+    frame_centre = "last" if not hasattr(predictor, "predict") and predictor.centre == "last" else "known"
     meta.update({"format": json.dumps(WINDOW_FORMAT), "outputs": json.dumps(["root_out", "local_q_out"]),
-                 "trained_gap": json.dumps(int(gap))})
+                 "trained_gap": json.dumps(int(gap)), "frame_centre": json.dumps(frame_centre)})
     return meta
 
 

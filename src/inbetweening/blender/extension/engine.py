@@ -112,6 +112,7 @@ class Model:
         self.n_past = int(meta["n_past"])
         self.forward_axis = [float(a) for a in meta["forward_axis"]]
         self.trained_gap = int(meta["trained_gap"])
+        self.frame_centre = str(meta.get("frame_centre", "known"))
         self.calls = 0
 
     @property
@@ -136,7 +137,10 @@ class Model:
         known_t[:p] = True
         known_t[-1] = True
         rot = facing_rotation(local_q[:, p - 1 : p, 0, :], self.forward_axis)  # (B, 1, 4)
-        xz = root[:, known_t][..., [0, 2]].mean(axis=1, keepdims=True)
+        if self.frame_centre == "last":
+            xz = root[:, p - 1 : p][..., [0, 2]]
+        else:
+            xz = root[:, known_t][..., [0, 2]].mean(axis=1, keepdims=True)
         centre = np.concatenate([xz[..., :1], np.zeros_like(xz[..., :1]), xz[..., 1:]], axis=-1)  # (B, 1, 3)
         inv = qinv(rot)
         wq = local_q.copy()
