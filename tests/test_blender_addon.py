@@ -216,3 +216,12 @@ def test_fill_real_bandai_namco_clip(bpy_exe, built, tmp_path):
     ref = inbetweener_positions(tmp_path / "clip.bvh", r["in_range_keys"])
     err = fitted_error(ref, heads, [k - r["in_range_keys"][0] for k in r["in_range_keys"]])
     assert err <= 1e-3, err
+
+
+def test_build_reports_a_failed_wheel_download_in_one_line(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "inbetweening.blender", "build", str(tmp_path / "out"),
+                           "onnxruntime=0.0.1", "platforms=linux-x64", f"wheels={tmp_path / 'wheels'}"],
+                          capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.startswith("error: downloading onnxruntime==0.0.1 wheels for linux-x64 failed")
+    assert proc.stderr.count("\n") == 1 and not list((tmp_path / "out").glob("*.zip"))
