@@ -26,6 +26,7 @@ taken back (as :meth:`Predictor.predict_windows <inbetweening.predictor.predicto
 """
 from __future__ import annotations
 
+import json
 import sys
 import warnings
 from collections.abc import Sequence
@@ -205,3 +206,131 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The whole per-window path as one graph (the Blender extension's model; :mod:`inbetweening.blender`)
+# ---------------------------------------------------------------------------------------------------------------
+WINDOW_FORMAT = "inbetweening-window-onnx/1"
+
+
+def _neighbour_known_onnx(known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`inbetweening.predictor.masks._neighbour_known` without ``cummax`` (which ONNX lacks): the previous /
+    next known frame of each joint as a masked max / min over a ``(T, T)`` triangle.  The same integers."""
+    t = known.shape[1]
+    idx = torch.arange(t, device=known.device)
+    before = idx[None, :] <= idx[:, None]  # [t, s]: s <= t
+    kn = known.permute(0, 2, 1)[:, :, None, :]  # (B, J, 1, S)
+    prev = torch.where(kn & before, idx, torch.full_like(idx, -1)).amax(-1)
+    after = idx[None, :] >= idx[:, None]
+    nxt = torch.where(kn & after, idx, torch.full_like(idx, t)).amin(-1)
+    return prev.permute(0, 2, 1), nxt.permute(0, 2, 1)
+
+
+class WindowPath(torch.nn.Module):
+    """``(root (B, T, 3), local_q (B, T, J, 4), known (B, T, J)) -> (root (B, T, 3), local_q (B, T, J, 4))``: the
+    predictor's whole path for canonicalised windows, float64 in and out.
+
+    It is :meth:`Predictor.encode <inbetweening.predictor.predictor.Predictor.encode>` (FK in float64, features cast
+    to float32), :meth:`Predictor.predict` (mask, known-frame centring, network, shift back, known values copied) and
+    :meth:`Predictor.decode` - what :meth:`Predictor.fill_windows` runs between ``canonicalise`` and
+    ``uncanonicalise``.  Unknown input values are never read."""
+
+    def __init__(self, predictor):
+        super().__init__()
+        self.predictor = predictor
+
+    def forward(self, root, local_q, known):
+        from inbetweening.predictor import masks
+
+        p = self.predictor
+        feats = p.representation.encode(root, local_q).to(torch.float32)
+        if hasattr(p, "predict"):  # mask, feature-space centring, network, shift back, known values copied
+            pred, _ = p.predict(feats, known)
+        else:  # a predictor whose only centring is the world-space canonical frame: the windows already are in it
+            x, interp = masks.apply_mask(p.mask_name, feats, known, p.representation)
+            pred = torch.where(known[..., None], feats, p.net(x, known, interp))
+        return p.decode(pred)
+
+
+def window_metadata(model, trained_gap: int | None = None) -> dict[str, str]:
+    """:func:`metadata` of the window graph: the network's keys plus ``format``, ``inputs``, ``outputs``,
+    ``trained_gap`` (the longest transition generated in one window; default ``train_window - n_past - 1``) and
+    ``frame_centre`` (``known``: windows are centred on the known frames' mean root XZ; ``last``: on the last
+    context frame's)."""
+    predictor = _predictor(model)
+    meta = metadata(predictor, ["root", "local_q", "known"])
+    gap = trained_gap or predictor.train_window - predictor.n_past - 1
+    # where the caller centres the windows: the known frames' mean root XZ, or (a predictor whose canonical frame
+    # is its only centring, with centre="last") the last context frame's root XZ
+    frame_centre = "last" if not hasattr(predictor, "predict") and predictor.centre == "last" else "known"
+    meta.update({"format": json.dumps(WINDOW_FORMAT), "outputs": json.dumps(["root_out", "local_q_out"]),
+                 "trained_gap": json.dumps(int(gap)), "frame_centre": json.dumps(frame_centre)})
+    return meta
+
+
+def export_window_onnx(model, path: str | Path, opset: int = 17, check: bool = True, trained_gap: int | None = None,
+                       extra: dict | None = None) -> dict:
+    """Export :class:`WindowPath` of ``model`` (a predictor, a training module or an ``Inbetweener``, whose
+    ``trained_gap`` is then the default) to ONNX at ``path``, with :func:`window_metadata` (and ``extra``, JSON
+    values) in ``metadata_props``.  Inputs ``root`` float64 ``(B, T, 3)``, ``local_q`` float64 ``(B, T, J, 4)``,
+    ``known`` bool ``(B, T, J)`` (windows already canonicalised); outputs ``root_out``, ``local_q_out`` (float64,
+    unit quaternions).  Returns ``{"path", "metadata", "max_abs_diff"}`` (ONNX Runtime vs PyTorch, or None)."""
+    try:
+        import onnx
+    except ImportError:
+        raise ExportError("format=onnx needs the onnx package: pip install 'inbetweening[export]'") from None
+    from unittest import mock
+
+    from inbetweening.atomic import atomic_path
+    from inbetweening.predictor import masks
+
+    trained_gap = trained_gap or getattr(model, "trained_gap", None)
+    predictor = _predictor(model).eval().cpu()
+    wrapper = WindowPath(predictor).eval()
+    path = Path(path)
+    example = window_example(predictor, 2, 15)
+    names = ["root", "local_q", "known", "root_out", "local_q_out"]
+    meta = window_metadata(predictor, trained_gap)
+    meta.update({k: json.dumps(v) for k, v in (extra or {}).items()})
+    with atomic_path(path) as tmp:
+        with warnings.catch_warnings(), torch.no_grad(), mock.patch.object(masks, "_neighbour_known",
+                                                                             _neighbour_known_onnx):
+            warnings.simplefilter("ignore")
+            torch.onnx.export(wrapper, example, str(tmp), dynamo=False, opset_version=int(opset), input_names=names[:3],
+                              output_names=names[3:], dynamic_axes={k: {0: "batch", 1: "frames"} for k in names})
+        proto = onnx.load(str(tmp))
+        for k, v in meta.items():
+            entry = proto.metadata_props.add()
+            entry.key, entry.value = k, v
+        onnx.save(proto, str(tmp))
+    info = {"path": str(path), "metadata": meta, "max_abs_diff": None}
+    if check:
+        info["max_abs_diff"] = check_window_onnx(predictor, path)
+    return info
+
+
+def window_example(model, batch: int, gap: int, seed: int = 0):
+    """Random canonical-looking windows ``(root, local_q, known)`` (float64, float64, bool) with a ``gap``-frame
+    transition after ``n_past`` context frames."""
+    predictor = _predictor(model)
+    g = torch.Generator().manual_seed(seed)
+    j, t = predictor.skeleton.num_joints, predictor.n_past + gap + 1
+    mean = torch.as_tensor(predictor.mean[:3], dtype=torch.float64)
+    root = mean + 20.0 * torch.randn(batch, t, 3, generator=g, dtype=torch.float64)
+    q = torch.randn(batch, t, j, 4, generator=g, dtype=torch.float64)
+    return root, q / q.norm(dim=-1, keepdim=True), predictor.transition_known(batch, t, gap)
+
+
+def check_window_onnx(model, path: str | Path, batch: int = 3, gap: int = 7, seed: int = 1) -> float:
+    """Largest absolute difference between ONNX Runtime and :class:`WindowPath` in PyTorch (root and quaternions)."""
+    try:
+        import onnxruntime as ort
+    except ImportError:
+        raise ExportError("checking the export needs onnxruntime: pip install 'inbetweening[export]'") from None
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    root, q, known = window_example(model, batch, gap, seed)
+    got = session.run(None, {"root": root.numpy(), "local_q": q.numpy(), "known": known.numpy()})
+    with torch.no_grad():
+        ref = WindowPath(_predictor(model).eval().cpu())(root, q, known)
+    return float(max(np.abs(a - b.numpy()).max() for a, b in zip(got, ref)))

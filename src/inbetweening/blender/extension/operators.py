@@ -1,0 +1,215 @@
+"""The operator ``anim.inbetween_fill`` and the sidebar panels."""
+from __future__ import annotations
+
+import os
+import time
+
+import bpy
+import numpy as np
+from bpy.props import BoolProperty, PointerProperty, StringProperty
+
+from . import engine, rig
+
+MODEL_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "model")
+LICENCE = ("The bundled model is trained on Bandai-Namco-Research-Motiondataset-2 (CC BY-NC 4.0): "
+           "non-commercial use only.")
+_MODELS: dict = {}
+LAST_FILL: dict = {}  # the summary of the last fill (for benchmarks)
+
+
+def bundled_model() -> str:
+    return os.path.join(MODEL_DIR, "model.onnx")
+
+
+def load_model(path: str) -> engine.Model:
+    """The model at ``path`` (default: the bundled one), cached by path and modification time."""
+    path = bpy.path.abspath(path) if path else bundled_model()
+    key = (path, os.path.getmtime(path) if os.path.isfile(path) else None)
+    if key not in _MODELS:
+        _MODELS.clear()
+        _MODELS[key] = engine.Model(path)
+    return _MODELS[key]
+
+
+def fill_range(context, obj, model, only_selected: bool, report_progress=True) -> dict:
+    """Fill the armature ``obj``'s in-betweens; returns a summary dict.  Raises ``rig.RigError`` /
+    ``engine.ModelError`` before changing anything."""
+    r = rig.Rig(obj, model)
+    if r.fcurves is None:
+        raise rig.RigError(f"armature '{obj.name}' has no animation: key at least two poses first")
+    scene = context.scene
+    lo, hi = scene.frame_start, scene.frame_end
+    chans = r.channels()
+    curves = [c for c in (r.fcurve(p, i) for _, p, i in chans) if c is not None]
+    if only_selected:
+        sel = rig.key_frames(curves, lo, hi, selected_only=True)
+        if sel:
+            lo, hi = min(sel), max(sel)
+        elif scene.use_preview_range:
+            lo, hi = max(lo, scene.frame_preview_start), min(hi, scene.frame_preview_end)
+        else:
+            raise rig.RigError("only selected range: no keys are selected and there is no preview range")
+    keys = sorted(rig.key_frames(curves, lo, hi))
+    gaps = [(a, b) for a, b in zip(keys, keys[1:]) if b - a > 1]
+    if not gaps:
+        raise rig.RigError(f"nothing to fill: frames {lo}..{hi} hold {len(keys)} key(s) and no gap between two keys")
+    first, last = keys[0], keys[-1]
+    p = model.n_past
+    frames = np.arange(first - (p - 1), last + 1)
+    known = set(range(first - (p - 1), first)) | set(keys)
+    read_frames = [int(f) for f in frames if f in known]
+    root_k, q_k, raw = r.read(read_frames)
+    root = np.zeros((len(frames), 3))
+    q = np.zeros((len(frames), model.num_joints, 4))
+    q[..., 0] = 1.0
+    pos = {int(f): i for i, f in enumerate(frames)}
+    for t, f in enumerate(read_frames):
+        root[pos[f]], q[pos[f]] = root_k[t], q_k[t]
+    for a, b in gaps:  # placeholders (never read by the model): the previous key
+        root[pos[a] + 1 : pos[b]], q[pos[a] + 1 : pos[b]] = root[pos[a]], q[pos[a]]
+    wm = context.window_manager
+    total_frames = sum(b - a - 1 for a, b in gaps)
+    progress = None
+    if report_progress:
+        wm.progress_begin(0, 100)
+
+        def progress(done, total):
+            wm.progress_update(int(100 * done / max(total, 1)))
+    t0 = time.perf_counter()
+    try:
+        keys_idx = [pos[k] for k in keys]
+        out_r, out_q = engine.fill(model, root, q, keys_idx, progress)
+    finally:
+        if report_progress:
+            wm.progress_end()
+    t_model = time.perf_counter() - t0
+    gen = np.array([f for a, b in gaps for f in range(a + 1, b)])
+    idx = np.array([pos[int(f)] for f in gen])
+    raw_prev = {f: raw[t] for t, f in enumerate(read_frames)}
+    values = r.basis_values([int(f) for f in gen], out_r[idx], out_q[idx], raw_prev)
+    prefs = context.preferences.edit
+    spans = [(first, last)]
+    for j, path, i in chans:
+        fc = r.fcurve(path, i)
+        if fc is None:
+            pb = r.pbones[j]
+            pb.keyframe_insert(path.rsplit(".", 1)[1], index=i, frame=first, group=pb.name)
+            fc = r.fcurve(path, i)
+        co = np.zeros(2 * len(fc.keyframe_points), dtype=np.float32)
+        fc.keyframe_points.foreach_get("co", co)
+        have = set(np.round(co[0::2]).astype(int).tolist())
+        missing = [k for k in keys if k not in have]
+        fr, val = gen.astype(np.float64), values[(j, path, i)]
+        if missing:  # a key frame this channel has no key at: key its current value
+            extra = np.array([fc.evaluate(k) for k in missing])
+            fr, val = np.concatenate([fr, missing]), np.concatenate([val, extra])
+        rig.write_curve(fc, fr, val, spans, prefs.keyframe_new_interpolation_type, prefs.keyframe_new_handle_type)
+    return {"gaps": len(gaps), "frames": total_frames, "keys": len(keys), "range": (first, last),
+            "model_seconds": t_model, "windows": model.calls}
+
+
+class INBETWEEN_OT_fill(bpy.types.Operator):
+    """Generate a pose on every frame between consecutive keys of the active armature with the in-betweening model
+    (existing keys are kept exactly)"""
+
+    bl_idname = "anim.inbetween_fill"
+    bl_label = "Fill In-betweens"
+    bl_options = {"REGISTER", "UNDO"}
+
+    only_selected_range: BoolProperty(
+        name="Only Selected Range",
+        description="Fill only the gaps spanned by the selected keys (no keys selected: the preview range)",
+        default=False)
+    model_path: StringProperty(
+        name="Model", description="An exported in-betweening window model (.onnx); empty: the bundled model",
+        default="", subtype="FILE_PATH")
+
+    @classmethod
+    def poll(cls, context):
+        return context.active_object is not None
+
+    def execute(self, context):
+        obj = context.active_object
+        t0 = time.perf_counter()
+        try:
+            model = load_model(self.model_path)
+            info = fill_range(context, obj, model, self.only_selected_range)
+        except (rig.RigError, engine.ModelError) as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        context.view_layer.update()
+        fps = context.scene.render.fps / context.scene.render.fps_base
+        model_fps = float(model.meta.get("fps", fps) or fps)
+        if abs(fps - model_fps) > 0.5:
+            self.report({"WARNING"}, f"the scene runs at {fps:.3g} fps, the model was trained at {model_fps:.3g} fps; "
+                                     "gaps are counted in frames")
+        LAST_FILL.clear()
+        LAST_FILL.update(info, seconds=time.perf_counter() - t0)
+        self.report({"INFO"}, f"In-between: {info['frames']} frames in {info['gaps']} gap(s) between "
+                              f"{info['keys']} keys ({time.perf_counter() - t0:.2f} s)")
+        return {"FINISHED"}
+
+
+class InbetweenSettings(bpy.types.PropertyGroup):
+    only_selected_range: BoolProperty(
+        name="Only Selected Range",
+        description="Fill only the gaps spanned by the selected keys (no keys selected: the preview range)",
+        default=False)
+    model_path: StringProperty(
+        name="Model", description="An exported in-betweening window model (.onnx); empty: the bundled model",
+        default="", subtype="FILE_PATH")
+
+
+class _Panel:
+    bl_region_type = "UI"
+    bl_category = "In-between"
+    bl_label = "In-betweening"
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.scene.inbetween_settings
+        col = layout.column()
+        col.prop(settings, "only_selected_range")
+        col.prop(settings, "model_path", text="Model")
+        op = col.operator(INBETWEEN_OT_fill.bl_idname, icon="IPO_BEZIER")
+        op.only_selected_range = settings.only_selected_range
+        op.model_path = settings.model_path
+        obj = context.active_object
+        box = layout.box()
+        box.scale_y = 0.7
+        if obj is None or obj.type != "ARMATURE":
+            box.label(text="Select an armature", icon="INFO")
+        if not settings.model_path:
+            for line in ("Bundled model: Bandai-Namco-2 skeleton,", "trained on CC BY-NC 4.0 data:",
+                         "non-commercial use only."):
+                box.label(text=line)
+
+
+class INBETWEEN_PT_dopesheet(_Panel, bpy.types.Panel):
+    bl_space_type = "DOPESHEET_EDITOR"
+    bl_idname = "INBETWEEN_PT_dopesheet"
+
+
+class INBETWEEN_PT_graph(_Panel, bpy.types.Panel):
+    bl_space_type = "GRAPH_EDITOR"
+    bl_idname = "INBETWEEN_PT_graph"
+
+
+class INBETWEEN_PT_view3d(_Panel, bpy.types.Panel):
+    bl_space_type = "VIEW_3D"
+    bl_idname = "INBETWEEN_PT_view3d"
+
+
+CLASSES = (InbetweenSettings, INBETWEEN_OT_fill, INBETWEEN_PT_dopesheet, INBETWEEN_PT_graph, INBETWEEN_PT_view3d)
+
+
+def register():
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.inbetween_settings = PointerProperty(type=InbetweenSettings)
+
+
+def unregister():
+    del bpy.types.Scene.inbetween_settings
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,323 @@
+"""Blender glue: the armature's animation <-> the model's (root, local quaternion) arrays, and writing keys.
+
+A pose bone's armature-space rotation is ``M_j = C G_j C^-1 R_j`` when the armature's rest pose is the model's zero
+pose (what Blender's BVH importer builds): ``G_j`` the joint's global rotation in the model's world, ``C`` the
+rotation (and scale ``s``) from the model's world to armature space, ``R_j`` the bone's rest rotation.  So a bone's
+rotation channels (``matrix_basis``) are the model's local rotation conjugated by a constant per bone:
+``q_basis = A_j L_j A_j^-1`` with ``A_j = R_j^-1 C``.  ``C`` and ``s`` are fitted to the rest pose's bone vectors
+(whatever axis conversion and scale the importer used).  The model's root is placed through its parent bones'
+evaluated pose (a static ``joint_Root`` above ``Hips`` in Bandai-Namco files).
+"""
+from __future__ import annotations
+
+import bpy
+import numpy as np
+from mathutils import Euler, Matrix, Quaternion, Vector
+
+from . import engine
+
+ROT_PATH = {"QUATERNION": ("rotation_quaternion", 4), "AXIS_ANGLE": ("rotation_axis_angle", 4)}
+GENERATED = "GENERATED" if "GENERATED" in bpy.types.Keyframe.bl_rna.properties["type"].enum_items.keys() else "BREAKDOWN"
+POINT_FLOATS = ("co", "handle_left", "handle_right")
+POINT_SCALARS = (("interpolation", np.int32), ("handle_left_type", np.int32), ("handle_right_type", np.int32),
+                 ("type", np.int32), ("easing", np.int32), ("back", np.float32), ("amplitude", np.float32),
+                 ("period", np.float32), ("select_control_point", np.int32), ("select_left_handle", np.int32),
+                 ("select_right_handle", np.int32))
+
+
+class RigError(ValueError):
+    """The armature cannot be filled with this model; the message says why."""
+
+
+def _enum_index(prop: str, name: str) -> int:
+    return bpy.types.Keyframe.bl_rna.properties[prop].enum_items.keys().index(name)
+
+
+def rot_path(pb) -> tuple[str, int]:
+    return ROT_PATH.get(pb.rotation_mode, ("rotation_euler", 3))
+
+
+def channelbag(obj, create: bool = False):
+    """The F-curve container of the object's action (the slot's channelbag in Blender 4.4+, the action before)."""
+    ad = obj.animation_data
+    if ad is None or ad.action is None:
+        return None
+    slot = getattr(ad, "action_slot", None)
+    if slot is not None:
+        from bpy_extras import anim_utils
+
+        if create:
+            return anim_utils.action_ensure_channelbag_for_slot(ad.action, slot)
+        return anim_utils.action_get_channelbag_for_slot(ad.action, slot)
+    return ad.action
+
+
+def bone_path(name: str, prop: str) -> str:
+    return f'pose.bones["{bpy.utils.escape_identifier(name)}"].{prop}'
+
+
+def _rot_quat(pb, values) -> Quaternion:
+    """The rotation of a bone's rotation channel values in its rotation mode."""
+    if pb.rotation_mode == "QUATERNION":
+        return Quaternion(values).normalized()
+    if pb.rotation_mode == "AXIS_ANGLE":
+        return Quaternion(Vector(values[1:4]), values[0])
+    return Euler(values, pb.rotation_mode).to_quaternion()
+
+
+def _to_np(q) -> np.ndarray:
+    return np.array([q.w, q.x, q.y, q.z], dtype=np.float64)
+
+
+def _fit_rotation(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
+    """Rotation ``C`` and scale ``s`` minimising ``|dst - s C src|`` over rows (Kabsch)."""
+    h = src.T @ dst
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    c = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    s = float(np.sum(dst * (src @ c.T)) / max(np.sum(src * src), 1e-12))
+    return c, s
+
+
+class Rig:
+    """The model's joints on an armature object: bone mapping, the model-to-armature frame, channel reading."""
+
+    def __init__(self, obj, model: engine.Model):
+        if obj is None or obj.type != "ARMATURE":
+            raise RigError("select an armature (the active object is not one)")
+        bones = obj.data.bones
+        missing = [n for n in model.names if bones.get(n) is None]
+        if missing:
+            raise RigError(f"armature '{obj.name}' does not match the model's skeleton: missing bones "
+                           f"{', '.join(missing)} (the model expects {len(model.names)} bones: "
+                           f"{', '.join(model.names)})")
+        for j, name in enumerate(model.names[1:], start=1):
+            parent = bones[name].parent
+            want = model.names[model.parents[j]]
+            if parent is None or parent.name != want:
+                raise RigError(f"armature '{obj.name}' does not match the model's skeleton: bone '{name}' has parent "
+                               f"'{parent.name if parent else None}', the model's is '{want}'")
+        self.obj, self.model = obj, model
+        self.pbones = [obj.pose.bones[n] for n in model.names]
+        heads = np.array([bones[n].head_local for n in model.names], dtype=np.float64)
+        vec = np.array([heads[j] - heads[p] for j, p in enumerate(model.parents) if p >= 0])
+        off = np.array([model.offsets[j] for j, p in enumerate(model.parents) if p >= 0])
+        c, s = _fit_rotation(off, vec)
+        err = np.abs(vec - s * off @ c.T).max()
+        if not np.isfinite(err) or s <= 0 or err > 1e-3 * max(np.abs(vec).max(), 1e-6):
+            raise RigError(f"armature '{obj.name}': its rest pose does not match the model's skeleton offsets "
+                           f"(residual {err:.3g}); import the clip with Blender's BVH importer")
+        self.C, self.s = c, s
+        self.c = _to_np(Matrix(c.tolist()).to_quaternion())
+        rest = [bones[n].matrix_local for n in model.names]
+        self.r = np.array([_to_np(m.to_quaternion()) for m in rest])  # bone rest rotations
+        self.A = engine.qmul(engine.qinv(self.r), self.c[None])  # (J, 4)
+        root = bones[model.names[0]]
+        # armature-space matrix of the root = P(f) @ root_rel @ basis, P(f) = the parent's pose @ its rest^-1
+        self.root_rel = (root.parent.matrix_local.inverted() @ root.matrix_local) if root.parent else root.matrix_local.copy()
+        self.ancestors = []
+        b = root.parent
+        while b is not None:
+            self.ancestors.insert(0, obj.pose.bones[b.name])
+            b = b.parent
+        self.fcurves = channelbag(obj)
+
+    # ------------------------------------------------------------------ channels
+    def channels(self):
+        """``[(joint, data_path, index)]`` of every channel the fill writes."""
+        out = []
+        for j, pb in enumerate(self.pbones):
+            path, n = rot_path(pb)
+            out += [(j, bone_path(pb.name, path), i) for i in range(n)]
+            if j == 0:
+                out += [(0, bone_path(pb.name, "location"), i) for i in range(3)]
+        return out
+
+    def fcurve(self, path: str, index: int):
+        return self.fcurves.fcurves.find(path, index=index) if self.fcurves is not None else None
+
+    def _value(self, pb, prop: str, n: int, frame: float) -> list[float]:
+        cur = list(getattr(pb, prop))
+        vals = []
+        for i in range(n):
+            fc = self.fcurve(bone_path(pb.name, prop), i)
+            vals.append(fc.evaluate(frame) if fc is not None and not fc.mute else cur[i])
+        return vals
+
+    def _basis(self, pb, frame: float) -> Matrix:
+        loc = Vector(self._value(pb, "location", 3, frame))
+        path, n = rot_path(pb)
+        rot = _rot_quat(pb, self._value(pb, path, n, frame))
+        scale = Vector(self._value(pb, "scale", 3, frame))
+        return Matrix.LocRotScale(loc, rot, scale)
+
+    def parent_matrix(self, frame: float) -> Matrix:
+        """``P(f)``: the pose matrix of the root's parent chain at ``frame`` times the root's rest relation."""
+        m = Matrix.Identity(4)
+        prev = None
+        for pb in self.ancestors:
+            rel = (prev.bone.matrix_local.inverted() @ pb.bone.matrix_local) if prev is not None else pb.bone.matrix_local
+            m = m @ rel @ self._basis(pb, frame)
+            prev = pb
+        return m @ self.root_rel
+
+    def read(self, frames) -> tuple[np.ndarray, np.ndarray, list]:
+        """Model-space ``root (F, 3), local_q (F, J, 4)`` of the animation at ``frames``, and the raw rotation channel
+        values ``[F][J]`` (for Euler continuity)."""
+        f, j = len(frames), len(self.pbones)
+        qb = np.zeros((f, j, 4))
+        raw = [[None] * j for _ in range(f)]
+        root = np.zeros((f, 3))
+        for k, pb in enumerate(self.pbones):
+            path, n = rot_path(pb)
+            curves = [self.fcurve(bone_path(pb.name, path), i) for i in range(n)]
+            cur = list(getattr(pb, path))
+            for t, fr in enumerate(frames):
+                vals = [c.evaluate(fr) if c is not None and not c.mute else cur[i] for i, c in enumerate(curves)]
+                raw[t][k] = vals
+                qb[t, k] = _to_np(_rot_quat(pb, vals))
+        local = engine.qmul(engine.qmul(engine.qinv(self.A)[None], qb), self.A[None])
+        cinv = np.linalg.inv(self.C)
+        rots = np.zeros((f, 4))
+        for t, fr in enumerate(frames):
+            m = self.parent_matrix(fr) @ self._basis(self.pbones[0], fr)
+            rots[t] = _to_np(m.to_quaternion())
+            root[t] = cinv @ np.array(m.translation) / self.s
+        local[:, 0] = engine.qmul(engine.qmul(engine.qinv(self.c)[None], rots),
+                                  engine.qmul(engine.qinv(self.r[0]), self.c)[None])
+        return root, engine.qnormalize(local, 0.0), raw
+
+    def basis_values(self, frames, root, local_q, raw_prev):
+        """Channel values ``{(joint, path, index): array over frames}`` that pose the armature as ``root (F, 3),
+        local_q (F, J, 4)`` at ``frames`` (in order; Euler and quaternion values continuous with ``raw_prev``, the
+        rotation channel values at the frame before each run of frames: ``{frame: [J values]}``)."""
+        qb = engine.qmul(engine.qmul(self.A[None], local_q), engine.qinv(self.A)[None])
+        locs = np.zeros((len(frames), 3))
+        rots = engine.qmul(engine.qmul(self.c[None], local_q[:, 0]), engine.qmul(engine.qinv(self.c), self.r[0])[None])
+        heads = (root @ self.C.T) * self.s
+        for t, fr in enumerate(frames):
+            m = Matrix.LocRotScale(Vector(heads[t]), Quaternion(rots[t]), None)
+            basis = (self.parent_matrix(fr)).inverted() @ m
+            locs[t] = np.array(basis.translation)
+            qb[t, 0] = _to_np(basis.to_quaternion())
+        out = {}
+        for k, pb in enumerate(self.pbones):
+            path, n = rot_path(pb)
+            vals = np.zeros((len(frames), n))
+            prev = None
+            for t, fr in enumerate(frames):
+                if fr - 1 in raw_prev:
+                    prev = raw_prev[fr - 1][k]
+                q = Quaternion(qb[t, k])
+                if pb.rotation_mode == "QUATERNION":
+                    if prev is not None and np.dot(qb[t, k], prev) < 0:
+                        q.negate()
+                    v = list(q)
+                elif pb.rotation_mode == "AXIS_ANGLE":
+                    axis, angle = q.to_axis_angle()
+                    v = [angle, *axis]
+                else:
+                    v = list(q.to_euler(pb.rotation_mode, Euler(prev, pb.rotation_mode)) if prev is not None
+                             else q.to_euler(pb.rotation_mode))
+                vals[t] = v
+                prev = v
+            for i in range(n):
+                out[(k, bone_path(pb.name, path), i)] = vals[:, i]
+            if k == 0:
+                for i in range(3):
+                    out[(0, bone_path(pb.name, "location"), i)] = locs[:, i]
+        return out
+
+
+# ---------------------------------------------------------------------------------------------- keys
+def key_frames(fcurves, lo: float, hi: float, selected_only: bool = False) -> set[int]:
+    """Frames in ``[lo, hi]`` holding a key (not a generated in-between) on any of ``fcurves``."""
+    gen = _enum_index("type", GENERATED)
+    out: set[int] = set()
+    for fc in fcurves:
+        n = len(fc.keyframe_points)
+        if n == 0:
+            continue
+        co = np.zeros(2 * n, dtype=np.float32)
+        fc.keyframe_points.foreach_get("co", co)
+        typ = np.zeros(n, dtype=np.int32)
+        fc.keyframe_points.foreach_get("type", typ)
+        keep = typ != gen
+        if selected_only:
+            sel = np.zeros(n, dtype=np.int32)
+            fc.keyframe_points.foreach_get("select_control_point", sel)
+            keep &= sel.astype(bool)
+        x = np.round(co[0::2][keep]).astype(int)
+        out.update(int(f) for f in x if lo <= f <= hi)
+    return out
+
+
+def _points(fc) -> dict:
+    kp = fc.keyframe_points
+    n = len(kp)
+    arr = {}
+    for name in POINT_FLOATS:
+        a = np.zeros(2 * n, dtype=np.float32)
+        kp.foreach_get(name, a)
+        arr[name] = a.reshape(n, 2)
+    for name, dt in POINT_SCALARS:
+        a = np.zeros(n, dtype=dt)
+        kp.foreach_get(name, a)
+        arr[name] = a
+    return arr
+
+
+def write_curve(fc, frames: np.ndarray, values: np.ndarray, spans, interp: str, handle: str) -> None:
+    """Key ``values`` at ``frames`` on ``fc``; generated keys already inside the filled ``spans`` ``[(lo, hi)]`` are
+    replaced, every other key is kept with all its properties; the keys at the span ends get frozen (``FREE``)
+    handles so the curve outside the spans keeps its shape."""
+    old = _points(fc)
+    x = old["co"][:, 0]
+    gen = _enum_index("type", GENERATED)
+    inside = np.zeros(len(x), dtype=bool)
+    for lo, hi in spans:
+        inside |= (x > lo + 1e-4) & (x < hi - 1e-4)
+    drop = inside & (old["type"] == gen)
+    keep = {k: v[~drop] for k, v in old.items()}
+    free = _enum_index("handle_left_type", "FREE")
+    for lo, hi in spans:
+        for edge, outer in ((lo, "handle_left"), (hi, "handle_right")):
+            at = np.nonzero(np.abs(keep["co"][:, 0] - edge) < 1e-4)[0]
+            for i in at:
+                keep["handle_left_type"][i] = keep["handle_right_type"][i] = free
+                inner = "handle_right" if outer == "handle_left" else "handle_left"
+                co, h = keep["co"][i], keep[inner][i]
+                dx = h[0] - co[0]
+                if abs(dx) > 1e-6:  # the inner handle: same slope, a third of a frame long
+                    third = np.float32(1.0 / 3.0) * np.sign(dx)
+                    keep[inner][i] = (co[0] + third, co[1] + (h[1] - co[1]) * third / dx)
+    n_new = len(frames)
+    new = {
+        "co": np.stack([frames.astype(np.float32), values.astype(np.float32)], -1),
+        "interpolation": np.full(n_new, _enum_index("interpolation", interp), np.int32),
+        "handle_left_type": np.full(n_new, _enum_index("handle_left_type", handle), np.int32),
+        "handle_right_type": np.full(n_new, _enum_index("handle_right_type", handle), np.int32),
+        "type": np.full(n_new, gen, np.int32),
+        "easing": np.zeros(n_new, np.int32),
+        "back": np.full(n_new, 1.70158, np.float32), "amplitude": np.full(n_new, 0.8, np.float32),
+        "period": np.full(n_new, 4.1, np.float32),
+        "select_control_point": np.zeros(n_new, np.int32), "select_left_handle": np.zeros(n_new, np.int32),
+        "select_right_handle": np.zeros(n_new, np.int32),
+    }
+    new["handle_left"] = new["co"] - np.array([1.0 / 3.0, 0.0], np.float32)
+    new["handle_right"] = new["co"] + np.array([1.0 / 3.0, 0.0], np.float32)
+    allp = {k: np.concatenate([keep[k], new[k]]) for k in keep}
+    order = np.argsort(allp["co"][:, 0], kind="stable")
+    allp = {k: v[order] for k, v in allp.items()}
+    kp = fc.keyframe_points
+    total = len(order)
+    if total > len(kp):
+        kp.add(total - len(kp))
+    elif total < len(kp):
+        for _ in range(len(kp) - total):
+            kp.remove(kp[len(kp) - 1], fast=True)
+    for name in POINT_FLOATS:
+        kp.foreach_set(name, np.ascontiguousarray(allp[name]).reshape(-1))
+    for name, _ in POINT_SCALARS:
+        kp.foreach_set(name, np.ascontiguousarray(allp[name]))
+    fc.update()

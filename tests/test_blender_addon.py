@@ -1,0 +1,227 @@
+"""The Blender extension in real Blender (``bpy`` from the package index, headless): build it, install it into a
+throw-away user folder, import a BVH of the model's skeleton with Blender's own importer, thin its keys and run
+``anim.inbetween_fill``.  Slow: it builds the extension (wheels from the package index, cached) and needs a
+Python 3.11 venv with ``bpy`` (created on first use; see ``inbetweening.blender.bpyenv``)."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from inbetweening.data.bvh import BVH, read_bvh
+from inbetweening.data.bvh_writer import write_bvh
+from inbetweening.geometry.quaternion import euler_to_quat_np
+
+pytestmark = pytest.mark.slow
+
+REPO = Path(__file__).resolve().parents[1]
+CKPT = REPO / "models" / "bn2_reference" / "model.ckpt"
+BN2 = Path(os.environ.get("BANDAI_NAMCO_PATH", REPO.parent / "shared" / "datasets" / "bandai-namco-2.zip"))
+BN2_CLIP = "Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk-turn-right_active_026.bvh"
+SCRIPT = REPO / "tests" / "blender" / "bpy_fill_check.py"
+
+
+def model_skeleton_bvh(path: Path, frames: int = 121, seed: int = 0) -> BVH:
+    """A BVH of the model's own skeleton (names, parents, offsets from the checkpoint): ZXY Euler channels, a
+    root walking forward and turning, limbs swinging."""
+    from inbetweening.tools.inbetweener import Inbetweener
+
+    sk = Inbetweener.from_checkpoint(CKPT).skeleton
+    j = sk.num_joints
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames)[:, None]
+    amp = rng.uniform(5, 25, (1, j, 3))
+    phase = rng.uniform(0, 2 * np.pi, (1, j, 3))
+    angles = amp * np.sin(2 * np.pi * t[..., None] / rng.uniform(25, 60, (1, j, 3)) + phase)  # degrees, ZXY
+    angles[:, 0, 0] += 90.0  # BN-2's Hips: local +X up the spine
+    angles[:, 0, 2] += np.linspace(0, 120, frames)  # turning
+    q = euler_to_quat_np(angles, "zxy")
+    root = np.stack([20 * np.sin(t[:, 0] / 30), 90 + 2 * np.sin(t[:, 0] / 5), 3.0 * t[:, 0]], axis=-1)
+    pos = np.repeat(sk.offsets[None], frames, axis=0)
+    pos[:, 0] = root
+    leaves = [i for i in range(j) if i not in sk.parents]
+    channels = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")] + \
+        [("Zrotation", "Xrotation", "Yrotation")] * (j - 1)
+    empty = BVH(list(sk.names), list(sk.parents), sk.offsets, channels, {i: np.array([0.0, 5.0, 0.0]) for i in leaves},
+                1 / 30, np.zeros((1, 3 + 3 * j)), str(path))
+    bvh = empty.with_motion(q, pos)
+    write_bvh(bvh, path)
+    return bvh
+
+
+@pytest.fixture(scope="module")
+def bpy_exe():
+    from inbetweening.blender.bpyenv import bpy_python
+
+    exe = bpy_python()
+    if exe is None:
+        pytest.skip("no Python 3.11 to create the bpy venv with")
+    return exe
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dist")
+    proc = subprocess.run([sys.executable, "-m", "inbetweening.blender", "build", str(out), f"ckpt_path={CKPT}",
+                           "platforms=linux-x64,windows-x64,macos-arm64"], capture_output=True, text=True,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return out
+
+
+def run_blender(bpy_exe, zip_path, bvh_path, scenarios, out: Path) -> dict:
+    cfg = {"zip": str(zip_path), "bvh": str(bvh_path), "out": str(out), "scenarios": scenarios}
+    (out / "cfg.json").write_text(json.dumps(cfg))
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(out / "user"), "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run([str(bpy_exe), str(SCRIPT), str(out / "cfg.json")], capture_output=True, text=True, env=env,
+                          timeout=900)
+    assert proc.returncode == 0, (proc.stdout[-3000:], proc.stderr[-3000:])
+    results = {r["name"]: r for r in json.loads((out / "results.json").read_text())}
+    for r in results.values():
+        assert "crash" not in r, r["crash"]
+    return results
+
+
+def fitted_error(ours: np.ndarray, theirs: np.ndarray, key_idx) -> float:
+    """Largest joint distance (model units: cm) after mapping Blender's heads to the model's world with the
+    similarity fitted on the key frames (identical poses by construction)."""
+    a = theirs[key_idx].reshape(-1, 3)
+    b = ours[key_idx].reshape(-1, 3)
+    ma, mb = a.mean(0), b.mean(0)
+    u, _, vt = np.linalg.svd((a - ma).T @ (b - mb))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    r = vt.T @ np.diag([1, 1, d]) @ u.T
+    s = np.sum((b - mb) * ((a - ma) @ r.T)) / np.sum((a - ma) ** 2)
+    mapped = s * (theirs.reshape(-1, 3) - ma) @ r.T + mb
+    return float(np.linalg.norm(mapped - ours.reshape(-1, 3), axis=-1).max())
+
+
+def inbetweener_positions(bvh_path, keys_blender):
+    from inbetweening.tools.inbetweener import Inbetweener
+
+    ib = Inbetweener.from_checkpoint(CKPT)
+    res = ib.fill_detailed(read_bvh(bvh_path), keyframes=[k - 1 for k in keys_blender])
+    return res.global_positions()
+
+
+def test_zips_hold_the_model_and_wheels(built):
+    zips = sorted(built.glob("inbetweening-*.zip"))
+    assert [z.name.rsplit("-", 2)[-2:] for z in zips] == [["linux", "x64.zip"], ["macos", "arm64.zip"],
+                                                            ["windows", "x64.zip"]]
+    for z in zips:
+        names = zipfile.ZipFile(z).namelist()
+        assert {"blender_manifest.toml", "__init__.py", "model/model.onnx", "model/model.json"} <= set(names)
+        wheels = [n for n in names if n.startswith("wheels/")]
+        assert any(n.startswith("wheels/onnxruntime-") for n in wheels)
+        assert not any(n.startswith("wheels/numpy-") or n.startswith("wheels/torch") for n in wheels)
+        manifest = zipfile.ZipFile(z).read("blender_manifest.toml").decode()
+        assert all(f'"./{w}"' in manifest for w in wheels)
+        assert "[permissions]" in manifest and "CC BY-NC" in zipfile.ZipFile(z).read("README.md").decode()
+
+
+def test_blender_validates_every_zip(bpy_exe, built):
+    """Blender's own extension validator (``blender --command extension validate``) accepts each zip."""
+    found = list(Path(bpy_exe).parents[1].glob("lib/python3.11/site-packages/bpy/*/scripts/addons_core/bl_pkg/cli/"
+                                              "blender_ext.py"))
+    if not found:
+        pytest.skip("Blender's extension command-line tool not found next to bpy")
+    for z in sorted(built.glob("inbetweening-*.zip")):
+        proc = subprocess.run([str(bpy_exe), str(found[0]), "validate", str(z)], capture_output=True, text=True)
+        assert proc.returncode == 0 and "Success" in proc.stdout + proc.stderr, (z.name, proc.stdout, proc.stderr)
+
+
+def test_fill_in_blender(bpy_exe, built, tmp_path):
+    bvh_path = tmp_path / "clip.bvh"
+    model_skeleton_bvh(bvh_path)
+    (tmp_path / "bad.onnx").write_text("not a model")
+    zip_path = next(built.glob("*-linux-x64.zip"))
+    scenarios = [
+        {"name": "zxy", "keys_every": 15, "frame_end": 100, "undo": True, "refill": True},
+        {"name": "quaternion", "keys_every": 20, "rotate_mode": "QUATERNION"},
+        {"name": "xyz", "keys_every": 30, "rotate_mode": "XYZ"},
+        {"name": "selected", "keys_every": 15, "select": [31, 46], "select_span": [31, 46], "only_selected_range": True},
+        {"name": "preview", "keys_every": 15, "select": [-9, -9], "preview": [44, 80], "select_span": [46, 76],
+         "only_selected_range": True},
+        {"name": "sparse", "keys_every": 15, "drop_curves": ["Head"], "drop_key": ["Neck", "rotation_euler", 0, 31]},
+        {"name": "bad_model", "keys_every": 15, "model_path": str(tmp_path / "bad.onnx")},
+        {"name": "no_model", "keys_every": 15, "model_path": str(tmp_path / "missing.onnx")},
+        {"name": "wrong_armature", "keys_every": 15, "rename": ["Toes_R", "Toe_R"]},
+        {"name": "not_armature", "keys_every": 15, "active_mesh": True},
+        {"name": "no_animation", "keys_every": 15, "no_animation": True},
+    ]
+    res = run_blender(bpy_exe, zip_path, bvh_path, scenarios, tmp_path)
+
+    z = res["zxy"]
+    assert z["result"] == ["FINISHED"] and z["rotation_mode"] == "ZXY" and z["in_range_keys"][0] == 1
+    assert z["n_lost_keys"] == 0 and z["model_channels"] == 21 * 3 + 3
+    keys = z["in_range_keys"]
+    want = [f for a, b in zip(keys, keys[1:]) for f in range(a + 1, b)]
+    assert all(g == want for g in z["gained"].values()), "every in-between of every model channel keyed"
+    assert z["max_change_outside"] == 0.0
+    assert z["bl_options"] == ["REGISTER", "UNDO"] and z["undo_equal"]
+    assert z["refill"]["result"] == ["FINISHED"] and z["refill"]["same"]
+
+    for name in ("zxy", "quaternion", "xyz"):
+        r = res[name]
+        assert r["result"] == ["FINISHED"], r
+        heads = np.load(tmp_path / f"{name}_heads.npy")
+        ref = inbetweener_positions(bvh_path, r["in_range_keys"])
+        assert heads.shape == ref.shape
+        key_idx = [k - r["in_range_keys"][0] for k in r["in_range_keys"]]
+        err = fitted_error(ref, heads, key_idx)
+        assert err <= 1e-3, (name, err)
+    assert res["quaternion"]["rotation_mode"] == "QUATERNION" and res["xyz"]["rotation_mode"] == "XYZ"
+
+    s = res["selected"]
+    assert s["result"] == ["FINISHED"] and s["n_lost_keys"] == 0 and s["max_change_outside"] == 0.0
+    assert all(g == list(range(32, 46)) for g in s["gained"].values())
+    p = res["preview"]
+    assert p["result"] == ["FINISHED"] and p["max_change_outside"] == 0.0
+    assert all(g == list(range(47, 61)) + list(range(62, 76)) for g in p["gained"].values())
+
+    sp = res["sparse"]  # channels without a curve, or without a key at a key frame: created / keyed
+    assert sp["result"] == ["FINISHED"] and sp["n_lost_keys"] == 0 and sp["max_change_outside"] == 0.0
+    assert sp["new_curves"] == [f'pose.bones["Head"].rotation_euler[{i}]' for i in range(3)]
+    keys = sp["in_range_keys"]
+    assert sp["gained"]['pose.bones["Head"].rotation_euler[0]'] == list(range(keys[0], keys[-1] + 1))
+    between = [f for a, b in zip(keys, keys[1:]) for f in range(a + 1, b)]
+    assert sp["gained"]['pose.bones["Neck"].rotation_euler[0]'] == sorted(between + [31])
+    assert sp["gained"]['pose.bones["Neck"].rotation_euler[1]'] == between
+
+    for name, needle in (("bad_model", "not a readable ONNX model"), ("no_model", "model file not found"),
+                         ("wrong_armature", "missing bones Toe_R"), ("not_armature", "select an armature"),
+                         ("no_animation", "has no animation")):
+        r = res[name]
+        assert r["result"] == ["CANCELLED"] and needle.replace("Toe_R", "Toes_R") in r["error"], r["error"]
+        assert r["n_lost_keys"] == 0 and r["changed_curves"] == 0
+        assert all(g == [] for g in r["gained"].values())
+
+
+@pytest.mark.skipif(not BN2.is_file(), reason="Bandai-Namco-2 zip not available")
+def test_fill_real_bandai_namco_clip(bpy_exe, built, tmp_path):
+    """A real clip with its static joint_Root above Hips (the model's root is placed through it)."""
+    with zipfile.ZipFile(BN2) as zf:
+        (tmp_path / "clip.bvh").write_bytes(zf.read(BN2_CLIP))
+    zip_path = next(built.glob("*-linux-x64.zip"))
+    res = run_blender(bpy_exe, zip_path, tmp_path / "clip.bvh", [{"name": "bn2", "keys_every": 30}], tmp_path)
+    r = res["bn2"]
+    assert r["result"] == ["FINISHED"] and r["bones"][0] == "joint_Root" and r["n_lost_keys"] == 0
+    heads = np.load(tmp_path / "bn2_heads.npy")
+    ref = inbetweener_positions(tmp_path / "clip.bvh", r["in_range_keys"])
+    err = fitted_error(ref, heads, [k - r["in_range_keys"][0] for k in r["in_range_keys"]])
+    assert err <= 1e-3, err
+
+
+def test_build_reports_a_failed_wheel_download_in_one_line(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "inbetweening.blender", "build", str(tmp_path / "out"),
+                           "onnxruntime=0.0.1", "platforms=linux-x64", f"wheels={tmp_path / 'wheels'}"],
+                          capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.startswith("error: downloading onnxruntime==0.0.1 wheels for linux-x64 failed")
+    assert proc.stderr.count("\n") == 1 and not list((tmp_path / "out").glob("*.zip"))
