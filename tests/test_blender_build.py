@@ -15,7 +15,7 @@ from inbetweening.blender.extension import engine
 from inbetweening.geometry import canonical
 from inbetweening.geometry.quaternion import remove_discontinuities, slerp_np
 from inbetweening.predictor import masks
-from inbetweening.tools.export import WindowPath, _neighbour_known_onnx, export_onnx, export_window_onnx
+from inbetweening.tools.export import WindowPath, export_onnx, export_window_onnx
 
 REPO = Path(__file__).resolve().parents[1]
 CKPT = REPO / "models" / "bn2_reference" / "model.ckpt"
@@ -60,7 +60,7 @@ def test_neighbour_known_without_cummax_is_exact():
     for shape in [(3, 26, 21), (2, 7, 5), (1, 1, 3)]:
         known = torch.rand(*shape, generator=g) < 0.4
         known[0, :, 0] = False  # a joint with no known frame at all
-        for a, b in zip(masks._neighbour_known(known), _neighbour_known_onnx(known)):
+        for a, b in zip(masks._neighbour_known(known), masks._neighbour_known_exportable(known)):
             assert torch.equal(a, b)
 
 

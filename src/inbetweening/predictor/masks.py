@@ -82,13 +82,29 @@ def zero_fill(x: torch.Tensor, known: torch.Tensor, layout=None) -> torch.Tensor
 
 
 def _neighbour_known(known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Index of the previous and next known frame of each joint (or -1 / T when none).  ``(B, T, J)`` each."""
+    """Index of the previous and next known frame of each joint (or -1 / T when none).  ``(B, T, J)`` each.
+
+    While exporting to ONNX (which has no ``cummax``) the same integers come from a masked max / min over a
+    ``(T, T)`` triangle (:func:`_neighbour_known_exportable`)."""
+    if torch.onnx.is_in_onnx_export():
+        return _neighbour_known_exportable(known)
     b, t, j = known.shape
     idx = torch.arange(t, device=known.device)[None, :, None].expand(b, t, j)
     prev = torch.where(known, idx, torch.full_like(idx, -1)).cummax(dim=1).values
     rev = torch.where(known, t - 1 - idx, torch.full_like(idx, -1)).flip(1).cummax(dim=1).values.flip(1)
     nxt = torch.where(rev >= 0, t - 1 - rev, torch.full_like(rev, t))
     return prev, nxt
+
+
+def _neighbour_known_exportable(known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`_neighbour_known` as a masked max / min over a ``(T, T)`` triangle (ONNX operators only; memory
+    ``B * J * T * T``, so only for export): the same integers."""
+    t = known.shape[1]
+    idx = torch.arange(t, device=known.device)
+    kn = known.permute(0, 2, 1)[:, :, None, :]  # (B, J, 1, S)
+    prev = torch.where(kn & (idx[None, :] <= idx[:, None]), idx, torch.full_like(idx, -1)).amax(-1)
+    nxt = torch.where(kn & (idx[None, :] >= idx[:, None]), idx, torch.full_like(idx, t)).amin(-1)
+    return prev.permute(0, 2, 1), nxt.permute(0, 2, 1)
 
 
 def lerp_fill(x: torch.Tensor, known: torch.Tensor, layout) -> torch.Tensor:

@@ -212,10 +212,14 @@ class Predictor(nn.Module):
         if with_raw:
             net = functools.partial(net, with_raw=True)
         feats, _ = self.canonical_features(root, local_q, known)
-        known = known.to(feats.device)
-        x, interp = apply_mask(self.mask_name, feats, known, self.representation)
-        out = net(x, known, interp)
+        out, interp = self.network_forward(feats, known.to(feats.device), net)
         return (out[0], interp, feats, out[1]) if with_raw else (out, interp, feats)
+
+    def network_forward(self, feats: torch.Tensor, known: torch.Tensor, net=None):
+        """Features in the canonical frame -> ``(network output, interpolation)``: the mask fills the unknown values
+        (never read: NaN is fine), the network predicts them; known values come back as given."""
+        x, interp = apply_mask(self.mask_name, feats, known, self.representation)
+        return (net or self.net)(x, known, interp), interp
 
     @torch.no_grad()
     def predict_windows(self, root, local_q, known: torch.Tensor) -> Filled:
@@ -224,8 +228,7 @@ class Predictor(nn.Module):
         unknown input values are never read (they may be NaN)."""
         feats, frame = self.canonical_features(root, local_q, known)
         known = known.to(feats.device)
-        x, interp = apply_mask(self.mask_name, feats, known, self.representation)
-        pred = self.net(x, known, interp)
+        pred, interp = self.network_forward(feats, known)
         frame = tuple(torch.as_tensor(f, device=feats.device) for f in frame)
         root_in = torch.as_tensor(root, dtype=torch.float64, device=feats.device)
         q_in = torch.as_tensor(local_q, dtype=torch.float64, device=feats.device)

@@ -214,42 +214,23 @@ if __name__ == "__main__":
 WINDOW_FORMAT = "inbetweening-window-onnx/1"
 
 
-def _neighbour_known_onnx(known: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """:func:`inbetweening.predictor.masks._neighbour_known` without ``cummax`` (which ONNX lacks): the previous /
-    next known frame of each joint as a masked max / min over a ``(T, T)`` triangle.  The same integers."""
-    t = known.shape[1]
-    idx = torch.arange(t, device=known.device)
-    before = idx[None, :] <= idx[:, None]  # [t, s]: s <= t
-    kn = known.permute(0, 2, 1)[:, :, None, :]  # (B, J, 1, S)
-    prev = torch.where(kn & before, idx, torch.full_like(idx, -1)).amax(-1)
-    after = idx[None, :] >= idx[:, None]
-    nxt = torch.where(kn & after, idx, torch.full_like(idx, t)).amin(-1)
-    return prev.permute(0, 2, 1), nxt.permute(0, 2, 1)
-
-
 class WindowPath(torch.nn.Module):
     """``(root (B, T, 3), local_q (B, T, J, 4), known (B, T, J)) -> (root (B, T, 3), local_q (B, T, J, 4))``: the
     predictor's whole path for canonicalised windows, float64 in and out.
 
     It is :meth:`Predictor.encode <inbetweening.predictor.predictor.Predictor.encode>` (FK in float64, features cast
-    to float32), :meth:`Predictor.predict` (mask, known-frame centring, network, shift back, known values copied) and
-    :meth:`Predictor.decode` - what :meth:`Predictor.fill_windows` runs between ``canonicalise`` and
-    ``uncanonicalise``.  Unknown input values are never read."""
+    to float32), :meth:`Predictor.network_forward` (mask, network, known values kept) and :meth:`Predictor.decode`:
+    what :meth:`Predictor.predict_windows` runs between the canonical frame and back.  Unknown input values are never
+    read."""
 
     def __init__(self, predictor):
         super().__init__()
         self.predictor = predictor
 
     def forward(self, root, local_q, known):
-        from inbetweening.predictor import masks
-
         p = self.predictor
         feats = p.representation.encode(root, local_q).to(torch.float32)
-        if hasattr(p, "predict"):  # mask, feature-space centring, network, shift back, known values copied
-            pred, _ = p.predict(feats, known)
-        else:  # a predictor whose only centring is the world-space canonical frame: the windows already are in it
-            x, interp = masks.apply_mask(p.mask_name, feats, known, p.representation)
-            pred = torch.where(known[..., None], feats, p.net(x, known, interp))
+        pred, _ = p.network_forward(feats, known)
         return p.decode(pred)
 
 
@@ -261,9 +242,9 @@ def window_metadata(model, trained_gap: int | None = None) -> dict[str, str]:
     predictor = _predictor(model)
     meta = metadata(predictor, ["root", "local_q", "known"])
     gap = trained_gap or predictor.train_window - predictor.n_past - 1
-    # where the caller centres the windows: the known frames' mean root XZ, or (a predictor whose canonical frame
-    # is its only centring, with centre="last") the last context frame's root XZ
-    frame_centre = "last" if not hasattr(predictor, "predict") and predictor.centre == "last" else "known"
+    # where the caller centres the windows (Predictor.canonical_frame): the last context frame's root XZ for
+    # centre="last", else the known frames' mean root XZ
+    frame_centre = "last" if predictor.centre == "last" else "known"
     meta.update({"format": json.dumps(WINDOW_FORMAT), "outputs": json.dumps(["root_out", "local_q_out"]),
                  "trained_gap": json.dumps(int(gap)), "frame_centre": json.dumps(frame_centre)})
     return meta
@@ -280,10 +261,7 @@ def export_window_onnx(model, path: str | Path, opset: int = 17, check: bool = T
         import onnx
     except ImportError:
         raise ExportError("format=onnx needs the onnx package: pip install 'inbetweening[export]'") from None
-    from unittest import mock
-
     from inbetweening.atomic import atomic_path
-    from inbetweening.predictor import masks
 
     trained_gap = trained_gap or getattr(model, "trained_gap", None)
     predictor = _predictor(model).eval().cpu()
@@ -294,8 +272,7 @@ def export_window_onnx(model, path: str | Path, opset: int = 17, check: bool = T
     meta = window_metadata(predictor, trained_gap)
     meta.update({k: json.dumps(v) for k, v in (extra or {}).items()})
     with atomic_path(path) as tmp:
-        with warnings.catch_warnings(), torch.no_grad(), mock.patch.object(masks, "_neighbour_known",
-                                                                             _neighbour_known_onnx):
+        with warnings.catch_warnings(), torch.no_grad():
             warnings.simplefilter("ignore")
             torch.onnx.export(wrapper, example, str(tmp), dynamo=False, opset_version=int(opset), input_names=names[:3],
                               output_names=names[3:], dynamic_axes={k: {0: "batch", 1: "frames"} for k in names})
