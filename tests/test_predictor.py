@@ -17,8 +17,10 @@ from inbetweening.geometry import canonical
 from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.quaternion import qmul, qrot
 from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.models import build_network
+from inbetweening.models.base import DEFAULT_LAYOUT, FEATURE_DIM
 from inbetweening.predictor.checkpoint import CheckpointError, load_predictor, predictor_state, upgrade_module_state
-from inbetweening.predictor.masks import transition_known
+from inbetweening.predictor.masks import JointGaps, transition_known
 from inbetweening.predictor.predictor import CENTRES, LEGACY_CENTRE, Filled, Predictor, check_centre, upgrade_hparams
 from inbetweening.training.module import InbetweenModule
 
@@ -401,3 +403,32 @@ def test_reference_checkpoint_predictor_equals_the_module_and_loads_without_ligh
             "assert not bad, bad; print('ok')")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]
+
+
+# ------------------------------------------------------------------ the module's mask group, the network's layout
+def test_module_takes_the_mask_group_dict():
+    common = {"model": MODEL, "skeleton": SK.to_dict(), "pos_mean": MEAN.tolist(), "pos_std": STD.tolist(),
+              "centre": "known"}
+    joints = InbetweenModule(mask={"name": "joints", "gap_min": 4, "gap_max": 9, "frac_min": 0.2, "frac_max": 0.4},
+                             **common)
+    assert joints.mask_name == joints.predictor.mask_name == "joints"
+    assert joints.joint_gaps == JointGaps(4, 9, 0.2, 0.4)
+    zero = InbetweenModule(mask={"name": "zero"}, **common)
+    assert zero.mask_name == "zero" and zero.joint_gaps == JointGaps()
+    assert InbetweenModule(mask="lerp", **common).mask_name == "lerp"
+
+
+def test_the_network_is_built_with_the_representations_layout():
+    assert DEFAULT_LAYOUT == R.GlobalPosLocalQuat.layout() and FEATURE_DIM == 7
+    net = build_network(MODEL, SK)
+    assert (net.pos, net.quat, net.feature_dim) == (slice(0, 3), slice(3, 7), 7)
+    other = {"features": 8, "position": [4, 7], "rotation": [0, 4]}
+    wide = build_network(MODEL, SK, other)
+    assert (wide.pos, wide.quat, wide.feature_dim) == (slice(4, 7), slice(0, 4), 8)
+    x = torch.randn(2, 12, 4, 8)
+    x[..., 0:4] = torch.nn.functional.normalize(x[..., 0:4], dim=-1)
+    known = transition_known(2, 12, 4, 5, 4)
+    with torch.no_grad():
+        out = wide.eval()(x, known, x)
+    assert out.shape == x.shape and torch.equal(out[known], x[known])
+    np.testing.assert_allclose(out[..., 0:4].norm(dim=-1).numpy(), 1.0, atol=1e-5)  # the layout's rotation channels
