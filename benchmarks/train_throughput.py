@@ -184,7 +184,7 @@ def gather(model: str, depth: int | None, cache: str, n: int, extra: tuple[str, 
         dm.setup("fit")
     batches: list[dict] = []
     while len(batches) < n:  # full batches only (drop a short last batch)
-        batches += [b for b in dm.train_dataloader() if b["gt"].shape[0] == BATCH]
+        batches += [b for b in dm.train_dataloader() if b["q"].shape[0] == BATCH]
     return cfg, dm, batches[:n]
 
 
@@ -194,7 +194,7 @@ def bench(cfg, dm, batches: list[dict], variant: str, steps: int, warmup: int, r
     L.seed_everything(0, workers=True, verbose=False)
     module = make_module(cfg, dm)
     module.train()
-    shape = tuple(batches[0]["gt"].shape)
+    shape = tuple(batches[0]["q"].shape)
     if shape[1] != module.n_past + N_TRANS + 1:
         raise RuntimeError(f"expected {module.n_past + N_TRANS + 1} frames per window, got batch shape {shape}")
     fwd, both, ops = count_flops(module, batches[0])
@@ -235,7 +235,7 @@ def bench(cfg, dm, batches: list[dict], variant: str, steps: int, warmup: int, r
         "model": cfg.model.name, "depth": cfg.model.get("depth"), "variant": variant, "cfg": cfg.model,
         "extra": " ".join(extra),
         "params": sum(p.numel() for p in module.net.parameters() if p.requires_grad), "shape": shape,
-        "n_windows": len(dm.train_feats), "fwd": fwd / BATCH, "both": both / BATCH, "ops": ops, "first_s": first,
+        "n_windows": len(dm.clip_windows), "fwd": fwd / BATCH, "both": both / BATCH, "ops": ops, "first_s": first,
         "step_s": med, "step_min": min(ts), "step_max": max(ts), "wps": BATCH / med,
         "ref": statistics.median(refs), "ref_min": min(refs), "ref_max": max(refs), "profile": prof,
     }

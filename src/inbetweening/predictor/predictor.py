@@ -172,6 +172,9 @@ class Predictor(nn.Module):
     def canonical_features(self, root, local_q, known: torch.Tensor):
         """Windows (any frame, numpy or torch) -> ``(features (B, T, J, F) in the canonical frame on the network's
         device, (centre, rotation))``."""
+        on_cpu = all(not isinstance(a, torch.Tensor) or a.device.type == "cpu" for a in (root, local_q))
+        if on_cpu:  # CPU tensors take the numpy path: the same numbers, about twice as fast (batched numpy FK)
+            root, local_q = (a.numpy() if isinstance(a, torch.Tensor) else a for a in (root, local_q))
         if isinstance(root, torch.Tensor) or isinstance(local_q, torch.Tensor):
             root = torch.as_tensor(root, dtype=torch.float64)
             local_q = torch.as_tensor(local_q, dtype=torch.float64, device=root.device)

@@ -162,11 +162,12 @@ class SkeletonFigure(L.Callback):
         with torch.random.fork_rng(devices=[]), torch.no_grad():
             was_training = pl_module.training
             pl_module.eval()
-            feats, pred, interp = pr.predict_windows(root[None, :t].to(pl_module.device),
-                                                     q[None, :t].to(pl_module.device), known)
+            root, q = root[None, :t].to(pl_module.device), q[None, :t].to(pl_module.device)
+            out = pr.predict_windows(root, q, known)
             pl_module.train(was_training)
-        labelled = (("ground truth", feats), ("prediction", pred), ("interpolation", interp))
-        return {label: pr.skeleton.pose(*pr.decode(f.cpu()))[1][0].numpy() for label, f in labelled}
+        labelled = (("ground truth", (root, q)), ("prediction", (out.root, out.local_q)),
+                    ("interpolation", (out.interp_root, out.interp_q)))
+        return {label: pr.skeleton.pose(r.cpu(), lq.cpu())[1][0].numpy() for label, (r, lq) in labelled}
 
     def draw(self, trainer: L.Trainer, pl_module, why: str) -> None:
         ds = trainer.datamodule.val_set if trainer.datamodule is not None else None

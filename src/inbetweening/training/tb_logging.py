@@ -286,7 +286,7 @@ class TrainStats(L.Callback):
 
     def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
         dt = time.perf_counter() - self._t0
-        n = batch["gt"].shape[0] if isinstance(batch, dict) and "gt" in batch else 0
+        n = batch["q"].shape[0] if isinstance(batch, dict) and "q" in batch else 0
         if dt > 0 and n:
             pl_module.log("train/windows_per_s", n / dt, on_step=True, on_epoch=False, batch_size=n)
 
