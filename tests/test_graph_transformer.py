@@ -1,5 +1,5 @@
 """Graph-attention transformer and shared blocks: graph modes, graph locality, trainability, its own setting checks
-(the common model contract is tests/test_model_contract.py)."""
+(the common model contract is tests/test_models_base.py)."""
 from __future__ import annotations
 
 import pytest

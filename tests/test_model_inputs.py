@@ -12,7 +12,7 @@ from inbetweening.models import MODELS
 from inbetweening.models.base import INPUTS, VELOCITY_SCALE, rot6d_input, velocity_input
 from inbetweening.training import losses as L
 from inbetweening.training.config import ConfigError, validate
-from test_model_contract import make_batch, onnx_round_trip
+from test_models_base import make_batch, onnx_round_trip
 
 J = len(TINY_PARENTS)
 POS, QUAT = slice(0, 3), slice(3, 7)  # the default representation's channels (GlobalPosLocalQuat)

@@ -101,3 +101,68 @@ def test_registry_and_layout():
     meta = rep.metadata()
     assert meta["representation"] == "global_pos_local_quat" and meta["features_per_joint"] == 7
     assert meta["position_slice"] == [0, 3] and meta["quaternion_slice"] == [3, 7]
+
+
+# ------------------------------------------------------------------ a second representation is one class
+class _WithHeight(GlobalPosLocalQuat):
+    """A test representation: the method's 7 channels plus each joint's height again as an 8th channel group
+    (``height``), so nothing that assumes 7 channels or a fixed layout can pass unnoticed."""
+
+    name = "test_with_height"
+    features = 8
+
+    @classmethod
+    def channels(cls):
+        return {**super().channels(), "height": slice(7, 8)}
+
+    def encode(self, root, local_q):
+        f = super().encode(root, local_q)
+        return torch.cat([f, f[..., 1:2]], dim=-1)
+
+    def encode_np(self, root, local_q):
+        f = super().encode_np(root, local_q)
+        return np.concatenate([f, f[..., 1:2]], axis=-1)
+
+
+def test_a_second_representation_is_one_class(monkeypatch, tmp_path):
+    """Registered as one class, it is used by the network's contract, the masks, the predictor (windows in, windows
+    out, keys bit-exact), every loss term and the ONNX export, with no other change."""
+    from inbetweening import representation as R
+    from inbetweening.data.synthetic import PARENTS
+    from inbetweening.models import MODELS
+    from inbetweening.predictor.predictor import Predictor
+    from inbetweening.training.losses import LOSS_TERMS, total_loss
+
+    monkeypatch.setitem(R.REPRESENTATIONS, _WithHeight.name, _WithHeight)
+    g = np.random.default_rng(3)
+    j = len(PARENTS)
+    sk = Skeleton(tuple(f"j{i}" for i in range(j)), PARENTS, g.normal(0, 10, (j, 3)))
+    mean, std = g.normal(0, 1, j * 3), g.uniform(1, 5, j * 3)
+    hp = {"model": {"name": "graph_transformer", **MODELS["graph_transformer"].TINY, "residual_to_interpolation": True},
+          "skeleton": sk.to_dict(), "pos_mean": mean.tolist(), "pos_std": std.tolist(), "centre": "known",
+          "representation": _WithHeight.name, "forward_axis": [0.0, 0.0, 1.0]}
+    p = Predictor.from_hparams(hp)
+    assert p.net.feature_dim == 8 and p.net.quat == slice(3, 7)
+    b, t = 2, 14
+    root = g.normal(0, 50, (b, t, 3))
+    q = g.normal(size=(b, t, j, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    known = p.transition_known(b, t, 3)
+    out = p.predict_windows(root, q, known)
+    k = known.numpy()
+    assert np.array_equal(out.local_q.numpy()[k], q[k]) and np.array_equal(out.root.numpy()[k[..., 0]], root[k[..., 0]])
+    assert out.feats.shape == (b, t, j, 8) and torch.isfinite(out.local_q).all()
+    # residual model at its zero init: the interpolation exactly (positions lerp, rotations slerp, height held)
+    assert torch.allclose(out.root, out.interp_root) and torch.allclose(out.local_q, out.interp_q)
+    pred, interp, target = p(torch.as_tensor(root), torch.as_tensor(q), known)
+    weights = {k_: 1.0 for k_ in LOSS_TERMS if k_ != "keyframe"}
+    loss, terms = total_loss(pred, target, ~known, weights, p.representation)
+    loss.backward()
+    assert set(terms) == set(weights) and torch.isfinite(loss)
+    assert p.representation.metadata()["features_per_joint"] == 8
+    ort = pytest.importorskip("onnxruntime")
+    assert ort is not None
+    from inbetweening.tools.export import export_onnx
+
+    info = export_onnx(p, tmp_path / "m.onnx")
+    assert info["max_abs_diff"] <= 1e-4

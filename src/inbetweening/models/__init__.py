@@ -2,7 +2,7 @@
 
 Adding a model is one module (a subclass implementing ``network``, ``check_settings``, ``OUTPUT_HEAD`` and ``TINY``,
 see :mod:`.base`), one ``conf/model/<name>.yaml`` and one line in :data:`MODELS`; config validation and the contract
-tests (tests/test_model_contract.py) find it there.
+tests (tests/test_models_base.py) find it there.
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Behaviour of the individual models of the zoo: per-joint flags reach every network, every network trains, the
 baselines' closed forms, each model's own setting checks.  The common contract (shapes, exact known pass-through,
-unit quaternions, residual start, gradients, input checks, state_dict, ONNX) is tests/test_model_contract.py."""
+unit quaternions, residual start, gradients, input checks, state_dict, ONNX) is tests/test_models_base.py."""
 from __future__ import annotations
 
 import numpy as np
