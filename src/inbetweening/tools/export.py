@@ -123,13 +123,18 @@ def export_onnx(model, path: str | Path, opset: int = 17, check: bool = True) ->
     return info
 
 
-def check_onnx(model, path: str | Path, batch: int = 3, gap: int = 7, seed: int = 1) -> float:
-    """Largest absolute difference between ONNX Runtime and PyTorch on a random window."""
+def _ort_session(path: str | Path):
+    """An ONNX Runtime CPU session of ``path``; :class:`ExportError` when onnxruntime is missing."""
     try:
         import onnxruntime as ort
     except ImportError:
         raise ExportError("checking the export needs onnxruntime: pip install 'inbetweening[export]'") from None
-    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    return ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+
+
+def check_onnx(model, path: str | Path, batch: int = 3, gap: int = 7, seed: int = 1) -> float:
+    """Largest absolute difference between ONNX Runtime and PyTorch on a random window."""
+    session = _ort_session(path)
     x, known, interp = random_window(model, batch, gap, seed)
     got = _run_ort(session, x, known, interp)
     with torch.no_grad():
@@ -301,11 +306,7 @@ def window_example(model, batch: int, gap: int, seed: int = 0):
 
 def check_window_onnx(model, path: str | Path, batch: int = 3, gap: int = 7, seed: int = 1) -> float:
     """Largest absolute difference between ONNX Runtime and :class:`WindowPath` in PyTorch (root and quaternions)."""
-    try:
-        import onnxruntime as ort
-    except ImportError:
-        raise ExportError("checking the export needs onnxruntime: pip install 'inbetweening[export]'") from None
-    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    session = _ort_session(path)
     root, q, known = window_example(model, batch, gap, seed)
     got = session.run(None, {"root": root.numpy(), "local_q": q.numpy(), "known": known.numpy()})
     with torch.no_grad():

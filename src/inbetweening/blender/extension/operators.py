@@ -108,6 +108,21 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True) -
             "model_seconds": t_model, "windows": model.calls}
 
 
+def only_selected_range_property():
+    """The ``only_selected_range`` option (the operator's and the panel's settings share it)."""
+    return BoolProperty(
+        name="Only Selected Range",
+        description="Fill only the gaps spanned by the selected keys (no keys selected: the preview range)",
+        default=False)
+
+
+def model_path_property():
+    """The ``model_path`` option (the operator's and the panel's settings share it)."""
+    return StringProperty(
+        name="Model", description="An exported in-betweening window model (.onnx); empty: the bundled model",
+        default="", subtype="FILE_PATH")
+
+
 class INBETWEEN_OT_fill(bpy.types.Operator):
     """Generate a pose on every frame between consecutive keys of the active armature with the in-betweening model
     (existing keys are kept exactly)"""
@@ -116,13 +131,8 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
     bl_label = "Fill In-betweens"
     bl_options = {"REGISTER", "UNDO"}
 
-    only_selected_range: BoolProperty(
-        name="Only Selected Range",
-        description="Fill only the gaps spanned by the selected keys (no keys selected: the preview range)",
-        default=False)
-    model_path: StringProperty(
-        name="Model", description="An exported in-betweening window model (.onnx); empty: the bundled model",
-        default="", subtype="FILE_PATH")
+    only_selected_range: only_selected_range_property()
+    model_path: model_path_property()
 
     @classmethod
     def poll(cls, context):
@@ -151,13 +161,8 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
 
 
 class InbetweenSettings(bpy.types.PropertyGroup):
-    only_selected_range: BoolProperty(
-        name="Only Selected Range",
-        description="Fill only the gaps spanned by the selected keys (no keys selected: the preview range)",
-        default=False)
-    model_path: StringProperty(
-        name="Model", description="An exported in-betweening window model (.onnx); empty: the bundled model",
-        default="", subtype="FILE_PATH")
+    only_selected_range: only_selected_range_property()
+    model_path: model_path_property()
 
 
 class _Panel:
