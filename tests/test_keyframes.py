@@ -21,7 +21,7 @@ from inbetweening.training.jobs import evaluate, write_benchmark
 FPS = 30.0
 H, S = 5.0, 60.0  # contact height (cm) and speed (cm/s) of the hand-made cases
 DATA = [o for o in TINY if o.startswith("data.")]
-FIGURES = ("model_cm", "interp_cm", "ratio", "skate_model", "skate_interp", "skate_gt", "n_clips", "n_frames")
+FIGURES = ("model_cm", "interp_cm", "ratio", "skate_model", "skate_interp", "skate_gt", "n_clips", "n_frames", "mean_gap")
 
 
 def _yaw(deg) -> np.ndarray:
@@ -169,7 +169,7 @@ def test_hold_baseline_stands_still_then_jumps_on_the_ground_truths_contacts():
 def test_short_clips_are_left_out_and_no_feet_means_no_skating():
     res = KF.evaluate_clips([_sliding_clip(20, 6.0), _sliding_clip(40, 6.0)], SKEL, None, [15, 45], FPS, None)
     assert res["15"]["n_clips"] == 2 and "45" not in res  # no clip has 46 frames
-    assert "skate_gt" not in res["15"] and set(res["15"]) == {"model_cm", "interp_cm", "ratio", "n_clips", "n_frames"}
+    assert "skate_gt" not in res["15"] and set(res["15"]) == {"model_cm", "interp_cm", "ratio", "n_clips", "n_frames", "mean_gap"}
 
 
 def test_foot_spec_from_a_dataset_spec():
@@ -239,3 +239,64 @@ def test_eval_keyframes_protocol_end_to_end(tiny_checkpoint, tmp_path, cache_dir
     assert {r["model"]: r["kf_skate_model@5"] for r in rows} == {
         "graph_transformer": res["keyframes"]["5"]["skate_model"], "interpolation": ref["5"]["skate_model"]}
     assert "KF_MODEL_CM@5" in to_markdown(rows) and "KF_SKATE_GT@30" in to_markdown(rows)
+
+
+# ------------------------------------------------------------------ keypose schedules
+def test_random_schedule_draws_gaps_in_range_and_is_seeded():
+    keys = KF.random_keyframes(400, np.random.default_rng(1))
+    gaps = np.diff(keys)
+    assert keys[0] == 0 and keys[-1] <= 399 and 399 - keys[-1] < 45  # cut after the last key that fits
+    assert gaps.min() >= 3 and gaps.max() <= 45 and len(set(gaps.tolist())) > 3
+    assert keys == KF.random_keyframes(400, np.random.default_rng(1))
+    assert keys != KF.random_keyframes(400, np.random.default_rng(2))
+    assert KF.random_keyframes(3, np.random.default_rng(0), gaps=(3, 3)) == []  # no second key fits in 3 frames
+    assert KF.random_keyframes(4, np.random.default_rng(0), gaps=(3, 3)) == [0, 3]
+
+
+def test_extremes_are_the_speed_minima_at_least_8_apart_and_long_gaps_split():
+    # a joint swinging with period 20 frames: speed minima at the turning points, every 10 frames
+    t = np.arange(101)
+    x = np.sin(2 * np.pi * t / 20)
+    pos = np.stack([x, 0 * x, 0 * x], -1)[:, None, :]
+    keys = KF.extreme_keyframes(pos)
+    assert keys[0] == 0 and keys[-1] == 100
+    turning = [5 + 10 * i for i in range(10)]
+    assert set(keys[1:-1]) <= set(turning) and len(keys) >= 10  # at the turns (>= 8 apart: all of them fit)
+    assert np.diff(keys).min() >= 5  # only the end frames may sit closer than 8 to a turn
+    # a motion that never slows: no minimum, so only the ends, then the 45-frame split (equal parts)
+    still = np.stack([t * 1.0, 0 * t, 0 * t], -1)[:, None, :]
+    assert KF.extreme_keyframes(still) == [0, 33, 67, 100]
+    assert KF.extreme_keyframes(still[:40]) == [0, 39]
+    # minima closer than 8 frames: the slower one wins
+    speed_dips = np.ones(60)
+    speed_dips[[20, 24]] = [0.2, 0.1]
+    pos = np.cumsum(speed_dips)[:, None, None] * np.array([1.0, 0, 0])
+    assert KF.extreme_keyframes(pos, max_gap=100) == [0, 24, 59]
+
+
+def test_schedules_run_through_the_protocol_and_are_named_rows():
+    clips = [_sliding_clip(200, 12.0, turn=1.0, name=f"c{i}") for i in range(3)]
+    res = KF.evaluate_clips(clips, SKEL, None, [15, "random", "extremes"], FPS, FEET, seed=3)
+    assert set(res) == {"15", "random", "extremes"}
+    assert res["15"]["mean_gap"] == pytest.approx(15.0)
+    assert 3 <= res["random"]["mean_gap"] <= 45 and res["random"]["n_clips"] == 3
+    assert res["extremes"]["mean_gap"] <= 45
+    for r in res.values():  # interpolation is exact on a motion linear in time, whatever the keys
+        assert r["interp_cm"] == pytest.approx(0.0, abs=1e-9)
+    again = KF.evaluate_clips(clips, SKEL, None, ["random"], FPS, FEET, seed=3)
+    assert again["random"] == res["random"]
+    other = KF.evaluate_clips(clips, SKEL, None, ["random"], FPS, FEET, seed=4)
+    assert other["random"]["n_frames"] != res["random"]["n_frames"]
+    with pytest.raises(ValueError, match="unknown keyframe schedule 'grid'"):
+        KF.schedule_keyframes("grid", 100, np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("value, ok", [("[5,random,extremes]", True), ("[random]", True), ("[bogus]", False),
+                                       ("[random,random]", False), ("[1]", False)])
+def test_schedules_in_the_config(value, ok, tmp_path):
+    cfg = compose_cfg("eval", ["protocol=keyframes", f"keyframe_intervals={value}"], tmp_path, tmp_path)
+    if ok:
+        validate(cfg)
+    else:
+        with pytest.raises(ConfigError, match="^keyframe_intervals: "):
+            validate(cfg)

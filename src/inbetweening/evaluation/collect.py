@@ -97,7 +97,7 @@ def metric_columns(rows: list[dict]) -> list[str]:
     keys = {k for r in rows for k in r if ("@" in k or k == "recovery_rmse") and not k.endswith("_std")}
     def order(k: str):
         m, _, n = k.partition("@")
-        return (METRIC_ORDER.index(m) if m in METRIC_ORDER else 9, int(n) if n.isdigit() else 0)
+        return (METRIC_ORDER.index(m) if m in METRIC_ORDER else 9, int(n) if n.isdigit() else 10**6, n)  # schedules last
 
     return sorted(keys, key=order)
 

@@ -165,22 +165,32 @@ PROTOCOLS = ("lafan", "keyframes")
 
 
 def _check_protocol(cfg) -> None:
-    """``protocol`` (eval.py): ``lafan`` or ``keyframes``; ``keyframe_intervals``: distinct integers >= 2."""
+    """``protocol`` (eval.py): ``lafan`` or ``keyframes``; ``keyframe_intervals``: distinct schedules
+    (:func:`check_schedules`)."""
     protocol = _get(cfg, "protocol")
     if protocol is not None and protocol not in PROTOCOLS:
         raise ConfigError(f"protocol: must be one of {list(PROTOCOLS)}, got {protocol!r}")
     ks = _get(cfg, "keyframe_intervals")
-    if ks is None:
-        return
-    if isinstance(ks, (str, bytes)) or not hasattr(ks, "__len__") or len(ks) == 0:
-        raise ConfigError(f"keyframe_intervals: must be a non-empty list of integers >= 2 (e.g. [5, 15, 30, 45]), "
-                          f"got {ks!r}")
+    if ks is not None:
+        check_schedules("keyframe_intervals", ks, allow_empty=False)
+
+
+def check_schedules(key: str, ks, allow_empty: bool) -> None:
+    """Keyframes-protocol schedules: distinct entries, each an interval ``K >= 2`` (a key every ``K`` frames) or a
+    keypose schedule name (:data:`inbetweening.evaluation.keyframes.SCHEDULES`)."""
+    from inbetweening.evaluation.keyframes import SCHEDULES
+
+    if isinstance(ks, (str, bytes)) or not hasattr(ks, "__len__") or (len(ks) == 0 and not allow_empty):
+        raise ConfigError(f"{key}: must be a non-empty list of intervals >= 2 and schedules {list(SCHEDULES)} "
+                          f"(e.g. [5, 15, 30, 45, random, extremes]), got {ks!r}")
     for k in ks:
+        if isinstance(k, str) and k in SCHEDULES:
+            continue
         if isinstance(k, bool) or not isinstance(k, int) or k < 2:
-            raise ConfigError(f"keyframe_intervals: intervals must be integers >= 2 (a keyframe every K frames), "
-                              f"got {k!r}")
+            raise ConfigError(f"{key}: intervals must be integers >= 2 (a keyframe every K frames) or one of "
+                              f"{list(SCHEDULES)}, got {k!r}")
     if len(set(ks)) != len(ks):
-        raise ConfigError(f"keyframe_intervals: an interval is listed twice in {list(ks)}")
+        raise ConfigError(f"{key}: an interval is listed twice in {list(ks)}")
 
 
 def _precisions() -> list[str]:
@@ -193,7 +203,7 @@ def _precisions() -> list[str]:
 
 
 def _check_train_extras(cfg) -> None:
-    """``threads`` (>= 1 or null), ``compile`` (true/false) and ``test_keyframes`` (train.py: integers >= 2)."""
+    """``threads`` (>= 1 or null), ``compile`` (true/false) and ``test_keyframes`` (train.py: schedules)."""
     compile_ = _get(cfg, "compile", False)
     if not isinstance(compile_, bool):
         raise ConfigError(f"compile: must be true or false, got {compile_!r}")
@@ -203,9 +213,7 @@ def _check_train_extras(cfg) -> None:
     threads = _get(cfg, "threads")
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
         raise ConfigError(f"threads: must be an integer >= 1 or null, got {threads!r}")
-    for k in _get(cfg, "test_keyframes") or []:
-        if isinstance(k, bool) or not isinstance(k, int) or k < 2:
-            raise ConfigError(f"test_keyframes: intervals must be integers >= 2 (a keyframe every K frames), got {k!r}")
+    check_schedules("test_keyframes", list(_get(cfg, "test_keyframes") or []), allow_empty=True)
 
 
 def validate(cfg: DictConfig) -> None:

@@ -98,7 +98,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
             return metrics
         kf = None
         if cfg.get("test_keyframes"):  # the keyframes-only protocol on the whole test clips, through the animator path
-            kf = score_keyframes(module.predictor, dm.data, list(cfg.test_keyframes))
+            kf = score_keyframes(module.predictor, dm.data, list(cfg.test_keyframes), int(cfg.seed))
         rows = with_baselines(name, metrics, dm, cfg.data.test_lengths)
         write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split,
                         keyframes=kf, interpolation=rows.get("interpolation"))
@@ -226,7 +226,7 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
         raise ConfigError(f"ckpt_path: required for model {name!r} (or use model=zero_velocity|interpolation)")
     elif name == "zero_velocity":
         fill = KF.hold_keyframes
-    res = score_keyframes(fill, data, list(cfg.keyframe_intervals))
+    res = score_keyframes(fill, data, list(cfg.keyframe_intervals), int(cfg.seed))
     out = output_dir(cfg)
     write_benchmark(out / "benchmark.json", data.name, name, len(data.test), {}, dm.hparams.split, keyframes=res)
     print(f"\nKeyframes-only protocol: {data.name}, split {dm.hparams.split}, {len(data.test)} whole test clips, "
@@ -235,15 +235,16 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     return {f"{m}@{k}": float(v) for k, row in res.items() for m, v in row.items()}
 
 
-def score_keyframes(model, data, intervals: list[int]) -> dict:
+def score_keyframes(model, data, intervals: list, seed: int = 0) -> dict:
     """The keyframes-only figures of ``model`` (a predictor, through the animator path, or a fill function; ``None``:
-    interpolation) on the whole test clips of ``data``: ``{K: {figure: value}}``."""
+    interpolation) on the whole test clips of ``data`` for each schedule of ``intervals`` (an interval ``K`` or a
+    keypose schedule name; ``seed`` seeds the random one): ``{schedule: {figure: value}}``."""
     from inbetweening.evaluation import keyframes as KF
     from inbetweening.tools.inbetweener import Inbetweener
 
     fill = Inbetweener(model).fill_arrays if isinstance(model, torch.nn.Module) else model
     feet = KF.foot_spec(data.skeleton, get_spec(data.name))
-    return KF.evaluate_clips(data.test, data.skeleton, fill, intervals, data.fps, feet, progress=log.info)
+    return KF.evaluate_clips(data.test, data.skeleton, fill, intervals, data.fps, feet, progress=log.info, seed=seed)
 
 
 def run_cli(job: Callable[[DictConfig], dict], cfg: DictConfig) -> float | None:
