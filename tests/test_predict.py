@@ -224,6 +224,21 @@ def test_cli_end_to_end_with_render(tiny_checkpoint, tmp_path):
         assert im.format == "GIF" and im.n_frames == 25
 
 
+def test_cli_render_writes_what_the_file_name_says(tiny_checkpoint, tmp_path):
+    from PIL import Image
+
+    write_bvh(_clip(40), tmp_path / "clip.bvh")
+    common = [f"ckpt_path={tiny_checkpoint}", "input=clip.bvh", "keyframes=[0,12,24]", "render_dpi=40"]
+    r = _cli(*common, "output=a.bvh", "render=strip.png", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with Image.open(tmp_path / "strip.png") as im:
+        assert im.format == "PNG" and im.size[0] > im.size[1]  # a filmstrip, not a GIF under a .png name
+    r = _cli(*common, "output=b.bvh", "render=strip.jpg", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.strip().splitlines() == [
+        "error: render: strip.jpg must end in .gif (an animation) or .png (a filmstrip)"], r.stderr
+    assert not (tmp_path / "b.bvh").exists()  # refused before any work
+
+
 PRINT_ATOL = 0.5e-6 + 1e-9  # BVH values are written with 6 decimals
 
 

@@ -49,9 +49,9 @@ options:
   gap=N                 form B, see above
   max_gap=N             longest gap generated in one pass (default: the longest gap the model was trained on)
   segment=true|false    split gaps longer than max_gap (default true; --no-segment = false)
-  render=PATH.gif       also write an animated GIF: the result next to plain linear interpolation of the
-                        same keyframes, keyframes drawn in red
-  render_dpi=N          GIF resolution (default 80)
+  render=PATH.gif|.png  also write a picture: the result next to plain linear interpolation of the same
+                        keyframes, keyframes drawn in red; .gif an animation, .png a filmstrip of 8 frames
+  render_dpi=N          picture resolution (default 80)
   device=cpu|cuda       where the model runs (default cpu)
   threads=N             CPU threads of the network (default 1: one transition is too small to share between
                         threads, and spare threads only wait on each other on a busy machine)
@@ -74,9 +74,17 @@ ALIASES = {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "in": "input", "out":
            "keys": "keyframes"}
 
 
+RENDER_FORMATS = (".gif", ".png")  # render=PATH: an animation, or a filmstrip of 8 frames
+
+
 def render_comparison(result, path: str | Path, fps: float, dpi: int = 80) -> Path:
-    """GIF of a :class:`~inbetweening.tools.inbetweener.FillResult`: prediction | linear interpolation, keys in red."""
-    from inbetweening.tools.render import render_gif
+    """A picture of a :class:`~inbetweening.tools.inbetweener.FillResult`, prediction | linear interpolation, keys in
+    red, in the format the file name says: ``.gif`` an animation, ``.png`` a filmstrip (ValueError otherwise)."""
+    from inbetweening.tools.render import render_gif, render_png
+
+    suffix = Path(path).suffix.lower()
+    if suffix not in RENDER_FORMATS:
+        raise ValueError(f"{path} must end in .gif (an animation) or .png (a filmstrip)")
 
     skel = result.skeleton
     ir, iq = result.interpolation()
@@ -84,6 +92,8 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80) -> Pa
     highlight = np.zeros(result.num_frames, dtype=bool)
     highlight[result.known_frames] = True
     seqs = {"model": result.global_positions(), "linear interpolation": lerp}
+    if suffix == ".png":
+        return render_png(seqs, skel.parents, path, dpi=dpi, highlight=highlight, title=Path(path).stem)
     return render_gif(seqs, skel.parents, path, fps=int(max(1, min(round(fps), 50))), highlight=highlight,
                       dpi=dpi, title=Path(path).stem)
 
@@ -124,6 +134,8 @@ def run(argv: Sequence[str]) -> int:
             if key in args and same_file(args[src], args[key]) and not args.get("force", False):
                 fail(f"{key}: {args[key]} is the {src} file; writing it would destroy the {src} "
                      f"(choose another {key}, or --force to overwrite)")
+    if "render" in args and Path(args["render"]).suffix.lower() not in RENDER_FORMATS:  # before any work is done
+        fail(f"render: {args['render']} must end in .gif (an animation) or .png (a filmstrip)")
     if args.get("threads", 1) < 1:
         fail(f"threads: must be >= 1, got {args['threads']}")
     device = args.get("device", "cpu")
@@ -159,10 +171,10 @@ def run(argv: Sequence[str]) -> int:
     if "render" in args:
         try:
             fps = 1.0 / res.bvh.frame_time if res.bvh.frame_time > 0 else ib.fps
-            gif = render_comparison(res, args["render"], fps, dpi=args.get("render_dpi", 80))
+            picture = render_comparison(res, args["render"], fps, dpi=args.get("render_dpi", 80))
         except (OSError, ValueError) as e:
             fail(f"render: {e}")
-        print(f"wrote {gif}")
+        print(f"wrote {picture}")
     return 0
 
 

@@ -66,7 +66,7 @@ def _bones(parents: Sequence[int]) -> list[tuple[int, int]]:
 def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, parents: Sequence[int], n_past: int,
                       n: int, frames: Sequence[int], title: str = "", up_axis: int = 1, unit: str = "cm") -> Figure:
     """One transition: a side view per frame in ``frames`` (ground truth grey, prediction in colour, interpolation
-    dashed), each zoomed on the ground-truth root of its frame at a common scale, and below, the mean per-frame
+    dashed on top of it), each zoomed on the ground-truth root of its frame at a common scale, and below, the mean per-frame
     position error over the transition, model vs interpolation.
 
     ``gt``, ``pred``, ``interp``: global positions ``(T, J, 3)``.  The windows are normalised so that the root faces
@@ -83,8 +83,10 @@ def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, pare
     for i, t in enumerate(frames):
         ax = fig.add_subplot(grid[0, i])
         cx, cy = gt[t, 0, fwd], gt[t, :, up_axis].min() + height / 2
-        for pose, style in ((gt[t], dict(color=GT_COLOR, lw=3.0)), (interp[t], dict(color=INTERP_COLOR, lw=1.2, ls="--")),
-                            (pred[t], dict(color=MODEL_COLOR, lw=1.6))):
+        # the interpolation last, dashed, above the prediction: where the two agree (a model that learned little, or
+        # close to the keys) both stay visible, the prediction through the dashes' gaps
+        for pose, style in ((gt[t], dict(color=GT_COLOR, lw=3.0, zorder=1)), (pred[t], dict(color=MODEL_COLOR, lw=1.6, zorder=2)),
+                            (interp[t], dict(color=INTERP_COLOR, lw=1.3, ls=(0, (3, 3)), zorder=3))):
             for j, p in bones:
                 ax.plot(pose[[j, p], fwd], pose[[j, p], up_axis], **style)
         ax.set_xlim(cx - half, cx + half)
