@@ -95,9 +95,9 @@ def main() -> None:
     lines += [
         "",
         "Preparation is bit-identical to the loop-per-window implementation it replaced (the Bandai-Namco-2 "
-        "statistics, test windows and clips compared with `np.array_equal`; `tests/test_fastkin.py` checks the "
+        "statistics, test windows and clips compared with `np.array_equal`; `tests/test_kinematics_np.py` checks the "
         "kernels against the generic FK/IK). What made it fast: FK/IK and the window normalisation run in "
-        "cache-sized chunks with every joint component a contiguous array (`geometry/fastkin.py`, the same "
+        "cache-sized chunks with every joint component a contiguous array (`geometry/kinematics_np.py`, the same "
         "arithmetic in the same order), windows are gathered with one index array, and the files are inflated "
         "and parsed by a `concurrent.futures` process pool (`data/clips.py`, `INBETWEENING_WORKERS=1` turns it "
         "off). Before (2026-11-22, same machine, idle): 29.6 s, 18× the 1.6 s inflate.",

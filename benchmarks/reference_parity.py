@@ -16,7 +16,7 @@ root forward = local +Y, which the official ``utils.rotate_at_frame`` hard-codes
   ``extract.get_train_stats`` -> ``extract.get_lafan1_set(..., window=65, offset=40)`` ->
   ``benchmarks.benchmark_interpolation``;
 * project: ``inbetweening.data.datasets.load_dataset("lafan1", path=DIR, use_cache=False)`` (whose
-  ``prepare`` calls ``benchmark.prepare_windows`` and ``benchmark.position_stats``), then
+  ``prepare`` calls ``data.windows.prepare_windows`` and ``data.windows.position_stats``), then
   ``benchmark.evaluate_transitions`` with ``benchmark.zero_velocity`` and ``benchmark.interpolation``.
 
 Compared: (a) the training statistics x_mean / x_std (66 values each), (b) L2Q, L2P and NPSS of both

@@ -1,6 +1,6 @@
 """The fast numpy kinematics and dataset preparation are the generic definitions, bit for bit.
 
-``geometry/fastkin.py`` re-orders memory (cache-sized chunks, one contiguous array per joint component) but must
+``geometry/kinematics_np.py`` re-orders memory (cache-sized chunks, one contiguous array per joint component) but must
 perform the same floating-point operations in the same order as ``skeleton.fk``/``ik`` and
 ``canonical.canonicalise_windows``: these tests compare with ``np.array_equal`` (no tolerance), on chunk sizes that
 split the batch unevenly, and compare the parallel BVH reader with the sequential one.
