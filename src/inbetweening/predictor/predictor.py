@@ -233,8 +233,9 @@ class Predictor(nn.Module):
         known = known.to(feats.device)
         pred, interp = self.network_forward(feats, known)
         frame = tuple(torch.as_tensor(f, device=feats.device) for f in frame)
-        root_in = torch.as_tensor(root, dtype=torch.float64, device=feats.device)
-        q_in = torch.as_tensor(local_q, dtype=torch.float64, device=feats.device)
+        root_in, q_in = (a.to(feats.device, torch.float64) if isinstance(a, torch.Tensor) else  # (numpy: a copy, so
+                         torch.tensor(np.asarray(a), dtype=torch.float64, device=feats.device)  # read-only arrays of the
+                         for a in (root, local_q))  # dataset cache are fine)
         outs = []
         for f in (pred, interp):
             r, q = canonical.uncanonicalise(*self.decode(f), *frame)
