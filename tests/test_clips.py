@@ -82,3 +82,28 @@ def test_check_skeleton_names_the_file(clip_bvh):
     short = type(sk)(sk.names[:-1], sk.parents[:-1], sk.offsets[:-1])
     with pytest.raises(DatasetError, match="^b: skeleton differs"):
         check_skeleton(sk, short, "b")
+
+
+def test_a_dataset_in_another_joint_order_is_the_same_motion(tmp_path):
+    from inbetweening.data.datasets import load_dataset
+
+    data = load_dataset("synthetic", cache_dir=str(tmp_path), synthetic={"num_clips": 6, "min_frames": 80,
+                                                                         "max_frames": 90, "seed": 1})
+    sk = data.skeleton
+    legs_swapped = sk.names[:1] + sk.names[5:9] + sk.names[1:5] + sk.names[9:]  # right leg before left: still valid
+    other = data.in_joint_order(legs_swapped)
+    assert other.skeleton.names == legs_swapped and other.skeleton.names != sk.names
+    perm = [sk.names.index(n) for n in legs_swapped]
+    c0, c1 = data.train[0], other.train[0]
+    gp0 = sk.pose(c0.root_pos, c0.local_q)[1]
+    gp1 = other.skeleton.pose(c1.root_pos, c1.local_q)[1]
+    assert np.abs(gp1 - gp0[:, perm]).max() < 1e-9  # the same motion, joint for joint by name
+    assert np.array_equal(other.pos_mean.reshape(-1, 3), data.pos_mean.reshape(-1, 3)[perm])
+    assert np.array_equal(other.test_Q, np.asarray(data.test_Q)[:, :, perm])
+    back = other.in_joint_order(sk.names)
+    assert back.skeleton.same_topology(sk) and np.array_equal(back.train[0].local_q, c0.local_q)
+    assert data.in_joint_order(sk.names) is data
+    with pytest.raises(DatasetError, match="puts a joint before its parent"):
+        data.in_joint_order(sk.names[1:2] + sk.names[:1] + sk.names[2:])
+    with pytest.raises(DatasetError, match="another skeleton"):
+        data.in_joint_order(sk.names[:-1])

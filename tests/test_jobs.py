@@ -56,3 +56,46 @@ def test_train_cli_table(case, overrides, code, pattern, d16_checkpoint, tmp_pat
         errors = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
         assert len(errors) == 1 and "Traceback" not in r.stderr and r.stderr.strip().endswith(errors[0]), r.stderr[-2000:]
         assert re.search(pattern, errors[0]), errors[0]
+
+
+# ------------------------------------------------------------------ init_from: fine-tuning from a checkpoint
+def test_init_from_starts_from_the_checkpoints_network_and_weights(tiny_checkpoint, tmp_path, cache_dir):
+    """With no step trained, a run started from a checkpoint scores exactly what eval.py scores for that checkpoint,
+    whatever the config's model group says (the checkpoint's network is built, its weights loaded)."""
+    from conftest import compose_cfg
+    from inbetweening.training.jobs import evaluate, train
+
+    data = [o for o in TINY_CKPT_OVERRIDES if o.startswith("data.")]
+    cfg = compose_cfg("train", ["experiment=finetune", "model=unet1d", *data, f"init_from='{tiny_checkpoint}'",
+                                "trainer.max_steps=0", "callbacks=none", "logger=none"], tmp_path / "ft", cache_dir)
+    got = train(cfg)
+    want = evaluate(compose_cfg("eval", [*data, f"ckpt_path='{tiny_checkpoint}'"], tmp_path / "ev", cache_dir))
+    assert got and got == want
+
+
+def test_init_from_of_another_skeleton_names_both(tmp_path, cache_dir):
+    import torch
+
+    from conftest import compose_cfg
+    from inbetweening.predictor.checkpoint import CheckpointError
+    from inbetweening.training.builders import make_datamodule
+    from inbetweening.training.jobs import start_from
+
+    other = tmp_path / "other.ckpt"
+    torch.save({"hyper_parameters": {"model": {"name": "interpolation"}, "skeleton": {
+        "names": ["root", "arm"], "parents": [-1, 0], "offsets": [[0.0, 0, 0], [1.0, 0, 0]]}}, "state_dict": {}}, other)
+    dm = make_datamodule(compose_cfg("train", [o for o in TINY_CKPT_OVERRIDES if o.startswith("data.")], tmp_path,
+                                     cache_dir))
+    with pytest.raises(CheckpointError, match=r"^init_from: \S+other.ckpt was trained on a 2-joint skeleton \(root, "
+                                              r"arm, \.\.\.\); data 'synthetic' has 22 joints \(Hips, "):
+        start_from(str(other), dm)
+
+
+def test_init_from_and_ckpt_path_are_exclusive(tmp_path):
+    from conftest import compose_cfg
+    from inbetweening.training.config import ConfigError, validate
+
+    with pytest.raises(ConfigError, match="^init_from: starts a new run"):
+        validate(compose_cfg("train", ["init_from=a.ckpt", "ckpt_path=b.ckpt"], tmp_path, tmp_path))
+    with pytest.raises(ConfigError, match="^init_stats: must be"):
+        validate(compose_cfg("train", ["init_stats=mine"], tmp_path, tmp_path))

@@ -71,6 +71,34 @@ class MotionData:
     def benchmark_set(self) -> BenchmarkSet:
         return BenchmarkSet(self.test_X, self.test_Q, self.skeleton, self.pos_mean, self.pos_std)
 
+    def in_joint_order(self, names) -> MotionData:
+        """This dataset with its joints in the order ``names`` (the same joints, by name, e.g. a checkpoint's): clips,
+        skeleton, statistics and test windows permuted alike, the motion unchanged.  :class:`DatasetError` naming
+        both skeletons when the joints or their hierarchy (parent of each joint, by name) differ, or when the order
+        would put a child before its parent."""
+        sk, names = self.skeleton, tuple(names)
+        if names == sk.names:
+            return self
+        mine = {n: (sk.names[p] if p >= 0 else None) for n, p in zip(sk.names, sk.parents)}
+        if set(names) != set(sk.names) or len(names) != len(sk.names):
+            missing, extra = sorted(set(names) - set(sk.names)), sorted(set(sk.names) - set(names))
+            raise DatasetError(f"{self.name}: another skeleton ({len(sk.names)} joints; missing {missing[:5]}, "
+                               f"not expected {extra[:5]}) than the {len(names)}-joint one asked for")
+        perm = [sk.names.index(n) for n in names]
+        parents = tuple(names.index(mine[n]) if mine[n] is not None else -1 for n in names)
+        if any(p >= j for j, p in enumerate(parents)) or parents[0] != -1:
+            raise DatasetError(f"{self.name}: the joint order {list(names[:4])}... puts a joint before its parent")
+        def stats(a):
+            return np.asarray(a).reshape(-1, 3)[perm].reshape(-1)
+
+        def reorder(clips):
+            return [Clip(c.name, np.asarray(c.local_q)[:, perm], c.root_pos) for c in clips]
+
+        return MotionData(self.name, Skeleton(names, parents, sk.offsets[perm]), self.fps, self.forward_axis,
+                          reorder(self.train), reorder(self.test), stats(self.pos_mean), stats(self.pos_std),
+                          np.asarray(self.test_X)[:, :, perm], np.asarray(self.test_Q)[:, :, perm], self.source,
+                          self.mirror, self.split)
+
     def summary(self) -> dict:
         return {
             "dataset": self.name,

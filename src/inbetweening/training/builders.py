@@ -11,6 +11,8 @@ import lightning as L
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
+from inbetweening.predictor.checkpoint import predictor_state
+from inbetweening.predictor.predictor import upgrade_hparams
 from inbetweening.training.callbacks import AtomicCheckpointIO, InterruptCheckpoint, NonFiniteGuard, ResumeState, TrimHeap
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.module import InbetweenModule
@@ -43,11 +45,25 @@ def make_datamodule(cfg: DictConfig) -> InbetweenDataModule:
     return instantiate(cfg.data, _convert_="all")
 
 
-def make_module(cfg: DictConfig, dm: InbetweenDataModule) -> InbetweenModule:
+def make_module(cfg: DictConfig, dm: InbetweenDataModule, init: dict | None = None) -> InbetweenModule:
     """The LightningModule from the ``model``, ``mask``, ``loss`` and ``optim`` groups, ``centre``, ``representation``,
-    and what the (set up) data module knows: skeleton, statistics, benchmark lengths."""
-    return InbetweenModule(model=_plain(cfg.model), loss=_plain(cfg.loss), optim=_plain(cfg.optim), centre=cfg.centre,
-                           representation=cfg.representation, mask=_plain(cfg.mask), **dm.model_kwargs())
+    and what the (set up) data module knows: skeleton, statistics, benchmark lengths.
+
+    ``init``: a checkpoint (:func:`~inbetweening.predictor.checkpoint.read_checkpoint`) to start from
+    (``init_from``): its network (``model``, ``representation``, ``centre``, ``mask``: the settings its weights belong
+    to, whatever the config's groups say) with its weights, and its normalisation statistics unless ``init_stats:
+    data`` (then the data's are estimated as for a new run); the loss, optimiser and data come from the config."""
+    kw = dm.model_kwargs()
+    if init is None:
+        return InbetweenModule(model=_plain(cfg.model), loss=_plain(cfg.loss), optim=_plain(cfg.optim),
+                               centre=cfg.centre, representation=cfg.representation, mask=_plain(cfg.mask), **kw)
+    hp = upgrade_hparams(init["hyper_parameters"])
+    network = {k: hp[k] for k in ("model", "representation", "centre", "mask", "joint_mask") if hp.get(k) is not None}
+    if cfg.get("init_stats", "checkpoint") == "checkpoint":
+        kw.update(pos_mean=list(hp["pos_mean"]), pos_std=list(hp["pos_std"]))
+    module = InbetweenModule(loss=_plain(cfg.loss), optim=_plain(cfg.optim), **network, **kw)
+    module.predictor.load_state_dict(predictor_state(init["state_dict"]))
+    return module
 
 
 def _make_logger(cfg: DictConfig, node: DictConfig):

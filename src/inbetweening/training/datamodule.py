@@ -141,12 +141,17 @@ class InbetweenDataModule(L.LightningDataModule):
     def setup(self, stage: str | None = None) -> None:
         """Test windows for every stage; training and validation windows only when fitting or validating (a
         test run never builds the training set: ``eval.py`` on Bandai-Namco-2 would otherwise hold it in memory)."""
-        h = self.hparams
         if self.data is None:
-            self.data = data = self.load_data()
-            self.test_set = _Windows(data.test_X[: h.max_eval_windows], data.test_Q[: h.max_eval_windows])
+            self.use_data(self.load_data())
         if stage in (None, "fit", "validate") and self.clip_windows is None:
             self._setup_fit()
+
+    def use_data(self, data: MotionData) -> None:
+        """Use ``data`` (e.g. :meth:`~inbetweening.data.clips.MotionData.in_joint_order` of :meth:`load_data`, for a
+        checkpoint whose joints come in another order) instead of loading it; before :meth:`setup`."""
+        h = self.hparams
+        self.data, self.clip_windows = data, None
+        self.test_set = _Windows(data.test_X[: h.max_eval_windows], data.test_Q[: h.max_eval_windows])
 
     def _setup_fit(self) -> None:
         h, data = self.hparams, self.data

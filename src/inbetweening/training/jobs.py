@@ -69,8 +69,9 @@ def train(cfg: DictConfig) -> dict[str, float]:
     out = output_dir(cfg)
     dm = make_datamodule(cfg)
     dm.prepare_data()
+    init = start_from(cfg.get("init_from"), dm)
     dm.setup("fit")
-    module = make_module(cfg, dm)
+    module = make_module(cfg, dm, init)
     module.compile_network(bool(cfg.get("compile", False)))
     trainer = make_trainer(cfg)
     ckpt_path = cfg.get("ckpt_path")
@@ -136,6 +137,32 @@ def with_baselines(name: str, metrics: dict, dm: InbetweenDataModule, lengths) -
         for base in ("zero_velocity", "interpolation"):
             rows[base] = B.evaluate_transitions(bench, B.BASELINES[base], tuple(lengths))
     return rows
+
+
+def start_from(path: str | None, dm: InbetweenDataModule) -> dict | None:
+    """``init_from``: the checkpoint a new run starts from (read safely), after putting the data's joints in the
+    checkpoint's order (matched by name: the same joints and hierarchy in another order are fine).  A checkpoint of
+    another skeleton is one :class:`CheckpointError` naming both skeletons."""
+    if not path:
+        return None
+    ckpt = read_checkpoint(path)
+    theirs = ckpt["hyper_parameters"]["skeleton"]
+    names, parents = list(theirs["names"]), list(theirs["parents"])
+    data = dm.load_data()
+    mine = data.skeleton
+    try:
+        ordered = data.in_joint_order(names)
+    except DatasetError as e:
+        ordered = None
+        why = str(e)
+    if ordered is not None and list(ordered.skeleton.parents) != parents:
+        ordered, why = None, "the same joints under other parents"
+    if ordered is None:
+        raise CheckpointError(f"init_from: {path} was trained on a {len(names)}-joint skeleton ({', '.join(names[:4])}, "
+                              f"...); data {data.name!r} has {mine.num_joints} joints ({', '.join(mine.names[:4])}, "
+                              f"...): {why}")
+    dm.use_data(ordered)
+    return ckpt
 
 
 def _architecture(model: dict) -> str:
