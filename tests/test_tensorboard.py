@@ -63,7 +63,11 @@ def test_curated_hparams_put_swept_keys_first_with_the_budget(tmp_path, cache_di
     # in a sweep: the swept keys come first, are the ones shown, and name the run
     hp, shown = curated_hparams(cfg, ["model.depth=2", "mask=zero", "seed=3"], swept=["seed"])
     assert list(hp)[0] == "seed" and shown == ["seed", "model/name", "trainer/max_epochs", "data/name", "mask/name"]
-    assert run_label(cfg, ["model.depth=2", "seed=3"], swept=["seed"]) == "graph_transformer seed=3"
+    assert run_label(cfg, ["model.depth=2", "seed=3"], swept=["seed"]) == "seed=3 - graph_transformer"
+    # what distinguishes the run leads (the example: a mask x norm sweep), the model last unless swept
+    assert run_label(cfg, ["data=synthetic", "mask=zero", "model.norm=layer"], swept=["mask", "model.norm"]) == \
+        "mask=zero model.norm=layer - graph_transformer"
+    assert run_label(cfg, ["model=unet1d", "seed=3"], swept=["model", "seed"]) == "model=unet1d seed=3"
     assert hparams_metrics([5, 45], [5])[:3] == ["val/l2p_mean_best", "test/l2p_ratio@5", "test/l2p_ratio@45"]
 
 

@@ -142,15 +142,18 @@ def curated_hparams(cfg: DictConfig, overrides: Sequence[str] = (), swept: Seque
 
 
 def run_label(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[str] = ()) -> str:
-    """The run's name in TensorBoard, a path-safe string: the model and the swept keys' values in a multirun
-    (``graph_transformer model.depth=2``), else the model and the command line's overrides (at most 150
-    characters)."""
+    """The run's name in TensorBoard, a path-safe string (at most 150 characters).  In a multirun it leads with what
+    distinguishes the run, the swept keys' values, then the model (``mask=zero model.norm=layer - graph_transformer``;
+    the sweep's folders are numbered only, so nothing repeats them); a single run is the model and the command line's
+    overrides (``graph_transformer model.depth=2``)."""
     keep = [o for o in overrides if not _NOT_HPARAMS.match(o.lstrip("+~"))
             and not o.startswith(("data.path", "data.cache_dir"))]
     if swept:
-        keep = [o for o in keep if o.lstrip("+~").partition("=")[0] in swept]
-    label = " ".join(dict.fromkeys([cfg.model.name, *sorted(keep)]))
-    return re.sub(r"[^\w.=,@+\- ]", "_", label)[:150]
+        varied = [o for o in keep if o.lstrip("+~").partition("=")[0] in swept]
+        label = " ".join(varied) + ("" if "model" in swept else f" - {cfg.model.name}")
+    else:
+        label = " ".join(dict.fromkeys([cfg.model.name, *sorted(keep)]))
+    return re.sub(r"[^\w.=,@+\- ]", "_", label.strip())[:150]
 
 
 def resumed_version(save_dir: str | Path, resuming: bool) -> str | None:
