@@ -88,35 +88,43 @@ def _run_ort(session, x, known, interp) -> np.ndarray:
     return out
 
 
-def export_onnx(model, path: str | Path, opset: int = 17, check: bool = True) -> dict:
-    """Export the network of ``model`` (a predictor or a training module) to ONNX at ``path`` with metadata;
-    optionally compare with ONNX Runtime.
-
-    Returns ``{"path", "inputs", "max_abs_diff"}`` (``max_abs_diff`` is None without ``check``).
-    """
+def _write_onnx(module: torch.nn.Module, example: tuple, path: Path, inputs: list[str], outputs: list[str],
+                opset: int, meta) -> list[str]:
+    """``torch.onnx.export`` of ``module`` on ``example`` to ``path`` (atomically: an interrupted export never
+    leaves half a file under the final name), batch and frame axes dynamic, with ``meta`` (``{key: JSON string}``,
+    or a function of the graph's input names returning it) in ``metadata_props``.  Returns the graph's input names
+    (graphs that do not use an input drop it)."""
     try:
         import onnx
     except ImportError:
         raise ExportError("format=onnx needs the onnx package: pip install 'inbetweening[export]'") from None
     from inbetweening.atomic import atomic_path
 
-    predictor = _predictor(model)
-    net = predictor.net.eval().cpu()
-    path = Path(path)
-    example = random_window(predictor, 2, 15)
-    axes = {"x": {0: "batch", 1: "frames"}, "known": {0: "batch", 1: "frames"},
-            "interp": {0: "batch", 1: "frames"}, "out": {0: "batch", 1: "frames"}}
-    with atomic_path(path) as tmp:  # an interrupted export never leaves half a file under the final name
+    axes = {k: {0: "batch", 1: "frames"} for k in (*inputs, *outputs)}
+    with atomic_path(path) as tmp:
         with warnings.catch_warnings(), torch.no_grad():
             warnings.simplefilter("ignore")
-            torch.onnx.export(net, example, str(tmp), dynamo=False, opset_version=int(opset),
-                              input_names=["x", "known", "interp"], output_names=["out"], dynamic_axes=axes)
-        model = onnx.load(str(tmp))
-        inputs = [i.name for i in model.graph.input]
-        for k, v in metadata(predictor, inputs).items():
-            entry = model.metadata_props.add()
+            torch.onnx.export(module, example, str(tmp), dynamo=False, opset_version=int(opset), input_names=inputs,
+                              output_names=outputs, dynamic_axes=axes)
+        proto = onnx.load(str(tmp))
+        graph_inputs = [i.name for i in proto.graph.input]
+        for k, v in (meta(graph_inputs) if callable(meta) else meta).items():
+            entry = proto.metadata_props.add()
             entry.key, entry.value = k, v
-        onnx.save(model, str(tmp))
+        onnx.save(proto, str(tmp))
+    return graph_inputs
+
+
+def export_onnx(model, path: str | Path, opset: int = 17, check: bool = True) -> dict:
+    """Export the network of ``model`` (a predictor or a training module) to ONNX at ``path`` with metadata;
+    optionally compare with ONNX Runtime.
+
+    Returns ``{"path", "inputs", "max_abs_diff"}`` (``max_abs_diff`` is None without ``check``).
+    """
+    predictor = _predictor(model)
+    path = Path(path)
+    inputs = _write_onnx(predictor.net.eval().cpu(), random_window(predictor, 2, 15), path, ["x", "known", "interp"],
+                         ["out"], opset, lambda names: metadata(predictor, names))
     info = {"path": str(path), "inputs": inputs, "max_abs_diff": None}
     if check:
         info["max_abs_diff"] = check_onnx(predictor, path)
@@ -262,30 +270,13 @@ def export_window_onnx(model, path: str | Path, opset: int = 17, check: bool = T
     values) in ``metadata_props``.  Inputs ``root`` float64 ``(B, T, 3)``, ``local_q`` float64 ``(B, T, J, 4)``,
     ``known`` bool ``(B, T, J)`` (windows already canonicalised); outputs ``root_out``, ``local_q_out`` (float64,
     unit quaternions).  Returns ``{"path", "metadata", "max_abs_diff"}`` (ONNX Runtime vs PyTorch, or None)."""
-    try:
-        import onnx
-    except ImportError:
-        raise ExportError("format=onnx needs the onnx package: pip install 'inbetweening[export]'") from None
-    from inbetweening.atomic import atomic_path
-
     trained_gap = trained_gap or getattr(model, "trained_gap", None)
     predictor = _predictor(model).eval().cpu()
-    wrapper = WindowPath(predictor).eval()
     path = Path(path)
-    example = window_example(predictor, 2, 15)
-    names = ["root", "local_q", "known", "root_out", "local_q_out"]
     meta = window_metadata(predictor, trained_gap)
     meta.update({k: json.dumps(v) for k, v in (extra or {}).items()})
-    with atomic_path(path) as tmp:
-        with warnings.catch_warnings(), torch.no_grad():
-            warnings.simplefilter("ignore")
-            torch.onnx.export(wrapper, example, str(tmp), dynamo=False, opset_version=int(opset), input_names=names[:3],
-                              output_names=names[3:], dynamic_axes={k: {0: "batch", 1: "frames"} for k in names})
-        proto = onnx.load(str(tmp))
-        for k, v in meta.items():
-            entry = proto.metadata_props.add()
-            entry.key, entry.value = k, v
-        onnx.save(proto, str(tmp))
+    _write_onnx(WindowPath(predictor).eval(), window_example(predictor, 2, 15), path, ["root", "local_q", "known"],
+                ["root_out", "local_q_out"], opset, meta)
     info = {"path": str(path), "metadata": meta, "max_abs_diff": None}
     if check:
         info["max_abs_diff"] = check_window_onnx(predictor, path)
