@@ -248,7 +248,7 @@ def test_tensorboard_server_shows_groups_hparams_and_figures(tmp_path, cache_dir
                 pass
             time.sleep(1)
         names = sorted(r.rsplit("/", 1)[-1] for r in runs)
-        assert names[1:] == ["graph_transformer model.depth=1", "graph_transformer model.depth=2"], runs
+        assert names[1:] == ["model.depth=1 - graph_transformer", "model.depth=2 - graph_transformer"], runs
         assert names[0].startswith("graph_transformer ") and "data.batch_size=8" in names[0]  # the overrides
         tags = _get(port, "/data/plugin/scalars/tags")
         groups = {t.split("/")[0] for run_tags in tags.values() for t in run_tags}
@@ -275,7 +275,7 @@ def test_tensorboard_server_shows_groups_hparams_and_figures(tmp_path, cache_dir
         assert {1.0, 2.0} <= set(by_depth)
         assert all("test/l2p_ratio@15" in v for d in (1.0, 2.0) for v in by_depth[d])
         images = _get(port, "/data/plugin/images/tags")
-        run = next(r for r in images if r.endswith("model.depth=2"))
+        run = next(r for r in images if r.endswith("model.depth=2 - graph_transformer"))
         assert {"val/skeleton", "val/per_joint"} <= set(images[run])
         imgs = _get(port, f"/data/plugin/images/images?run={urllib.request.quote(run)}&tag=val/skeleton")
         png = _get(port, "/data/plugin/images/individualImage?" + imgs[-1]["query"])
