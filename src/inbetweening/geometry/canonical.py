@@ -77,13 +77,21 @@ def facing_rotation(root_q: Array, forward_axis: Sequence[float]) -> Array:
     return np.where(degenerate, np.where(fallback_half, half, ident), rot)
 
 
-def canonical_frame(root: Array, local_q: Array, forward_axis: Sequence[float], frame: int,
-                    known: Array | None = None) -> tuple[Array, Array]:
+def canonical_frame(root: Array, local_q: Array, forward_axis: Sequence[float], frame, known: Array | None = None,
+                    centre_at_frame: bool = False) -> tuple[Array, Array]:
     """``(centre (..., 1, 3), rotation (..., 1, 4))`` of windows ``root (..., T, 3), local_q (..., T, J, 4)``:
-    the mean root XZ (over ``known (..., T)`` frames if given) and the facing of the root at ``frame`` (a unit
-    quaternion, without the reference's epsilon, so :func:`uncanonicalise` inverts :func:`canonicalise` exactly)."""
-    rot = facing_rotation(local_q[..., frame : frame + 1, 0, :], forward_axis)
-    return xz_centre(root, known), rot / (rot * rot).sum(-1)[..., None] ** 0.5
+    the facing of the root at ``frame`` (a unit quaternion, without the reference's epsilon, so
+    :func:`uncanonicalise` inverts :func:`canonicalise` exactly) and the mean root XZ (over ``known (..., T)`` frames
+    if given), or with ``centre_at_frame`` the root XZ at ``frame``.  ``frame``: an int, or one frame per window
+    (``(B,)`` indices of windows ``root (B, T, 3)``, ``local_q (B, T, J, 4)``)."""
+    if isinstance(frame, (int, np.integer)):
+        root_q, at = local_q[..., frame : frame + 1, 0, :], root[..., frame : frame + 1, :]
+    else:
+        rows = torch.arange(len(frame), device=frame.device) if _is_torch(frame) else np.arange(len(frame))
+        root_q, at = local_q[rows, frame][:, None, 0, :], root[rows, frame][:, None, :]
+    rot = facing_rotation(root_q, forward_axis)
+    centre = xz_centre(at) if centre_at_frame else xz_centre(root, known)  # a mean over one frame is its value
+    return centre, rot / (rot * rot).sum(-1)[..., None] ** 0.5
 
 
 def canonicalise(root: Array, local_q: Array, centre: Array, rotation: Array) -> tuple[Array, Array]:

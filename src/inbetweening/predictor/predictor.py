@@ -149,25 +149,19 @@ class Predictor(nn.Module):
         are never read (NaN is fine).  ``root (B, T, 3)``, ``local_q (B, T, J, 4)``, ``known (B, T, J)`` bool."""
         is_np = not isinstance(root, torch.Tensor)
         k = np.asarray(known.cpu() if isinstance(known, torch.Tensor) else known)[..., 0] if is_np else known[..., 0]
-        b, t = k.shape
+        t = k.shape[1]
         if is_np:
             idx = np.arange(t)[None, :]
             first_unknown = np.where(~k, idx, t).min(axis=1)
             first_known = np.where(k, idx, t).min(axis=1)
             frame = np.minimum(np.where(first_unknown > 0, first_unknown - 1, first_known), t - 1)
-            rows = np.arange(b)
         else:
             idx = torch.arange(t, device=k.device)[None, :]
             first_unknown = torch.where(~k, idx, t).min(dim=1).values
             first_known = torch.where(k, idx, t).min(dim=1).values
             frame = torch.where(first_unknown > 0, first_unknown - 1, first_known).clamp(max=t - 1)
-            rows = torch.arange(b, device=k.device)
-        rot = canonical.facing_rotation(local_q[rows, frame][:, None, 0, :], self.forward_axis)
-        rot = rot / (rot * rot).sum(-1)[..., None] ** 0.5
-        # "last": the XZ of that one frame (a mean over one frame is the value itself)
-        centre = canonical.xz_centre(root[rows, frame][:, None, :]) if self.centre == "last" else \
-            canonical.xz_centre(root, k)
-        return centre, rot
+        return canonical.canonical_frame(root, local_q, self.forward_axis, frame, k,
+                                         centre_at_frame=self.centre == "last")
 
     def canonical_features(self, root, local_q, known: torch.Tensor):
         """Windows (any frame, numpy or torch) -> ``(features (B, T, J, F) in the canonical frame on the network's
