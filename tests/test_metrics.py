@@ -74,7 +74,7 @@ def test_benchmark_metric_accumulates_like_one_score_call():
         return rng.normal(size=(b, n, 3)), q / np.linalg.norm(q, axis=-1, keepdims=True)
 
     mean, std = np.zeros(6), np.array([1.0, 2.0, 3.0, 1.0, 2.0, 3.0])
-    metric = BenchmarkMetric(sk, mean, std, lengths=(3, 5))
+    metric = BenchmarkMetric(mean, std, lengths=(3, 5))
     parts = [(batch(2, 5), batch(2, 5)), (batch(3, 5), batch(3, 5))]
     for (pr, pq), (gr, gq) in parts:  # the metric takes global poses (FK done once by the caller)
         metric.update(5, *sk.pose(torch.from_numpy(pr), torch.from_numpy(pq)),
@@ -148,7 +148,7 @@ def test_benchmark_metric_merges_like_ddp_gathering():
         return torch.from_numpy(rng.normal(size=(b, 5, 3))), torch.from_numpy(q / np.linalg.norm(q, axis=-1, keepdims=True))
 
     mean, std = np.zeros(6), np.ones(6)
-    a, b, both = (BenchmarkMetric(sk, mean, std, lengths=(5,)) for _ in range(3))
+    a, b, both = (BenchmarkMetric(mean, std, lengths=(5,)) for _ in range(3))
     parts = [(batch(2), batch(2)), (batch(3), batch(3))]
     for metric, (p, g) in ((a, parts[0]), (b, parts[1])):
         metric.update(5, *sk.pose(*p), *sk.pose(*g))

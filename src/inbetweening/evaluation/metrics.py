@@ -12,7 +12,6 @@ from torchmetrics.utilities import dim_zero_cat
 
 from inbetweening.evaluation.benchmark import score_global
 from inbetweening.geometry.quaternion import qangle
-from inbetweening.geometry.skeleton import Skeleton
 
 
 class BenchmarkMetric(Metric):
@@ -21,9 +20,8 @@ class BenchmarkMetric(Metric):
     full_state_update = False
     higher_is_better = False
 
-    def __init__(self, skeleton: Skeleton, mean, std, lengths: Sequence[int], **kwargs):
+    def __init__(self, mean, std, lengths: Sequence[int], **kwargs):
         super().__init__(**kwargs)
-        self.skeleton = skeleton
         self.mean, self.std = np.asarray(mean, np.float64), np.asarray(std, np.float64)
         self.lengths = tuple(int(n) for n in lengths)
         for n in self.lengths:

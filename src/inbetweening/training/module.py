@@ -91,14 +91,14 @@ class InbetweenModule(L.LightningModule):
         self.hparams["optim"] = self.optim_cfg
         j = self.skeleton.num_joints
         mean, std = (self.mean, self.std) if score_stats is None else (score_stats["mean"], score_stats["std"])
-        self.val_bench = BenchmarkMetric(self.skeleton, mean, std, val_lengths)
-        self.test_bench = BenchmarkMetric(self.skeleton, mean, std, test_lengths)
+        self.val_bench = BenchmarkMetric(mean, std, val_lengths)
+        self.test_bench = BenchmarkMetric(mean, std, test_lengths)
         self.val_joint = PerJointError(j)
         self.test_joint = PerJointError(j)
         # TensorBoard references: interpolation scored on the same windows (validation: once per fit, cached),
         # and per-joint errors per transition length for the per-joint figure
-        self.val_interp = BenchmarkMetric(self.skeleton, mean, std, val_lengths)
-        self.test_interp = BenchmarkMetric(self.skeleton, mean, std, test_lengths)
+        self.val_interp = BenchmarkMetric(mean, std, val_lengths)
+        self.test_interp = BenchmarkMetric(mean, std, test_lengths)
         self.val_joint_len = torch.nn.ModuleDict({f"{k}{n}": PerJointError(j) for n in val_lengths for k in "mi"})
         self.test_joint_len = torch.nn.ModuleDict({f"{k}{n}": PerJointError(j) for n in test_lengths for k in "mi"})
         self.val_interp_cache: dict | None = None  # (interp metrics, interp per-joint) of this fit's validation set
