@@ -9,6 +9,8 @@ import pytest
 
 from conftest import TINY, compose_cfg
 from inbetweening.data.clips import Clip
+from inbetweening.data.contacts import FootContact
+from inbetweening.data.datasets import spec_contact
 from inbetweening.data.errors import DatasetError
 from inbetweening.data.specs import DATASETS, DatasetSpec, lafan_split
 from inbetweening.evaluation import keyframes as KF
@@ -174,10 +176,10 @@ def test_short_clips_are_left_out_and_no_feet_means_no_skating():
 
 def test_foot_spec_from_a_dataset_spec():
     spec = DatasetSpec("kf_test", lafan_split, (0, 0, 1), feet=("LeftFoot",), contact_height=5, contact_speed=60)
-    assert KF.foot_spec(SKEL, spec) == KF.FootSpec((1,), 5.0, 60.0)
-    with pytest.raises(DatasetError, match=r"foot joint\(s\) \['RightToe'\] of its spec"):
-        KF.foot_spec(SKEL, DatasetSpec("kf_test", lafan_split, (0, 0, 1), feet=("LeftFoot", "RightToe"),
-                                       contact_height=5, contact_speed=60))
+    assert KF.foot_spec(SKEL, spec_contact(spec)) == KF.FootSpec((1,), 5.0, 60.0)
+    assert KF.foot_spec(SKEL, FootContact()) is None
+    with pytest.raises(DatasetError, match=r"foot joint\(s\) \['RightToe'\] are not in the skeleton"):
+        KF.foot_spec(SKEL, FootContact(("LeftFoot", "RightToe"), 5, 60))
     with pytest.raises(ValueError, match="feet need contact_height > 0"):
         DatasetSpec("kf_test", lafan_split, (0, 0, 1), feet=("LeftFoot",))
     for name in ("lafan1", "bandai_namco", "synthetic"):  # every built-in dataset is scored for skating

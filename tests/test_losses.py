@@ -14,6 +14,7 @@ from inbetweening.training import losses as L
 SK = Skeleton(NAMES, PARENTS, OFFSETS)
 MEAN, STD = np.zeros(66), np.ones(66)
 REP = GlobalPosLocalQuat(SK, MEAN, STD)
+FEET = {"feet": [NAMES.index(n) for n in ("LeftFoot", "LeftToe", "RightFoot", "RightToe")], "foot_speed": 0.5}
 
 
 def _features(b=2, t=12, noise=0.0, seed=0):
@@ -43,26 +44,26 @@ def test_each_term_is_zero_on_truth_and_positive_when_wrong(term):
     mask = torch.zeros(2, 12, 22, dtype=torch.bool)
     mask[:, 4:8] = True
     weights = {"l1": 0.0, term: 1.0}
-    zero, _ = L.total_loss(gt, gt, mask, weights, REP)
+    zero, _ = L.total_loss(gt, gt, mask, weights, REP, **FEET)
     wrong = gt.clone()
     wrong[:, 4:8, :, :3] += torch.randn(2, 4, 22, 3, dtype=torch.float64)  # positions off
     wrong[:, 4:8, :, 3:] = qnormalize(wrong[:, 4:8, :, 3:] + 0.5)  # rotations off
-    bad, terms = L.total_loss(wrong, gt, mask, weights, REP)
+    bad, terms = L.total_loss(wrong, gt, mask, weights, REP, **FEET)
     if term == "smooth":  # zero on linear motion, positive once frames are jittered
         lin = gt.clone()
         lin[..., :3] = torch.linspace(0, 1, 12, dtype=torch.float64)[None, :, None, None] * gt[:, -1:, :, :3]
-        assert float(L.total_loss(lin, lin, mask, weights, REP)[0]) == pytest.approx(0.0, abs=1e-9)
+        assert float(L.total_loss(lin, lin, mask, weights, REP, **FEET)[0]) == pytest.approx(0.0, abs=1e-9)
         jitter = lin.clone()
         jitter[:, 4:8, :, :3] += torch.randn(2, 4, 22, 3, dtype=torch.float64)
-        assert float(L.total_loss(jitter, lin, mask, weights, REP)[0]) > 0.1
+        assert float(L.total_loss(jitter, lin, mask, weights, REP, **FEET)[0]) > 0.1
     elif term == "foot":
         gt_static = gt.clone()
         gt_static[:, :, :, :3] = gt[:, :1, :, :3]  # feet in contact all along
         w2 = gt_static.clone()
         w2[:, 4:8, :, :3] += 1.0
         w2[:, 6, :, :3] += 1.0
-        assert float(L.total_loss(gt_static, gt_static, mask, weights, REP)[0]) == 0.0
-        assert float(L.total_loss(w2, gt_static, mask, weights, REP)[0]) > 0.0
+        assert float(L.total_loss(gt_static, gt_static, mask, weights, REP, **FEET)[0]) == 0.0
+        assert float(L.total_loss(w2, gt_static, mask, weights, REP, **FEET)[0]) > 0.0
     else:
         assert float(zero) == pytest.approx(0.0, abs=1e-6)
         assert float(bad) > 1e-3
@@ -72,12 +73,14 @@ def test_each_term_is_zero_on_truth_and_positive_when_wrong(term):
 def test_unknown_loss_term_raises():
     gt = _features()
     with pytest.raises(ValueError, match="unknown term"):
-        L.total_loss(gt, gt, torch.ones(2, 12, 22, dtype=torch.bool), {"l1": 1.0, "l3": 1.0}, REP)
+        L.total_loss(gt, gt, torch.ones(2, 12, 22, dtype=torch.bool), {"l1": 1.0, "l3": 1.0}, REP, **FEET)
 
 
-def test_foot_joints_found_by_name():
-    idx = L.foot_joint_indices(SK)
-    assert [SK.names[i] for i in idx] == ["LeftFoot", "LeftToe", "RightFoot", "RightToe"]
+def test_foot_term_needs_the_feet():
+    """No feet given (a dataset without a contact rule): the foot term is 0, whatever the motion."""
+    gt = _features()
+    mask = torch.ones(2, 12, 22, dtype=torch.bool)
+    assert float(L.foot(gt + 1.0, gt, mask, (), REP, 0.5)) == 0.0
 
 
 def _all_terms_nonzero_case():
@@ -104,22 +107,22 @@ def test_loss_weights_scale_each_term_and_zero_removes_it():
     alone = {}
     for term in L.LOSS_TERMS:
         weights = {"l1": 0.0, term: 1.0} if term != "l1" else {"l1": 1.0}
-        total, terms = L.total_loss(pred, gt, mask, weights, REP, **raw)
+        total, terms = L.total_loss(pred, gt, mask, weights, REP, **raw, **FEET)
         alone[term] = float(total)
         assert alone[term] > 1e-3, term  # every term is active in this case
         assert float(terms[term]) == pytest.approx(alone[term], rel=1e-12)
         for w in (0.25, 3.0):  # weight w on a term alone: w times the term
-            scaled, _ = L.total_loss(pred, gt, mask, {**weights, term: w}, REP, **raw)
+            scaled, _ = L.total_loss(pred, gt, mask, {**weights, term: w}, REP, **raw, **FEET)
             assert float(scaled) == pytest.approx(w * alone[term], rel=1e-12), (term, w)
     # l1 by hand: mean absolute feature difference over the masked entries (7 features each)
     sel = mask[..., None].expand_as(pred)
     assert alone["l1"] == pytest.approx(float((pred - gt).abs()[sel].mean()), rel=1e-12)
     # all terms together: the weighted sum; a weight of 0 removes exactly that term
     w = {"l1": 0.5, "fk_pos": 2.0, "quat": 3.0, "bone": 0.7, "smooth": 1.5, "foot": 4.0, "keyframe": 2.5}
-    total, terms = L.total_loss(pred, gt, mask, w, REP, **raw)
+    total, terms = L.total_loss(pred, gt, mask, w, REP, **raw, **FEET)
     assert float(total) == pytest.approx(sum(w[k] * alone[k] for k in w), rel=1e-12)
     for term in L.LOSS_TERMS:
-        total0, terms0 = L.total_loss(pred, gt, mask, {**w, term: 0.0}, REP, **raw)
+        total0, terms0 = L.total_loss(pred, gt, mask, {**w, term: 0.0}, REP, **raw, **FEET)
         assert float(total0) == pytest.approx(sum(w[k] * alone[k] for k in w if k != term), rel=1e-12), term
         if term != "l1":  # disabled terms are not even computed (l1 is always logged)
             assert term not in terms0

@@ -203,8 +203,10 @@ def test_a_spec_without_env_var_says_only_data_path():
         resolve_path("bandai_namco", None)
 
 
-@pytest.mark.parametrize("yaml_file", sorted(CONF_DATA.glob("*.yaml")), ids=lambda p: p.stem)
+@pytest.mark.parametrize("yaml_file", sorted(p for p in CONF_DATA.glob("*.yaml") if p.stem != "bvh"),
+                         ids=lambda p: p.stem)
 def test_every_data_config_names_a_spec_and_agrees_with_it(yaml_file):
+    """Every registered dataset has its config (data=bvh derives its spec from the files: tests/test_bvh_folder.py)."""
     cfg = yaml.safe_load(yaml_file.read_text())
     spec = get_spec(cfg["name"])
     assert cfg["name"] == yaml_file.stem
@@ -212,7 +214,7 @@ def test_every_data_config_names_a_spec_and_agrees_with_it(yaml_file):
         assert cfg["path"] is None and spec.env_var is None
     else:
         assert cfg["path"] == f"${{oc.env:{spec.env_var},${{paths.root_dir}}/{spec.default_path}}}"
-    assert set(DATASETS) == {p.stem for p in CONF_DATA.glob("*.yaml")}  # every spec has its config
+    assert set(DATASETS) == {p.stem for p in CONF_DATA.glob("*.yaml")} - {"bvh"}  # every spec has its config
 
 
 def test_builtin_specs():

@@ -6,6 +6,7 @@ joint into its child where the spec names one (:func:`fold_static_root`).
 """
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import os
 from collections.abc import Iterator
@@ -17,6 +18,8 @@ from typing import Protocol
 import numpy as np
 
 from inbetweening.data.bvh import BVH, parse_bvh
+from inbetweening.data.contacts import FootContact
+from inbetweening.data.convention import PROJECT, FileConvention
 from inbetweening.data.errors import BVHError, DatasetError
 from inbetweening.data.sources import list_bvh_sources, read_bvh_sources
 from inbetweening.data.windows import BenchmarkSet
@@ -32,8 +35,8 @@ class ReadSpec(Protocol):
 
     def reads(self, name: str) -> bool: ...
 
-__all__ = ["Clip", "MotionData", "check_skeleton", "clip_from_bvh", "clip_in_skeleton", "fold_static_root", "motion_in_file",
-           "read_bvh_clips"]
+__all__ = ["FOLD_STATIC", "FOLD_TOP", "Clip", "MotionData", "check_skeleton", "clip_from_bvh", "clip_in_skeleton",
+           "fold_static_root", "motion_in_file", "read_bvh_clips", "top_is_static"]
 
 
 @dataclass
@@ -67,6 +70,9 @@ class MotionData:
     # left/right joint-name pairs (left first) of the skeleton, validated against it: see inbetweening.data.mirror
     mirror: tuple[tuple[str, str], ...] = ()
     split: str = "standard"  # the spec's split rule that made train/test (DatasetSpec.splits)
+    contact: FootContact = field(default_factory=FootContact)  # the feet and the foot-contact rule
+    convention: FileConvention = PROJECT  # the files' up axis and unit (the clips are in the project's frame)
+    derived: dict | None = None  # data=bvh: what was derived from the files and how (inbetweening.data.bvh_folder)
 
     def benchmark_set(self) -> BenchmarkSet:
         return BenchmarkSet(self.test_X, self.test_Q, self.skeleton, self.pos_mean, self.pos_std)
@@ -94,10 +100,10 @@ class MotionData:
         def reorder(clips):
             return [Clip(c.name, np.asarray(c.local_q)[:, perm], c.root_pos) for c in clips]
 
-        return MotionData(self.name, Skeleton(names, parents, sk.offsets[perm]), self.fps, self.forward_axis,
-                          reorder(self.train), reorder(self.test), stats(self.pos_mean), stats(self.pos_std),
-                          np.asarray(self.test_X)[:, :, perm], np.asarray(self.test_Q)[:, :, perm], self.source,
-                          self.mirror, self.split)
+        return dataclasses.replace(
+            self, skeleton=Skeleton(names, parents, sk.offsets[perm]), train=reorder(self.train),
+            test=reorder(self.test), pos_mean=stats(self.pos_mean), pos_std=stats(self.pos_std),
+            test_X=np.asarray(self.test_X)[:, :, perm], test_Q=np.asarray(self.test_Q)[:, :, perm])
 
     def summary(self) -> dict:
         return {
@@ -209,10 +215,27 @@ def read_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+FOLD_STATIC = "<static top joint>"  # ReadSpec.fold_root: fold the top joint of each file where it does not move
+FOLD_TOP = "<top joint>"  # ReadSpec.fold_root: fold the top joint of every file
+
+
+def top_is_static(bvh: BVH, tol: float = 1e-6) -> bool:
+    """Whether the file's top joint has exactly one child and channels that hold one value over every frame."""
+    if [j for j, p in enumerate(bvh.parents) if p == 0] != [1]:
+        return False
+    top = bvh.motion[:, : len(bvh.channels[0])]
+    return bool(top.size == 0 or np.all(np.ptp(top, axis=0) <= tol * np.maximum(1.0, np.abs(top).max(axis=0))))
+
+
 def _clip_of(spec: ReadSpec, fname: str, raw: bytes) -> tuple[str, Clip, Skeleton, float | None]:
     bvh = parse_bvh(raw, source=fname)
     stem = fname.rsplit(".", 1)[0]
-    clip, skel = fold_static_root(bvh, stem, spec.fold_root) if spec.fold_root else clip_from_bvh(bvh, stem)
+    top = spec.fold_root
+    if top == FOLD_STATIC:
+        top = bvh.names[0] if top_is_static(bvh) else None
+    elif top == FOLD_TOP:
+        top = bvh.names[0]
+    clip, skel = fold_static_root(bvh, stem, top) if top else clip_from_bvh(bvh, stem)
     return fname, clip, skel, 1.0 / bvh.frame_time
 
 

@@ -11,6 +11,8 @@ included), so a changed file or setting never serves stale data (:mod:`inbetween
 """
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import os
 import shutil
 import warnings
@@ -20,8 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from inbetweening.data import windows as W
+from inbetweening.data.bvh_folder import BVH_DATASET, FolderOptions, derive_spec, source_paths
 from inbetweening.data.cache import CacheCorrupt, default_cache_dir, hash_source, load_entry, save_entry, settings_key
 from inbetweening.data.clips import Clip, MotionData, check_skeleton, clip_from_bvh, fold_static_root, read_workers
+from inbetweening.data.contacts import FootContact
+from inbetweening.data.convention import FileConvention
 from inbetweening.data.errors import BVHError, DatasetError
 from inbetweening.data.lafan1 import download_lafan1, verify_lafan1
 from inbetweening.data.mirror import derive_mirror, validate_mirror
@@ -60,6 +65,9 @@ def _save_cache(path: Path, data: MotionData) -> None:
         "parents": list(data.skeleton.parents),
         "source": data.source,
         "split": data.split,
+        "contact": data.contact.to_dict(),
+        "convention": data.convention.to_dict(),
+        "derived": data.derived,
     }
     for split in ("train", "test"):
         clips = getattr(data, split)
@@ -82,7 +90,8 @@ def _load_cache(path: Path) -> MotionData:
     return MotionData(
         meta["name"], skel, meta["fps"], tuple(meta["forward_axis"]), splits["train"], splits["test"],
         arrays["pos_mean"], arrays["pos_std"], np.asarray(arrays["test_X"]), np.asarray(arrays["test_Q"]),
-        meta["source"], split=meta.get("split", DEFAULT_SPLIT),
+        meta["source"], split=meta.get("split", DEFAULT_SPLIT), contact=FootContact.from_dict(meta.get("contact")),
+        convention=FileConvention.from_dict(meta.get("convention")), derived=meta.get("derived"),
     )
 
 
@@ -115,11 +124,20 @@ def prepare(spec: DatasetSpec, path: Path, forward_axis, split: str = DEFAULT_SP
     stats = W.training_stats(splits["train"], skel, W.TRAIN_WINDOW, W.TRAIN_OFFSET, forward_axis,
                              threads=read_workers())
     if stats is None:
-        raise DatasetError(f"{path}: no training window of {W.TRAIN_WINDOW} frames could be cut")
+        raise DatasetError(f"{path}: no training window of {W.TRAIN_WINDOW} frames could be cut: the longest training "
+                           f"clip has {max((c.num_frames for c in splits['train']), default=0)} frames")
     mean, std = stats
     teX, teQ = W.prepare_windows(splits["test"], skel, W.TEST_WINDOW, W.TEST_OFFSET, forward_axis)
+    if len(teX) == 0:
+        raise DatasetError(f"{path}: no test window of {W.TEST_WINDOW} frames (the benchmark's) could be cut: the "
+                           f"longest test clip has {max((c.num_frames for c in splits['test']), default=0)} frames")
     return MotionData(spec.name, skel, fps, tuple(float(a) for a in forward_axis), splits["train"], splits["test"],
-                      mean, std, teX, teQ, str(path), split=split)
+                      mean, std, teX, teQ, str(path), split=split, contact=spec_contact(spec))
+
+
+def spec_contact(spec: DatasetSpec) -> FootContact:
+    """The spec's feet and contact rule."""
+    return FootContact(spec.feet, spec.contact_height, spec.contact_speed)
 
 
 def resolve_path(name: str, path: str | os.PathLike | None, download: bool = False) -> Path:
@@ -154,13 +172,23 @@ def load_dataset(
     download: bool = False,
     synthetic: dict | None = None,
     split: str = DEFAULT_SPLIT,
+    folder: FolderOptions | None = None,
 ) -> MotionData:
     """Load (or prepare and cache) a registered dataset (:data:`~inbetweening.data.specs.DATASETS`) by name.
 
     ``synthetic`` holds the options of a generated dataset's ``generate`` (ignored by the others);
     ``forward_axis`` overrides the spec's; ``split`` names one of the spec's split rules (``DatasetSpec.splits``,
-    :class:`DatasetError` for another name).
+    :class:`DatasetError` for another name).  ``name="bvh"``: any folder of BVH files, its spec derived from the files
+    (:mod:`inbetweening.data.bvh_folder`; ``folder`` holds the ``data.<key>`` overrides, which only it takes).
     """
+    folder = folder or FolderOptions()
+    if name == BVH_DATASET:
+        if forward_axis is not None:
+            folder = dataclasses.replace(folder, forward_axis=tuple(float(a) for a in forward_axis))
+        return load_bvh_folder(path, cache_dir, folder, use_cache, split)
+    if folder.given():
+        raise DatasetError(f"data.{folder.given()[0]}: only data=bvh derives its spec from the files; dataset "
+                           f"{name!r} states its own (set it back to null)")
     spec = get_spec(name)
     spec.split_rule(split)  # an unknown split fails before any file is read
     cache_root = Path(cache_dir) if cache_dir else default_cache_dir()
@@ -178,6 +206,7 @@ def load_dataset(
     if not use_cache:
         data = prepare(spec, src, axis, split)
         data.mirror = mirror_map(spec, data.skeleton)
+        data.contact = spec_contact(spec)
         return data
     key = f"{name}-{hash_source(src, cache_root, spec.pattern)[:16]}-{settings_key(settings)}"
     cache_file = cache_root / "prepared" / key
@@ -192,6 +221,39 @@ def load_dataset(
         data = prepare(spec, src, axis, split)
         _save_cache(cache_file, data)
     data.mirror = mirror_map(spec, data.skeleton)
+    data.contact = spec_contact(spec)
+    return data
+
+
+def load_bvh_folder(path, cache_dir=None, options: FolderOptions | None = None, use_cache: bool = True,
+                    split: str = DEFAULT_SPLIT) -> MotionData:
+    """``data=bvh``: the BVH files of ``path`` (a folder, zip or file, or a list of them) with their derived spec
+    (:func:`~inbetweening.data.bvh_folder.derive_spec`), prepared like every dataset and cached under a key of the
+    files' bytes and the options."""
+    options = options or FolderOptions()
+    paths = source_paths(path)
+    cache_root = Path(cache_dir) if cache_dir else default_cache_dir()
+    digest = hashlib.sha1("".join(hash_source(p, cache_root, "*.bvh") for p in paths).encode()).hexdigest()
+    settings = {"v": CACHE_VERSION, "name": BVH_DATASET, "options": options.settings(), "split": split,
+                "train": (W.TRAIN_WINDOW, W.TRAIN_OFFSET), "test": (W.TEST_WINDOW, W.TEST_OFFSET)}
+    cache_file = cache_root / "prepared" / f"{BVH_DATASET}-{digest[:16]}-{settings_key(settings)}"
+    if use_cache and (cache_file / "meta.json").exists():
+        try:
+            data = _load_cache(cache_file)
+            data.mirror = tuple(tuple(p) for p in data.derived["mirror"])
+            return data
+        except (CacheCorrupt, OSError, ValueError, KeyError, TypeError) as e:
+            warnings.warn(f"dataset cache entry {cache_file} is unreadable or corrupt ({e}); rebuilding it", stacklevel=2)
+            shutil.rmtree(cache_file, ignore_errors=True)
+    spec, report = derive_spec(paths, options)
+    spec.split_rule(split)
+    data = prepare(spec, paths[0], spec.forward_axis, split)
+    data.source = ", ".join(str(p) for p in paths)
+    data.convention = FileConvention(report["up_axis"], report["unit_cm"])
+    data.mirror = spec.mirror
+    data.derived = dict(report, mirror=[list(p) for p in spec.mirror])
+    if use_cache:
+        _save_cache(cache_file, data)
     return data
 
 
@@ -210,6 +272,7 @@ __all__ = [
     "download_lafan1",
     "fold_static_root",
     "lafan_split",
+    "load_bvh_folder",
     "load_dataset",
     "mirror_map",
     "register",

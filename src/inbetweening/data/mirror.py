@@ -15,7 +15,10 @@ import numpy as np
 from inbetweening.data.errors import DatasetError
 
 # (left marker, right marker, where the marker sits in the name)
-SIDE_MARKERS: tuple[tuple[str, str, str], ...] = (("Left", "Right", "prefix"), ("_L", "_R", "suffix"))
+SIDE_MARKERS: tuple[tuple[str, str, str], ...] = (
+    ("Left", "Right", "prefix"), ("left", "right", "prefix"), ("L_", "R_", "prefix"),  # LAFAN1, Mixamo, Maya
+    ("_L", "_R", "suffix"), ("_l", "_r", "suffix"), (".L", ".R", "suffix"), (".l", ".r", "suffix"),  # BN, UE, Blender
+)  # checked after a namespace (``mixamorig:``), which is kept
 
 MirrorMap = tuple[tuple[str, str], ...]
 
@@ -25,8 +28,15 @@ __all__ = ["SIDE_MARKERS", "MirrorMap", "derive_mirror", "fit_mirror_frames", "m
            "validate_mirror"]
 
 
+def _namespace(name: str) -> tuple[str, str]:
+    """``("mixamorig:", "LeftArm")`` for ``"mixamorig:LeftArm"``; ``("", name)`` without a namespace."""
+    i = name.rfind(":")
+    return name[: i + 1], name[i + 1 :]
+
+
 def side_of(name: str) -> str | None:
     """``"left"``, ``"right"`` or ``None`` (no side marker) for a joint name."""
+    name = _namespace(name)[1]
     for left, right, where in SIDE_MARKERS:
         has = str.startswith if where == "prefix" else str.endswith
         if has(name, left) and len(name) > len(left):
@@ -38,12 +48,13 @@ def side_of(name: str) -> str | None:
 
 def swap_side(name: str) -> str | None:
     """The name with its side marker swapped (``LeftArm`` -> ``RightArm``, ``Hand_R`` -> ``Hand_L``), or ``None``."""
+    ns, name = _namespace(name)
     for left, right, where in SIDE_MARKERS:
         for a, b in ((left, right), (right, left)):
             if where == "prefix" and name.startswith(a) and len(name) > len(a):
-                return b + name[len(a):]
+                return ns + b + name[len(a):]
             if where == "suffix" and name.endswith(a) and len(name) > len(a):
-                return name[: -len(a)] + b
+                return ns + name[: -len(a)] + b
     return None
 
 

@@ -55,22 +55,22 @@ def _smooth_noise(rng: np.random.Generator, t: np.ndarray, amp: float, n: int = 
     return out / n
 
 
-def generate_clip(rng: np.random.Generator, num_frames: int) -> tuple[np.ndarray, np.ndarray]:
-    """One clip: local quaternions ``(T, 22, 4)`` and root positions ``(T, 3)``."""
-    t = np.arange(num_frames) / FPS
+def generate_clip(rng: np.random.Generator, num_frames: int, fps: float = FPS) -> tuple[np.ndarray, np.ndarray]:
+    """One clip at ``fps`` frames per second: local quaternions ``(T, 22, 4)`` and root positions ``(T, 3)``."""
+    t = np.arange(num_frames) / fps
     kind = rng.choice(["idle", "walk", "walk", "run"])
     base_speed = {"idle": 5.0, "walk": rng.uniform(90, 160), "run": rng.uniform(250, 400)}[kind]
     speed = base_speed * (1 + 0.35 * np.sin(2 * np.pi * rng.uniform(0.05, 0.3) * t + rng.uniform(0, 6.3)))
     speed = np.clip(speed, 0.0, None)
     cadence = {"idle": 0.4, "walk": 0.9, "run": 1.4}[kind] * rng.uniform(0.9, 1.15)
-    phase = 2 * np.pi * np.cumsum(np.full_like(t, cadence / FPS)) + rng.uniform(0, 2 * np.pi)
+    phase = 2 * np.pi * np.cumsum(np.full_like(t, cadence / fps)) + rng.uniform(0, 2 * np.pi)
     heading = (
         rng.uniform(-180, 180)
         + rng.uniform(-90, 90) * np.sin(2 * np.pi * rng.uniform(0.03, 0.2) * t + rng.uniform(0, 6.3))
         + rng.uniform(-25, 25) * t
     )
     rad = np.radians(heading)
-    vel = np.stack([np.sin(rad), np.zeros_like(rad), np.cos(rad)], -1) * speed[:, None] / FPS
+    vel = np.stack([np.sin(rad), np.zeros_like(rad), np.cos(rad)], -1) * speed[:, None] / fps
     root = np.cumsum(vel, 0) + np.array([rng.uniform(-200, 200), 0.0, rng.uniform(-200, 200)])
     gait = {"idle": 0.05, "walk": 1.0, "run": 1.6}[kind]
     root[:, 1] = HIP_HEIGHT - (8 if kind == "run" else 2) + 2.5 * gait * np.sin(2 * phase)

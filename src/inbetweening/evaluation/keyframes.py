@@ -22,7 +22,8 @@ Scores, on the generated (non-key) frames, pooled over all clips:
   true global joint positions (FK by :meth:`~inbetweening.geometry.skeleton.Skeleton.pose`), in the dataset's
   length unit (cm for LAFAN1, Bandai-Namco and the synthetic data); ``ratio`` = model / interpolation.
 * **Foot skating**: for each consecutive frame pair ``(t, t+1)`` touching a generated frame and each foot joint
-  (``DatasetSpec.feet``), the joint is *in contact* when, in the ground truth, its height (Y up, the pair's mean)
+  (the dataset's :class:`~inbetweening.data.contacts.FootContact`), the joint is *in contact* when, in the ground
+  truth, its height (Y up, the pair's mean)
   is below ``contact_height`` AND its speed ``|p[t+1] - p[t]| * fps`` is below ``contact_speed``.  A motion's
   skating is the mean horizontal (XZ) speed ``|(p[t+1] - p[t])_xz| * fps`` of its own foot joints over those
   in-contact (pair, joint) entries, in length units per second (cm/s): how fast the generated foot moves where
@@ -40,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from inbetweening.data.errors import DatasetError
+from inbetweening.data.contacts import FootContact, foot_contacts
 from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.skeleton import Skeleton
 
@@ -151,18 +152,6 @@ def position_error(pred_gp: np.ndarray, gt_gp: np.ndarray, frames: np.ndarray) -
     return float(d.sum()), int(d.size)
 
 
-def foot_contacts(feet_gp: np.ndarray, fps: float, contact_height: float, contact_speed: float) -> np.ndarray:
-    """Contact per frame pair and foot joint.  ``feet_gp (F, K, 3) -> (F-1, K)`` bool.
-
-    Pair ``(t, t+1)`` is in contact when the joint's mean height over the two frames is below ``contact_height``
-    and its speed ``|p[t+1] - p[t]| * fps`` is below ``contact_speed`` (length units per second).
-    """
-    step = np.diff(feet_gp, axis=0)
-    height = 0.5 * (feet_gp[1:, :, UP] + feet_gp[:-1, :, UP])
-    speed = np.linalg.norm(step, axis=-1) * fps
-    return (height < contact_height) & (speed < contact_speed)
-
-
 def horizontal_speed(feet_gp: np.ndarray, fps: float) -> np.ndarray:
     """Horizontal (XZ) speed per frame pair.  ``(F, K, 3) -> (F-1, K)``, length units per second."""
     step = np.diff(feet_gp, axis=0)[..., list(HORIZONTAL)]
@@ -196,17 +185,12 @@ class FootSpec:
     contact_speed: float
 
 
-def foot_spec(skeleton: Skeleton, spec) -> FootSpec | None:
-    """The :class:`FootSpec` of a dataset spec (``feet``, ``contact_height``, ``contact_speed`` of
-    :class:`~inbetweening.data.specs.DatasetSpec`) on ``skeleton``; ``None`` when the spec names no feet.
-    ``DatasetError`` when a foot joint is not in the skeleton."""
-    if not spec.feet:
+def foot_spec(skeleton: Skeleton, contact: FootContact) -> FootSpec | None:
+    """The :class:`FootSpec` of a dataset's feet and contact rule (``MotionData.contact``) on ``skeleton``; ``None``
+    when it names no feet.  ``DatasetError`` when a foot joint is not in the skeleton."""
+    if not contact.feet:
         return None
-    missing = [n for n in spec.feet if n not in skeleton.names]
-    if missing:
-        raise DatasetError(f"dataset {spec.name!r}: foot joint(s) {missing} of its spec (DatasetSpec.feet) are not "
-                           f"in the skeleton ({len(skeleton.names)} joints)")
-    return FootSpec(tuple(skeleton.index(n) for n in spec.feet), float(spec.contact_height), float(spec.contact_speed))
+    return FootSpec(contact.indices(skeleton.names, "foot contact"), contact.height, contact.speed)
 
 
 def hold_keyframes(root: np.ndarray, local_q: np.ndarray, keys: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:

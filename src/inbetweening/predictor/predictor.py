@@ -20,6 +20,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from inbetweening.data.contacts import FootContact
+from inbetweening.data.convention import FileConvention
 from inbetweening.data.windows import N_PAST
 from inbetweening.geometry import canonical
 from inbetweening.geometry.quaternion import qrot
@@ -32,7 +34,7 @@ LEGACY_CENTRE = "window"  # what checkpoints made before the ``centre`` option r
 
 # the predictor's hyper-parameters, as InbetweenModule records them
 HPARAMS = ("model", "skeleton", "pos_mean", "pos_std", "mask", "centre", "n_past", "forward_axis", "representation",
-           "fps", "train_window", "dataset")
+           "fps", "train_window", "dataset", "contact", "convention")
 
 
 def check_centre(centre: str) -> str:
@@ -81,12 +83,16 @@ class Predictor(nn.Module):
         forward_axis: the root's forward direction in its local frame (the canonical frame faces it to +X).
         representation: name of the feature representation (:mod:`inbetweening.representation`).
         model: the network's config (recorded, for :meth:`hparams`); fps, train_window, dataset: data conventions.
+        contact: the training data's feet and foot-contact rule (:class:`~inbetweening.data.contacts.FootContact`).
+        convention: the training files' up axis and length unit (:class:`~inbetweening.data.convention.
+            FileConvention`): the tools turn a user's file into the model's frame (Y up, cm) and back with it.
     """
 
     def __init__(self, net: nn.Module, skeleton: Skeleton, pos_mean, pos_std, *, mask: str, centre: str,
                  n_past: int = N_PAST, forward_axis: Sequence[float] = (0.0, 1.0, 0.0),
                  representation: str = DEFAULT_REPRESENTATION, model: dict | None = None, fps: float = 30.0,
-                 train_window: int = 50, dataset: str = ""):
+                 train_window: int = 50, dataset: str = "", contact: dict | None = None,
+                 convention: dict | None = None):
         super().__init__()
         if mask not in MASK_NAMES:
             raise ValueError(f"mask must be one of {list(MASK_NAMES)}, got {mask!r}")
@@ -101,6 +107,8 @@ class Predictor(nn.Module):
         self.representation = build_representation(representation, skeleton, self.mean, self.std)
         self.model_cfg = dict(model or {})
         self.fps, self.train_window, self.dataset = float(fps), int(train_window), str(dataset)
+        self.contact = FootContact.from_dict(contact)
+        self.convention = FileConvention.from_dict(convention)
 
     # ------------------------------------------------------------------ plain values
     @classmethod
@@ -123,7 +131,8 @@ class Predictor(nn.Module):
         return {"model": dict(self.model_cfg), "skeleton": self.skeleton.to_dict(), "pos_mean": self.mean.tolist(),
                 "pos_std": self.std.tolist(), "mask": self.mask_name, "centre": self.centre, "n_past": self.n_past,
                 "forward_axis": list(self.forward_axis), "representation": self.representation.name,
-                "fps": self.fps, "train_window": self.train_window, "dataset": self.dataset}
+                "fps": self.fps, "train_window": self.train_window, "dataset": self.dataset,
+                "contact": self.contact.to_dict(), "convention": self.convention.to_dict()}
 
     @property
     def device(self) -> torch.device:

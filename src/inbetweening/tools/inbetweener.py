@@ -321,11 +321,13 @@ class Inbetweener:
         return FillResult(out, root, q, out_pos, self.skeleton, sorted(pseudo))
 
     def _model_space(self, bvh: BVH) -> tuple[bool, np.ndarray, np.ndarray]:
-        """``(folded?, root (F, 3), local_q (F, J, 4))`` of a clip in the model's skeleton."""
+        """``(folded?, root (F, 3), local_q (F, J, 4))`` of a clip in the model's skeleton and frame (the file's up
+        axis and unit turned into the model's by the training files' convention, which the checkpoint records)."""
         try:
-            return clip_in_skeleton(bvh, self.skeleton)
+            fold, root, q = clip_in_skeleton(bvh, self.skeleton)
         except DatasetError as e:
             raise InbetweenError(str(e)) from None
+        return (fold, root, q) if self.predictor.convention.is_project else (fold, *self.predictor.convention.to_project(root, q))
 
     def _to_bvh(self, bvh: BVH, fold: bool, root: np.ndarray, q: np.ndarray, src: list[int], out_pos: list[int]):
         """The output clip: generated frames written into the file's hierarchy (a folded top joint takes the nearest
@@ -333,6 +335,8 @@ class Inbetweener:
         t = np.arange(root.shape[0])
         keys = np.asarray(out_pos)
         nearest = np.abs(t[:, None] - keys[None, :]).argmin(axis=1)  # ties -> the earlier keyframe
+        if not self.predictor.convention.is_project:
+            root, q = self.predictor.convention.to_file(root, q)
         out = motion_in_file(bvh, fold, root, q, np.asarray(src)[nearest])
         out.motion[keys] = bvh.motion[np.asarray(src)]
         return out

@@ -18,6 +18,7 @@ import torch
 from torch.utils.data import DataLoader, Dataset
 
 from inbetweening.data import windows as W
+from inbetweening.data.bvh_folder import FolderOptions
 from inbetweening.data.datasets import MotionData, load_dataset
 from inbetweening.predictor.masks import JointGaps
 from inbetweening.training.sampling import (
@@ -29,6 +30,13 @@ from inbetweening.training.sampling import (
     rank_world,
 )
 from inbetweening.training.tasks import draw_task, task_window
+
+
+def _plain(v):
+    """A config value (OmegaConf lists included) as plain Python values."""
+    if v is None or isinstance(v, (str, int, float, bool)):
+        return v
+    return [_plain(x) for x in v]
 
 
 class _Windows(Dataset):
@@ -62,6 +70,9 @@ class InbetweenDataModule(L.LightningDataModule):
         name, path, cache_dir, forward_axis, synthetic, download, split: the dataset (see
             :func:`inbetweening.data.datasets.load_dataset`); ``split`` names one of its spec's split rules
             (``standard``; ``bandai_namco`` also has ``content``).  Validation clips come from its training part.
+        up_axis, unit, fps, feet, fold_root, test_pattern, mirror_map, contact_height, contact_speed: ``data=bvh``'s
+            overrides of what it derives from the files (:class:`inbetweening.data.bvh_folder.FolderOptions`;
+            ``None``: derive).
         batch_size, eval_batch_size, num_workers: loaders (``eval_batch_size``: validation and test).
         val_fraction: share of the training clips held out for validation.
         transition_min, transition_max, transition_per: transition lengths drawn for training batches
@@ -97,6 +108,15 @@ class InbetweenDataModule(L.LightningDataModule):
         synthetic: dict | None,
         download: bool,
         split: str,
+        up_axis: str | None,
+        unit: str | float | None,
+        fps: float | None,
+        feet: list[str] | None,
+        fold_root: bool | None,
+        test_pattern: str | list[str] | None,
+        mirror_map: list[list[str]] | None,
+        contact_height: float | None,
+        contact_speed: float | None,
         batch_size: int,
         eval_batch_size: int,
         num_workers: int,
@@ -132,8 +152,12 @@ class InbetweenDataModule(L.LightningDataModule):
     def load_data(self) -> MotionData:
         """The dataset (read from its cache, built on first use), without setting anything up."""
         h = self.hparams
-        return load_dataset(h.name, path=h.path, cache_dir=h.cache_dir, forward_axis=h.forward_axis,
-                            download=h.download, synthetic=dict(h.synthetic) if h.synthetic else None, split=h.split)
+        path = h.path if h.path is None or isinstance(h.path, str) else [str(p) for p in h.path]
+        folder = FolderOptions(h.up_axis, h.unit, None, h.fps, _plain(h.feet), h.fold_root, _plain(h.test_pattern),
+                               _plain(h.mirror_map), h.contact_height, h.contact_speed)
+        return load_dataset(h.name, path=path, cache_dir=h.cache_dir, forward_axis=_plain(h.forward_axis),
+                            download=h.download, synthetic=dict(h.synthetic) if h.synthetic else None, split=h.split,
+                            folder=folder)
 
     def prepare_data(self) -> None:
         self.load_data()  # builds the cache (and downloads LAFAN1 if allowed) once, on one process
@@ -182,6 +206,7 @@ class InbetweenDataModule(L.LightningDataModule):
         d = self.data
         return {"skeleton": d.skeleton.to_dict(), "pos_mean": d.pos_mean.tolist(), "pos_std": d.pos_std.tolist(),
                 "dataset": d.name, "forward_axis": list(d.forward_axis), "fps": float(d.fps),
+                "contact": d.contact.to_dict(), "convention": d.convention.to_dict(),
                 "train_window": int(self.hparams.train_window), "val_lengths": list(self.hparams.val_lengths),
                 "test_lengths": list(self.hparams.test_lengths)}
 

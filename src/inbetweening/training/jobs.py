@@ -15,13 +15,13 @@ from pathlib import Path
 
 import lightning as L
 import torch
+import yaml
 from lightning.pytorch.utilities.exceptions import SIGTERMException
 from omegaconf import DictConfig
 
 from inbetweening.atomic import write_text
 from inbetweening.data.bvh import BVHError
 from inbetweening.data.datasets import DatasetError
-from inbetweening.data.specs import get_spec
 from inbetweening.evaluation import benchmark as B
 from inbetweening.predictor.checkpoint import CheckpointError, predictor_state, read_checkpoint
 from inbetweening.training.builders import make_datamodule, make_module, make_trainer, output_dir
@@ -29,6 +29,7 @@ from inbetweening.training.callbacks import NonFiniteError, trim_heap
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.module import InbetweenModule, load_module
+from inbetweening.training.sampling import rank_world
 from inbetweening.training.tb_logging import HParamsSession, RunLogger
 
 log = logging.getLogger("inbetweening")
@@ -71,6 +72,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
     dm.prepare_data()
     init = start_from(cfg.get("init_from"), dm)
     dm.setup("fit")
+    report_derived(dm.data, out)
     module = make_module(cfg, dm, init)
     module.compile_network(bool(cfg.get("compile", False)))
     trainer = make_trainer(cfg)
@@ -114,6 +116,16 @@ def train(cfg: DictConfig) -> dict[str, float]:
             print(f"\nKeyframes-only protocol ({len(dm.data.test)} whole test clips)\n" + format_table(kf))
         log_test(trainer, module)
     return metrics
+
+
+def report_derived(data, out: Path) -> None:
+    """``data=bvh``: print what was derived from the files, once, and save it as ``dataset.yaml`` next to the run."""
+    if data.derived is None or rank_world()[0] != 0:
+        return
+    text = yaml.safe_dump(data.derived, sort_keys=False, width=118, default_flow_style=None)
+    write_text(out / "dataset.yaml", text)
+    print(f"\nDataset derived from the files of data.path (saved as {out / 'dataset.yaml'}; data.<key>=... overrides "
+          f"any value):\n{text}")
 
 
 def log_test(trainer: L.Trainer, module: InbetweenModule) -> None:
@@ -270,7 +282,7 @@ def score_keyframes(model, data, intervals: list, seed: int = 0) -> dict:
     from inbetweening.tools.inbetweener import Inbetweener
 
     fill = Inbetweener(model).fill_arrays if isinstance(model, torch.nn.Module) else model
-    feet = KF.foot_spec(data.skeleton, get_spec(data.name))
+    feet = KF.foot_spec(data.skeleton, data.contact)
     return KF.evaluate_clips(data.test, data.skeleton, fill, intervals, data.fps, feet, progress=log.info, seed=seed)
 
 

@@ -7,10 +7,11 @@ Weights come from the ``loss`` config; only ``l1`` (the method's loss) is on by 
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import torch
 
 from inbetweening.geometry.quaternion import qnormalize
-from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.representation.base import Representation
 
 LOSS_TERMS = ("l1", "fk_pos", "quat", "bone", "smooth", "foot", "keyframe")
@@ -64,8 +65,9 @@ def smooth(pred, mask, rep: Representation) -> torch.Tensor:
     return _masked_mean((p[:, 1:-1] - mid).norm(dim=-1), mask[:, 1:-1])
 
 
-def foot(pred, gt, mask, foot_joints: list[int], rep: Representation, threshold: float = 0.5) -> torch.Tensor:
-    """Foot sliding: predicted foot velocity where the true foot is in contact (true speed < threshold cm/frame)."""
+def foot(pred, gt, mask, foot_joints: Sequence[int], rep: Representation, threshold: float) -> torch.Tensor:
+    """Foot sliding: predicted foot velocity where the true foot is in contact (true speed < ``threshold`` length units
+    per frame: the data's contact speed over its frame rate, :class:`~inbetweening.data.contacts.FootContact`)."""
     if not foot_joints:
         return pred.new_zeros(())
     idx = torch.as_tensor(foot_joints, device=pred.device)
@@ -82,14 +84,11 @@ def keyframe(raw: torch.Tensor, gt: torch.Tensor, known: torch.Tensor) -> torch.
     return l1(raw, gt, known)
 
 
-def foot_joint_indices(skeleton: Skeleton) -> list[int]:
-    """Joints whose name contains Foot/Toe (LAFAN1, Bandai-Namco and synthetic naming)."""
-    return [i for i, n in enumerate(skeleton.names) if "foot" in n.lower() or "toe" in n.lower()]
-
-
-def total_loss(pred, gt, mask, weights: dict, rep: Representation, raw=None, known=None) -> tuple[torch.Tensor, dict]:
+def total_loss(pred, gt, mask, weights: dict, rep: Representation, raw=None, known=None, feet: Sequence[int] = (),
+               foot_speed: float = 0.0) -> tuple[torch.Tensor, dict]:
     """Weighted sum of the enabled terms and a dict of every computed term (for logging).  ``raw`` / ``known``:
-    the network's output before the keyframes are copied back and the known mask, needed by ``keyframe``."""
+    the network's output before the keyframes are copied back and the known mask, needed by ``keyframe``; ``feet``
+    (joint indices) and ``foot_speed`` (contact speed per frame): the data's foot contact rule, needed by ``foot``."""
     unknown = [k for k in weights if k not in LOSS_TERMS]
     if unknown:
         raise ValueError(f"loss: unknown term(s) {unknown}; known: {list(LOSS_TERMS)}")
@@ -108,7 +107,7 @@ def total_loss(pred, gt, mask, weights: dict, rep: Representation, raw=None, kno
         elif name == "smooth":
             terms[name] = smooth(pred, mask, rep)
         elif name == "foot":
-            terms[name] = foot(pred, gt, mask, foot_joint_indices(rep.skeleton), rep)
+            terms[name] = foot(pred, gt, mask, feet, rep, foot_speed)
         elif name == "keyframe":
             if raw is None or known is None:
                 raise ValueError("loss.keyframe: needs the network's raw output and the known mask (raw=, known=)")

@@ -55,6 +55,8 @@ class InbetweenModule(L.LightningModule):
             ``window`` feeds the benchmark's window-centred data as is.  Checkpoints made before the option load
             with ``window`` (what they did).
         representation: the feature representation's name (:mod:`inbetweening.representation`).
+        contact, convention: the training data's feet and contact rule, and its files' up axis and unit (kept by the
+            predictor for the tools; the foot loss uses the feet and the contact speed).
         score_stats: ``{"mean": [...], "std": [...]}``, the statistics the benchmark metrics z-score L2P with
             (``eval.py``: the scored dataset's own training statistics, the protocol's); ``None``: the model's.
     """
@@ -80,6 +82,8 @@ class InbetweenModule(L.LightningModule):
         centre: str,
         representation: str = DEFAULT_REPRESENTATION,
         score_stats: dict | None = None,
+        contact: dict | None = None,
+        convention: dict | None = None,
     ):
         super().__init__()
         if isinstance(mask, Mapping):  # the ``mask`` config group: its name, and the gap settings of mask=joints
@@ -193,8 +197,10 @@ class InbetweenModule(L.LightningModule):
             pred, _, gt, raw = self.predictor(batch["root"], batch["q"], batch["known"], net=net, with_raw=True)
         else:
             pred, _, gt = self.predictor(batch["root"], batch["q"], batch["known"], net=net)
-        loss, terms = total_loss(pred, gt, batch["loss_mask"], self.loss_weights, self.predictor.representation,
-                                 raw=raw, known=batch["known"])
+        pr = self.predictor
+        loss, terms = total_loss(pred, gt, batch["loss_mask"], self.loss_weights, pr.representation, raw=raw,
+                                 known=batch["known"], feet=pr.contact.indices(pr.skeleton.names, "contact.feet"),
+                                 foot_speed=pr.contact.speed / pr.fps)
         bs = gt.shape[0]
         self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=bs)
         for k, v in terms.items():
