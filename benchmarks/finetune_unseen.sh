@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Issue 24's measurement (RESULTS.md section 10): how far 10 minutes get a model on motions it never saw.
+# The content-split model (models/bn2_content: Bandai-Namco-2 without `run` and `wave-both-hands`) is fine-tuned for
+# 10 minutes on takes 001-003 of every style of those two contents (42 clips, via data=bvh on a folder of them), and
+# scored on their other 483 takes: against itself un-tuned, against 10 minutes from scratch on the same clips (the
+# 2-hour recipe cut at 10 minutes), and against interpolation.  Each run alone on the 2-core CPU (about 1 h in all).
+#   bash benchmarks/finetune_unseen.sh <out dir> [<folder of the run / wave-both-hands takes>]
+set -euo pipefail
+OUT=${1:?out dir}
+DATA=${2:-$OUT/bn2_unseen}
+ZIP=${BANDAI_NAMCO_PATH:-../shared/datasets/bandai-namco-2.zip}
+mkdir -p "$OUT"
+if [ ! -d "$DATA" ]; then  # the folder a studio would hand over: BVH files, nothing else
+  mkdir -p "$DATA"
+  unzip -q -j "$ZIP" '*dataset-2_run_*.bvh' '*dataset-2_wave-both-hands_*.bvh' -d "$DATA"
+fi
+DATA_ARGS=(data=bvh "data.path=$DATA" 'data.test_pattern=["*_00[4-9].bvh","*_0[1-9][0-9].bvh"]')
+TEN_MIN=(trainer.max_time=00:00:10:00 test_keyframes=[15,30] threads=2)
+python train.py experiment=finetune init_from=models/bn2_content/model.ckpt "${DATA_ARGS[@]}" "${TEN_MIN[@]}" \
+  hydra.run.dir="$OUT/finetune_stats_checkpoint" > "$OUT/finetune_stats_checkpoint.log" 2>&1
+python train.py experiment=finetune init_from=models/bn2_content/model.ckpt init_stats=data "${DATA_ARGS[@]}" \
+  "${TEN_MIN[@]}" hydra.run.dir="$OUT/finetune_stats_data" > "$OUT/finetune_stats_data.log" 2>&1
+python train.py experiment=bn2_best "${DATA_ARGS[@]}" "${TEN_MIN[@]}" hydra.run.dir="$OUT/scratch" > "$OUT/scratch.log" 2>&1
+python eval.py ckpt_path=models/bn2_content/model.ckpt "${DATA_ARGS[@]}" hydra.run.dir="$OUT/untuned" > "$OUT/untuned.log" 2>&1
+python eval.py ckpt_path=models/bn2_content/model.ckpt "${DATA_ARGS[@]}" protocol=keyframes keyframe_intervals=[15,30] \
+  hydra.run.dir="$OUT/untuned_keyframes" > "$OUT/untuned_keyframes.log" 2>&1
