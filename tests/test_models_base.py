@@ -132,6 +132,32 @@ def test_untrained_residual_model_returns_the_interpolation_exactly(name):
 
 
 @pytest.mark.parametrize("name", TRAINABLE)
+def test_gate_weighs_the_correction_per_joint_and_frame(name):
+    """``gate=True``: one more output channel; untrained it is the interpolation; a closed gate (very negative logit)
+    is the interpolation whatever the correction, an open one the full correction; keys stay exact; gradients reach
+    the gate."""
+    model = tiny_model(name, residual_to_interpolation=True, gate=True)
+    assert model.output_dim == model.feature_dim + 1
+    x, known, interp = make_batch()
+    assert torch.equal(model(x, known, interp), model.finalize(interp, x, known))
+    correction = torch.randn(*x.shape[:3], model.feature_dim)
+    for logit, weight in ((-1e4, 0.0), (1e4, 1.0)):
+        model.network = lambda x_, k_, i_, c=correction, g=logit: torch.cat([c, torch.full((*c.shape[:3], 1), g)], -1)
+        out = model(x, known, interp)
+        assert torch.allclose(out, model.finalize(interp + weight * correction, x, known))
+        assert torch.equal(out[known], x[known])
+    with pytest.raises(ValueError, match="gate: .* needs residual_to_interpolation=true"):
+        tiny_model(name, residual_to_interpolation=False, gate=True)
+    model = tiny_model(name, residual_to_interpolation=True, gate=True)
+    with torch.no_grad():
+        for p in model.output_head():
+            p.normal_(0, 0.1)
+    out = model(x, known, interp)
+    out[~known].sum().backward()
+    assert all(p.grad is not None and p.grad.abs().sum() > 0 for p in model.output_head())
+
+
+@pytest.mark.parametrize("name", TRAINABLE)
 def test_output_head_is_random_without_residual(name):
     assert any(torch.count_nonzero(p) > 0 for p in tiny_model(name).output_head())
 

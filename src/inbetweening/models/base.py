@@ -178,6 +178,7 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         dropout: float = 0.0,
         inputs: Iterable[str] = (),
         layout: Mapping[str, Any] | None = None,
+        gate: bool = False,
     ):
         super().__init__()
         layout = dict(layout or DEFAULT_LAYOUT)
@@ -186,6 +187,8 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         self.pos, self.quat = slice(*layout["position"]), slice(*layout["rotation"])
         self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
         self.residual_to_interpolation = bool(residual_to_interpolation)
+        self.gate = bool(gate)
+        self.output_dim = feature_dim + (1 if self.gate else 0)  # the network writes F channels, and the gate's
         self.inputs = tuple(inputs or ())
         self.input_dim = feature_dim + sum(INPUTS[n][0] for n in self.inputs)
 
@@ -211,6 +214,9 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         checks.integer("feature_dim", minimum=FEATURE_DIM)
         checks.integer("max_frames")
         checks.fraction("dropout")
+        if checks.values.get("gate") and not checks.values.get("residual_to_interpolation"):
+            raise ValueError(f"{prefix}gate: the gate weighs the network's correction to the interpolation; it needs "
+                             f"{prefix}residual_to_interpolation=true")
         if "inputs" in checks.values:
             checks.names("inputs", INPUTS)
         cls.check_settings(checks)
@@ -241,7 +247,7 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
 
     # ------------------------------------------------------------------ forward
     def network(self, x: Tensor, known: Tensor, interp: Tensor | None) -> Tensor:  # pragma: no cover
-        """``x (B, T, J, input_dim), known (B, T, J) bool, interp (B, T, J, F) | None -> raw (B, T, J, F)``
+        """``x (B, T, J, input_dim), known (B, T, J) bool, interp (B, T, J, F) | None -> raw (B, T, J, output_dim)``
         (``input_dim == F`` unless the model was given ``inputs``: :meth:`network_input`)."""
         raise NotImplementedError
 
@@ -275,6 +281,8 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         # under autocast (bf16-mixed) the network may return bf16: the residual, the quaternion normalisation and the
         # output stay in the input's dtype (float32), so the contract's unit quaternions hold at float32 precision
         raw = self.network(self.network_input(x), known, interp).to(x.dtype)
+        if self.gate:  # do no harm: a learned weight in [0, 1] per joint and frame on the correction
+            raw = torch.sigmoid(raw[..., self.feature_dim :]) * raw[..., : self.feature_dim]
         if self.residual_to_interpolation and interp is not None:
             raw = interp + raw
         pred = self.finalize(raw, x, known)

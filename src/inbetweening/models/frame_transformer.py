@@ -45,9 +45,10 @@ class FrameTransformer(InbetweenModel):
         residual_to_interpolation: bool = False,
         inputs: tuple[str, ...] = (),
         layout: dict | None = None,
+        gate: bool = False,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs, layout)
+                         inputs, layout, gate=gate)
         self.d_model = d_model
         in_ch = num_joints * self.input_dim + num_joints
         self.stem = nn.Conv1d(in_ch, d_model, kernel_size=3, padding=1)
@@ -56,7 +57,7 @@ class FrameTransformer(InbetweenModel):
         nn.init.normal_(self.segment_embed.weight, std=0.02)
         self.embed_dropout = nn.Dropout(dropout)
         self.encoder = TransformerEncoder(d_model, depth, heads, ffn_dim, dropout, norm, activation, norm_first=False)
-        self.head = nn.Conv1d(d_model, num_joints * feature_dim, kernel_size=3, padding=1)
+        self.head = nn.Conv1d(d_model, num_joints * self.output_dim, kernel_size=3, padding=1)
 
     @classmethod
     def check_settings(cls, checks: Checks) -> None:
@@ -71,4 +72,4 @@ class FrameTransformer(InbetweenModel):
         frame_known = known.to(x.dtype).amin(dim=-1).long()  # (B, T): 1 iff every joint of the frame is known
         h = self.embed_dropout(h + self.pos_embed(x.shape[1]) + self.segment_embed(frame_known))
         h = self.encoder(h)
-        return self.head(h.transpose(1, 2)).transpose(1, 2).reshape(*x.shape[:-1], self.feature_dim)
+        return self.head(h.transpose(1, 2)).transpose(1, 2).reshape(*x.shape[:-1], self.output_dim)

@@ -102,9 +102,10 @@ class GraphTransformer(InbetweenModel):
         checkpoint_layers: bool = True,
         inputs: tuple[str, ...] = (),
         layout: dict | None = None,
+        gate: bool = False,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs, layout)
+                         inputs, layout, gate=gate)
         self.checkpoint_layers = bool(checkpoint_layers)
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
         adj = torch.as_tensor(adjacency, dtype=torch.float32)
@@ -131,8 +132,8 @@ class GraphTransformer(InbetweenModel):
             GraphTransformerLayer(d_model, heads, ffn_dim, dropout, norm, activation) for _ in range(depth)
         )
         # per-joint output head
-        self.out_weight = nn.Parameter(torch.empty(num_joints, d_model, feature_dim))
-        self.out_bias = nn.Parameter(torch.zeros(num_joints, feature_dim))
+        self.out_weight = nn.Parameter(torch.empty(num_joints, d_model, self.output_dim))
+        self.out_bias = nn.Parameter(torch.zeros(num_joints, self.output_dim))
         with torch.no_grad():  # same scale as nn.Linear's default init (uniform ±1/sqrt(fan_in)), per joint
             self.in_weight.uniform_(-self.input_dim**-0.5, self.input_dim**-0.5)
 

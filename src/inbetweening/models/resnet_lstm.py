@@ -46,9 +46,10 @@ class ResNetLSTM(InbetweenModel):
         residual_to_interpolation: bool = False,
         inputs: tuple[str, ...] = (),
         layout: dict | None = None,
+        gate: bool = False,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs, layout)
+                         inputs, layout, gate=gate)
         in_dim = num_joints * self.input_dim + num_joints
         self.input_layers = nn.Sequential(nn.Linear(in_dim, hidden_dim), make_activation(activation))
         self.res_blocks = nn.Sequential(
@@ -61,7 +62,7 @@ class ResNetLSTM(InbetweenModel):
             nn.Dropout(dropout),
             nn.Linear(lstm_out, hidden_dim),
             make_activation(activation),
-            nn.Linear(hidden_dim, num_joints * feature_dim),
+            nn.Linear(hidden_dim, num_joints * self.output_dim),
         )
 
     @classmethod
@@ -74,4 +75,4 @@ class ResNetLSTM(InbetweenModel):
         """``x (B, T, J, F), known (B, T, J) bool, interp unused -> raw (B, T, J, F)``."""
         h = self.res_blocks(self.input_layers(frame_features(x, known)))  # (B, T, H)
         h, _ = self.lstm(h)
-        return self.output_layers(h).reshape(*x.shape[:-1], self.feature_dim)
+        return self.output_layers(h).reshape(*x.shape[:-1], self.output_dim)

@@ -52,9 +52,10 @@ class STTransformer(InbetweenModel):
         residual_to_interpolation: bool = False,
         inputs: tuple[str, ...] = (),
         layout: dict | None = None,
+        gate: bool = False,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs, layout)
+                         inputs, layout, gate=gate)
         spatial_ffn_dim = 2 * spatial_dim if spatial_ffn_dim is None else spatial_ffn_dim
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
         self.spatial_dim, self.d_model = spatial_dim, d_model
@@ -70,7 +71,7 @@ class STTransformer(InbetweenModel):
         self.temporal = TransformerEncoder(d_model, temporal_depth, heads, ffn_dim, dropout,
                                            activation=activation, norm_first=True, final_norm=False)
         self.head_norm = nn.LayerNorm(d_model)
-        self.head = nn.Linear(d_model, num_joints * feature_dim)
+        self.head = nn.Linear(d_model, num_joints * self.output_dim)
 
     @classmethod
     def check_settings(cls, checks: Checks) -> None:
@@ -87,4 +88,4 @@ class STTransformer(InbetweenModel):
         s = self.spatial(s.reshape(-1, self.num_joints, self.spatial_dim))  # (B*T, J, C)
         h = self.frame_proj(s.reshape(b, t, self.num_joints * self.spatial_dim)) + self.time_embed(t)
         h = self.temporal(h)  # (B, T, D)
-        return self.head(self.head_norm(h)).reshape(*x.shape[:-1], self.feature_dim)
+        return self.head(self.head_norm(h)).reshape(*x.shape[:-1], self.output_dim)

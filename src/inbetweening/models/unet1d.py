@@ -67,9 +67,10 @@ class UNet1D(InbetweenModel):
         residual_to_interpolation: bool = False,
         inputs: tuple[str, ...] = (),
         layout: dict | None = None,
+        gate: bool = False,
     ):
         super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs, layout)
+                         inputs, layout, gate=gate)
         self.levels, self.multiple = levels, 2**levels
         chans = [base_channels * 2**i for i in range(levels + 1)]
         in_ch = num_joints * self.input_dim + num_joints
@@ -85,7 +86,7 @@ class UNet1D(InbetweenModel):
         for i in reversed(range(levels)):
             self.upsample.append(nn.ConvTranspose1d(chans[i + 1], chans[i], kernel_size=2, stride=2))
             self.up_blocks.append(ConvBlock1d(2 * chans[i], chans[i], norm_groups, activation, dropout))
-        self.head = nn.Conv1d(chans[0], num_joints * feature_dim, kernel_size=1)
+        self.head = nn.Conv1d(chans[0], num_joints * self.output_dim, kernel_size=1)
 
     @classmethod
     def check_settings(cls, checks: Checks) -> None:
@@ -106,4 +107,4 @@ class UNet1D(InbetweenModel):
         h = self.bottleneck(h)
         for up, block, skip in zip(self.upsample, self.up_blocks, reversed(skips)):
             h = block(torch.cat([up(h), skip], dim=1))
-        return self.head(h)[:, :, :t].transpose(1, 2).reshape(*x.shape[:-1], self.feature_dim)
+        return self.head(h)[:, :, :t].transpose(1, 2).reshape(*x.shape[:-1], self.output_dim)
