@@ -166,3 +166,45 @@ def test_a_second_representation_is_one_class(monkeypatch, tmp_path):
 
     info = export_onnx(p, tmp_path / "m.onnx")
     assert info["max_abs_diff"] <= 1e-4
+
+
+# ------------------------------------------------------------------ foot contact channels
+def _walker():
+    """A 2-joint 'leg' (root at hip height, a foot 90 cm below) over 8 frames at 30 fps: the foot stands (frames 0-3),
+    then the whole body moves 3 cm per frame (90 cm/s: too fast for contact), at the floor."""
+    from inbetweening.data.contacts import FootContact
+    from inbetweening.representation import GlobalPosLocalQuatContact
+
+    sk = Skeleton(("hip", "foot_l"), (-1, 0), np.array([[0.0, 0, 0], [0.0, -90.0, 0]]))
+    rep = GlobalPosLocalQuatContact(sk, np.zeros(6), np.ones(6), contact=FootContact(("foot_l",), 15.0, 30.0), fps=30.0)
+    x = np.array([0, 0, 0, 0, 3, 6, 9, 12], dtype=float)
+    root = np.stack([x, np.full(8, 92.0), np.zeros(8)], -1)
+    q = np.zeros((8, 2, 4))
+    q[..., 0] = 1.0
+    return rep, root, q
+
+
+def test_contact_channel_labels_planted_feet():
+    rep, root, q = _walker()
+    f = rep.encode_windows(root, q, dtype=torch.float64)
+    assert f.shape == (8, 2, 8) and rep.channels()["contact"] == slice(7, 8)
+    assert f[:, 1, 7].tolist() == [1, 1, 1, 0, 0, 0, 0, 0]  # frame 3 moves on to frame 4: its forward speed is 90 cm/s
+    assert f[:, 0, 7].tolist() == [0] * 8  # not a foot
+    torch_f = rep.encode(torch.as_tensor(root), torch.as_tensor(q))
+    assert torch.equal(torch_f, f)  # numpy and torch: the same labels
+    high = root.copy()
+    high[:, 1] += 20  # the foot 22 cm above the floor: never planted
+    assert rep.encode_windows(high, q, dtype=torch.float64)[:, 1, 7].sum() == 0
+    assert torch.equal(rep.contacts(f)[:, 1], f[:, 1, 7])
+
+
+def test_contact_channel_of_unknown_and_isolated_frames():
+    """Unknown (NaN) frames stay NaN; a known frame between unknown ones is judged on its height alone."""
+    rep, root, q = _walker()
+    root, q = root.copy(), q.copy()
+    root[[1, 2, 4, 6]] = np.nan
+    q[[1, 2, 4, 6]] = np.nan
+    for f in (rep.encode_windows(root, q, dtype=torch.float64)[:, 1, 7],
+              rep.encode(torch.as_tensor(root), torch.as_tensor(q))[:, 1, 7]):
+        assert torch.isnan(f[[1, 2, 4, 6]]).all()
+        assert f[[0, 3, 5, 7]].tolist() == [1.0] * 4  # isolated (frame 7: frame 6 unknown, no frame 8): height only

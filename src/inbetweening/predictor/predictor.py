@@ -104,11 +104,12 @@ class Predictor(nn.Module):
         self.centre = check_centre(centre)
         self.n_past = int(n_past)
         self.forward_axis = tuple(float(a) for a in forward_axis)
-        self.representation = build_representation(representation, skeleton, self.mean, self.std)
         self.model_cfg = dict(model or {})
         self.fps, self.train_window, self.dataset = float(fps), int(train_window), str(dataset)
         self.contact = FootContact.from_dict(contact)
         self.convention = FileConvention.from_dict(convention)
+        self.representation = build_representation(representation, skeleton, self.mean, self.std,
+                                                   contact=self.contact, fps=self.fps)
 
     # ------------------------------------------------------------------ plain values
     @classmethod

@@ -10,9 +10,11 @@ from inbetweening.geometry.skeleton import Skeleton
 
 from .base import Representation
 from .global_pos_local_quat import GlobalPosLocalQuat
+from .global_pos_local_quat_contact import GlobalPosLocalQuatContact
 
 REPRESENTATIONS: dict[str, type[Representation]] = {
     GlobalPosLocalQuat.name: GlobalPosLocalQuat,
+    GlobalPosLocalQuatContact.name: GlobalPosLocalQuatContact,
 }
 DEFAULT_REPRESENTATION = GlobalPosLocalQuat.name  # what every checkpoint made before the option used
 
@@ -24,10 +26,11 @@ def representation_class(name: str) -> type[Representation]:
     return REPRESENTATIONS[name]
 
 
-def build_representation(name: str, skeleton: Skeleton, mean, std) -> Representation:
-    """``REPRESENTATIONS[name](skeleton, mean, std)``; ValueError naming ``representation`` if unknown."""
-    return representation_class(name)(skeleton, mean, std)
+def build_representation(name: str, skeleton: Skeleton, mean, std, **kw) -> Representation:
+    """``REPRESENTATIONS[name](skeleton, mean, std, **kw)`` (``contact``, ``fps``: the data's contact rule and frame
+    rate); ValueError naming ``representation`` if unknown."""
+    return representation_class(name)(skeleton, mean, std, **kw)
 
 
-__all__ = ["DEFAULT_REPRESENTATION", "REPRESENTATIONS", "GlobalPosLocalQuat", "Representation", "build_representation",
+__all__ = ["DEFAULT_REPRESENTATION", "REPRESENTATIONS", "GlobalPosLocalQuat", "GlobalPosLocalQuatContact", "Representation", "build_representation",
            "representation_class"]

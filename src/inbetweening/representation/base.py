@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from inbetweening.data.contacts import FootContact
 from inbetweening.geometry.skeleton import Skeleton
 
 
@@ -33,10 +34,12 @@ class Representation:
     quat: slice = slice(0, 0)  # the joint's local rotation channels (quaternion wxyz)
     description: str = ""
 
-    def __init__(self, skeleton: Skeleton, mean, std):
+    def __init__(self, skeleton: Skeleton, mean, std, contact: FootContact | None = None, fps: float = 30.0):
         self.skeleton = skeleton
         self.mean = np.asarray(mean, dtype=np.float64)
         self.std = np.asarray(std, dtype=np.float64)
+        self.contact = contact or FootContact()  # the data's feet and contact rule (representations with contacts)
+        self.fps = float(fps)
 
     # ------------------------------------------------------------------ layout
     @classmethod
@@ -52,9 +55,10 @@ class Representation:
 
     def metadata(self) -> dict:
         """Plain values describing the layout (export metadata)."""
+        extra = {f"{k}_slice": [v.start, v.stop] for k, v in self.channels().items() if k not in ("position", "rotation")}
         return {"representation": self.name, "features_per_joint": self.features,
                 "position_slice": [self.pos.start, self.pos.stop], "quaternion_slice": [self.quat.start, self.quat.stop],
-                "features": self.description}
+                **extra, "features": self.description}
 
     # ------------------------------------------------------------------ maps
     def encode(self, root: torch.Tensor, local_q: torch.Tensor) -> torch.Tensor:
@@ -88,6 +92,11 @@ class Representation:
         """Global positions ``(..., J, 3)`` in the units of the position channels (the inverse of
         :meth:`global_positions` on them)."""
         raise NotImplementedError
+
+    def contacts(self, feats: torch.Tensor) -> torch.Tensor | None:
+        """Foot contact per joint, in [0, 1], the features carry: ``(..., J, F) -> (..., J)``; ``None`` when the
+        representation has no contact channels."""
+        return None
 
     def position_scale(self) -> float:
         """One length scale of the data (the mean position std), to keep length-valued losses O(1)."""

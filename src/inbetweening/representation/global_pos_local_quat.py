@@ -24,8 +24,8 @@ class GlobalPosLocalQuat(Representation):
     quat = slice(3, 7)
     description = "per joint [(p - pos_mean) / pos_std (xyz, global position), local quaternion wxyz]"
 
-    def __init__(self, skeleton: Skeleton, mean, std):
-        super().__init__(skeleton, mean, std)
+    def __init__(self, skeleton: Skeleton, mean, std, **kw):
+        super().__init__(skeleton, mean, std, **kw)
         j = skeleton.num_joints
         self._mean_np, self._std_np = self.mean.reshape(j, 3), self.std.reshape(j, 3)
         self._tensors: dict = {}  # (dtype, device) -> (mean, std) tensors, built once
