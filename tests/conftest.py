@@ -83,12 +83,23 @@ TINY_CKPT_OVERRIDES = [
 @pytest.fixture(scope="session")
 def tiny_checkpoint(tmp_path_factory, cache_dir) -> Path:
     """A real training checkpoint: a tiny graph_transformer trained 3 steps on synthetic data (~10 s)."""
+    return _tiny_checkpoint(tmp_path_factory.mktemp("tiny_checkpoint"), cache_dir, TINY_CKPT_OVERRIDES)
+
+
+@pytest.fixture(scope="session")
+def tiny_contact_checkpoint(tmp_path_factory, cache_dir) -> Path:
+    """:func:`tiny_checkpoint` with foot contact channels and the gate (``representation=
+    global_pos_local_quat_contact model.gate=true``)."""
+    return _tiny_checkpoint(tmp_path_factory.mktemp("tiny_contact_checkpoint"), cache_dir,
+                            [*TINY_CKPT_OVERRIDES, "representation=global_pos_local_quat_contact", "model.gate=true"])
+
+
+def _tiny_checkpoint(out: Path, cache_dir: Path, overrides: list[str]) -> Path:
     from inbetweening.training.jobs import train
 
-    out = tmp_path_factory.mktemp("tiny_checkpoint")
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        cfg = compose("train", overrides=TINY_CKPT_OVERRIDES)
+        cfg = compose("train", overrides=overrides)
     with open_dict(cfg):
         cfg.paths.output_dir = str(out)
         cfg.paths.cache_dir = str(cache_dir)

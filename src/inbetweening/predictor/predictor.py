@@ -278,12 +278,13 @@ class Predictor(nn.Module):
         pr, pq = self.fill_windows(np.asarray(root)[None], np.asarray(local_q)[None])
         return pr[0], pq[0]
 
-    def fill_windows(self, root: np.ndarray, local_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def fill_windows(self, root: np.ndarray, local_q: np.ndarray, with_contacts: bool = False):
         """:meth:`fill_window` of ``B`` windows of the same length in one forward pass.
 
         ``root (B, T, 3), local_q (B, T, J, 4)`` -> ``root (B, n, 3), local_q (B, n, J, 4)``, ``n = T - n_past - 1``.
         Each window gets its own canonical frame; the windows do not interact (the same numbers as one at a time,
-        up to float rounding of the batched network).
+        up to float rounding of the batched network).  ``with_contacts``: also the predicted foot contact
+        ``(B, n, J)`` in [0, 1] (``None`` when the representation has no contact channels).
         """
         root = np.asarray(root, dtype=np.float64)
         local_q = np.asarray(local_q, dtype=np.float64)
@@ -299,7 +300,11 @@ class Predictor(nn.Module):
         with torch.inference_mode():
             out = self.predict_windows(root, local_q, known)
         pr, pq = out.root[:, p : p + n].cpu().numpy(), out.local_q[:, p : p + n].cpu().numpy()
-        return pr, pq / np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit (decode's normalisation has an epsilon)
+        pq = pq / np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit (decode's normalisation has an epsilon)
+        if not with_contacts:
+            return pr, pq
+        c = self.representation.contacts(out.pred)
+        return pr, pq, None if c is None else c[:, p : p + n].float().cpu().numpy()
 
     # ------------------------------------------------------------------ export
     def example_inputs(self, batch: int, gap: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

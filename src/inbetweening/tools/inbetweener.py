@@ -47,6 +47,7 @@ from inbetweening.data.errors import DatasetError
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_pose
 from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities
 from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.tools.foot_lock import lock_feet
 
 __all__ = ["FillResult", "InbetweenError", "Inbetweener"]
 
@@ -119,9 +120,12 @@ class Inbetweener:
         segment: split longer gaps (``True``, default) or raise :class:`InbetweenError`.
         trained_gap: the longest transition the model saw in training; default
             ``train_window - n_past - 1``.
+        foot_lock: hold the feet where the model predicts contact (:mod:`inbetweening.tools.foot_lock`; models whose
+            representation has contact channels, on data with feet); ``False``: the network's output as it is.
     """
 
-    def __init__(self, model, max_gap: int | None = None, segment: bool = True, trained_gap: int | None = None):
+    def __init__(self, model, max_gap: int | None = None, segment: bool = True, trained_gap: int | None = None,
+                 foot_lock: bool = True):
         self.module = model.eval()
         self.predictor = getattr(model, "predictor", model)
         self.skeleton: Skeleton = self.predictor.skeleton
@@ -135,6 +139,7 @@ class Inbetweener:
             raise InbetweenError(f"the model's window ({window} frames, n_past={self.n_past}) leaves no room for a gap")
         self.max_gap = self._check_max_gap(max_gap)
         self.segment = bool(segment)
+        self.foot_lock = bool(foot_lock)
 
     @classmethod
     def from_checkpoint(cls, path: str | Path, device: str | torch.device = "cpu", **kw) -> Inbetweener:
@@ -167,21 +172,22 @@ class Inbetweener:
 
     # ------------------------------------------------------------------ array level
     def fill_arrays(self, root, local_q, known_frames, *, max_gap: int | None = None, segment: bool | None = None,
-                    _pseudo: list[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    foot_lock: bool | None = None, _pseudo: list[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Generate every frame not in ``known_frames``.
 
         Args:
             root: ``(F, 3)`` root positions; local_q: ``(F, J, 4)`` local rotations wxyz, in the model's skeleton.
                 Values of unknown frames are never read (they may be NaN).
             known_frames: sorted frame indices, at least 2, the first 0 and the last ``F - 1``.
-            max_gap, segment: override the instance's settings (see the class docstring).
+            max_gap, segment, foot_lock: override the instance's settings (see the class docstring).
         Returns:
             ``root (F, 3), local_q (F, J, 4)`` float64; known frames equal the input exactly.
         """
-        return self.fill_many([(root, local_q, known_frames)], max_gap=max_gap, segment=segment,
+        return self.fill_many([(root, local_q, known_frames)], max_gap=max_gap, segment=segment, foot_lock=foot_lock,
                               _pseudo=None if _pseudo is None else [_pseudo])[0]
 
     def fill_many(self, clips, *, max_gap: int | None = None, segment: bool | None = None, batch_size: int = 4,
+                  foot_lock: bool | None = None,
                   _pseudo: list[list[int]] | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
         """:meth:`fill_arrays` of many clips at once: ``clips`` is a sequence of ``(root, local_q, known_frames)``;
         returns one ``(root, local_q)`` per clip, the same numbers as :meth:`fill_arrays` clip by clip (up to float
@@ -208,11 +214,25 @@ class Inbetweener:
             for items in groups.values():
                 for i in range(0, len(items), batch_size):
                     self._generate(items[i : i + batch_size])
+        lock = self.foot_lock if foot_lock is None else bool(foot_lock)
+        feet = self.predictor.contact.indices(self.skeleton.names, "the model's feet") if lock else ()
         out = []
-        for root, q, _, known, exact_r, exact_q in plans:
+        for root, q, _, known, exact_r, exact_q, contact in plans:
             root[known], q[known] = exact_r, exact_q
+            if feet and not np.isnan(contact).all():
+                q = self._lock(root, q, known, contact, feet)
             out.append((root, q))
         return out
+
+    def _lock(self, root, q, known, contact, feet) -> np.ndarray:
+        """:func:`~inbetweening.tools.foot_lock.lock_feet` with the keyframes' own contacts (the representation's
+        rule on the keys alone) next to the generated frames' predicted ones."""
+        rep = self.predictor.representation
+        keys_only = np.full_like(root, np.nan), np.full_like(q, np.nan)
+        keys_only[0][known], keys_only[1][known] = root[known], q[known]
+        labels = rep.contacts(rep.encode_windows(*keys_only, dtype=torch.float64)).numpy()
+        contact = np.where(np.isnan(contact), labels, contact)
+        return lock_feet(self.skeleton, root, q, known, contact, feet)
 
     def _plan(self, root, local_q, known_frames, limit: int, seg: bool, pseudo: list[int] | None):
         """Check one clip and lay out its segments: ``(root, q, [(a, b), ...], known, exact root, exact q)``;
@@ -231,6 +251,7 @@ class Inbetweener:
         if not (np.isfinite(root[known]).all() and np.isfinite(q[known]).all()):
             raise InbetweenError("fill_arrays: known frames contain NaN or infinite values")
         exact_r, exact_q = root[known].copy(), q[known].copy()
+        contact = np.full((n, j), np.nan)  # predicted foot contact of the generated frames
         q[known] = qnormalize(q[known])
         segments = []
         for a, b in itertools.pairwise(known):
@@ -249,7 +270,7 @@ class Inbetweener:
                 if pseudo is not None:
                     pseudo.extend(points[1:-1])
             segments += [(s, e) for s, e in itertools.pairwise(points) if e - s > 1]
-        return root, q, segments, known, exact_r, exact_q
+        return root, q, segments, known, exact_r, exact_q, contact
 
     def _generate(self, items) -> None:
         """Fill frames ``a+1 .. b-1`` of each ``(plan, a, b)`` in place (all gaps of one length, one forward pass)
@@ -261,14 +282,16 @@ class Inbetweener:
             idx = np.concatenate([ctx, np.full(n, a), [b]])  # unknown frames hold frame a (never read by the model)
             wr.append(root[idx])
             wq.append(_continuous(q[idx]))
-        prs, pqs = self.predictor.fill_windows(np.stack(wr), np.stack(wq))
-        for ((root, q, *_), a, b), pr, pq in zip(items, prs, pqs):
+        prs, pqs, cs = self.predictor.fill_windows(np.stack(wr), np.stack(wq), with_contacts=True)
+        for i, ((root, q, *_, contact), a, b) in enumerate(items):
             # sign-continuous with frame a (cosmetic: every frame is written as Euler angles anyway)
-            root[a + 1 : b], q[a + 1 : b] = pr, _continuous(np.concatenate([q[a : a + 1], pq]))[1:]
+            root[a + 1 : b], q[a + 1 : b] = prs[i], _continuous(np.concatenate([q[a : a + 1], pqs[i]]))[1:]
+            if cs is not None:
+                contact[a + 1 : b] = cs[i]
 
     # ------------------------------------------------------------------ BVH level
     def fill(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
-             max_gap: int | None = None, segment: bool | None = None) -> BVH:
+             max_gap: int | None = None, segment: bool | None = None, foot_lock: bool | None = None) -> BVH:
         """In-between a BVH clip; returns a new :class:`~inbetweening.data.bvh.BVH` (write it with ``write_bvh``).
 
         Give exactly one of:
@@ -286,10 +309,11 @@ class Inbetweener:
         interpolated pseudo-keyframes unless ``segment=False`` (then :class:`InbetweenError`); see the module
         docstring.  Errors: :class:`InbetweenError` (keyframes, gap, skeleton), ``BVHError`` (unreadable file).
         """
-        return self.fill_detailed(bvh, keyframes, gap, max_gap=max_gap, segment=segment).bvh
+        return self.fill_detailed(bvh, keyframes, gap, max_gap=max_gap, segment=segment, foot_lock=foot_lock).bvh
 
     def fill_detailed(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
-                      max_gap: int | None = None, segment: bool | None = None) -> FillResult:
+                      max_gap: int | None = None, segment: bool | None = None,
+                      foot_lock: bool | None = None) -> FillResult:
         """:meth:`fill` plus the arrays behind it (for rendering and inspection): a :class:`FillResult`."""
         if not isinstance(bvh, BVH):
             bvh = read_bvh(bvh)
@@ -316,7 +340,8 @@ class Inbetweener:
         q = np.full((n_out, self.skeleton.num_joints, 4), np.nan)
         root[out_pos], q[out_pos] = root_in[src], q_in[src]
         pseudo: list[int] = []
-        root, q = self.fill_arrays(root, q, out_pos, max_gap=max_gap, segment=segment, _pseudo=pseudo)
+        root, q = self.fill_arrays(root, q, out_pos, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
+                                   _pseudo=pseudo)
         out = self._to_bvh(bvh, fold, root, q, src, out_pos)
         return FillResult(out, root, q, out_pos, self.skeleton, sorted(pseudo))
 

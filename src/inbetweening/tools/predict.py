@@ -49,6 +49,8 @@ options:
   gap=N                 form B, see above
   max_gap=N             longest gap generated in one pass (default: the longest gap the model was trained on)
   segment=true|false    split gaps longer than max_gap (default true; --no-segment = false)
+  foot_lock=true|false  hold a foot still where the model predicts it planted, the leg solved by IK (default true,
+                        for models that predict contacts; --no-foot-lock = false: the network's output as it is)
   render=PATH.gif|.png  also write a picture: the result next to plain linear interpolation of the same
                         keyframes, keyframes drawn in red; .gif an animation, .png a filmstrip of 8 frames
   render_dpi=N          picture resolution (default 80)
@@ -67,7 +69,7 @@ examples:
 
 OPTIONS = {
     "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "gap": int, "max_gap": int,
-    "segment": parse_bool, "render": str, "render_dpi": int, "device": str, "force": parse_bool,
+    "segment": parse_bool, "foot_lock": parse_bool, "render": str, "render_dpi": int, "device": str, "force": parse_bool,
     "threads": int,
 }
 ALIASES = {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "in": "input", "out": "output", "o": "output",
@@ -152,7 +154,7 @@ def run(argv: Sequence[str]) -> int:
     t0 = time.perf_counter()
     try:
         clip = read_bvh(args["input"])
-        kw = {k: args[k] for k in ("max_gap", "segment") if k in args}
+        kw = {k: args[k] for k in ("max_gap", "segment", "foot_lock") if k in args}
         ib = Inbetweener.from_checkpoint(args["ckpt_path"], device=device, **kw)
         res = ib.fill_detailed(clip, keyframes=args.get("keyframes"), gap=args.get("gap"))
         out = Path(args["output"])

@@ -1,0 +1,125 @@
+"""Foot locking (tools/foot_lock.py) and the two-bone IK behind it (geometry/ik.py)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip
+from inbetweening.geometry.ik import two_bone_ik
+from inbetweening.geometry.quaternion import qmul, qnormalize, qrot
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.tools.foot_lock import legs, lock_feet
+
+SK = Skeleton(NAMES, PARENTS, OFFSETS)
+FEET = [NAMES.index(n) for n in ("LeftFoot", "LeftToe", "RightFoot", "RightToe")]
+
+
+def test_legs_of_the_feet():
+    assert [tuple(NAMES[j] for j in leg) for leg in legs(SK, FEET)] == [
+        ("LeftUpLeg", "LeftLeg", "LeftFoot"), ("RightUpLeg", "RightLeg", "RightFoot")]
+    assert legs(SK, [NAMES.index("LeftUpLeg")]) == []  # its chain would turn the root
+
+
+def test_two_bone_ik_reaches_the_target_and_keeps_hip_and_foot():
+    rng = np.random.default_rng(0)
+    f = 300
+
+    def rq(n):
+        return qnormalize(rng.normal(size=(n, 4)))
+
+    par, hl, kl, al = rq(f), rq(f), rq(f), rq(f)
+    hip = rng.normal(size=(f, 3))
+    knee_off, ankle_off = np.array([0, -43.0, 0]), np.array([0, -42.0, 0])
+
+    def chain(hl, kl, al):
+        hg = qmul(par, hl)
+        kg = qmul(hg, kl)
+        knee = hip + qrot(hg, np.broadcast_to(knee_off, (f, 3)))
+        return hg, kg, qmul(kg, al), knee, knee + qrot(kg, np.broadcast_to(ankle_off, (f, 3)))
+
+    hg, kg, ag, knee, ankle = chain(hl, kl, al)
+    d = rng.normal(size=(f, 3))
+    reach = rng.uniform(5, 84, (f, 1))
+    target = hip + d / np.linalg.norm(d, axis=1, keepdims=True) * reach
+    h2, k2, a2 = two_bone_ik(hip, knee, ankle, target, hg, kg, ag, par)
+    _, _, ag2, knee2, ankle2 = chain(h2, k2, a2)
+    assert np.abs(ankle2 - target).max() < 1e-3  # cm
+    assert np.abs(np.abs((ag2 * ag).sum(-1)) - 1).max() < 1e-6  # the foot keeps its global rotation
+    assert np.allclose(np.linalg.norm(knee2 - hip, axis=1), 43.0)  # bones keep their lengths
+    far = hip + (target - hip) / reach * 200  # out of reach: the leg straight towards it
+    _, _, _, _, ankle3 = chain(*two_bone_ik(hip, knee, ankle, far, hg, kg, ag, par))
+    along = ((ankle3 - hip) * (far - hip)).sum(-1) / np.linalg.norm(far - hip, axis=-1)
+    assert np.allclose(along, 85.0, atol=1e-3)
+
+
+def _clip(n=60, seed=1):
+    """A synthetic clip walking on the spot (root XZ held: every locked position stays within the legs' reach)."""
+    q, root = generate_clip(np.random.default_rng(seed), n)
+    root[:, [0, 2]] = root[:1, [0, 2]]
+    return root, q
+
+
+def test_locked_feet_stand_still_and_keys_stay_exact():
+    root, q = _clip()
+    known = [0, 30, 59]
+    contact = np.zeros((60, len(NAMES)))
+    left = NAMES.index("LeftFoot")
+    contact[8:20, left] = 1.0  # a planted left foot the model slid through, no key inside
+    contact[25:36, left] = 1.0  # a run holding the key at frame 30
+    out = lock_feet(SK, root, q, known, contact, FEET)
+    assert np.array_equal(out[known], q[known])
+    _, gp0 = SK.pose(root, q)
+    _, gp = SK.pose(root, out)
+    a = gp[:, left]
+    assert np.abs(a[8:20] - a[8:20].mean(axis=0)).max() < 1e-3  # held still over the run
+    assert np.allclose(a[8:20].mean(axis=0), gp0[8:20, left].mean(axis=0), atol=1e-3)  # at the run's mean position
+    # held where the key puts it: exactly, or (the hip too far for the leg) with the leg straight towards it
+    hip = gp[:, NAMES.index("LeftUpLeg")]
+    at_key = np.linalg.norm(a[25:36] - gp0[30, left], axis=1) < 1e-3
+    straight = np.isclose(np.linalg.norm(a - hip, axis=1), 85.0, atol=1e-3)[25:36]
+    assert (at_key | straight).all() and at_key.sum() >= 5
+    right = NAMES.index("RightFoot")
+    assert np.allclose(gp[:, right], gp0[:, right])  # no contact on the right: untouched
+    changed = np.flatnonzero(np.abs(out - q).max(axis=(1, 2)) > 0)
+    assert changed.min() >= 8 - 4 and changed.max() <= 35 + 4  # the run and its blend frames only
+    untouched = [j for j in range(len(NAMES)) if j not in (1, 2, 3)]  # only the left hip, knee and ankle turn
+    assert np.array_equal(out[:, untouched], q[:, untouched])
+    blend = np.linalg.norm(a[4:8] - gp0[4:8, left], axis=1)
+    assert (np.diff(blend) > 0).all()  # blended in over the 4 frames before the run
+
+
+def test_a_run_between_two_keys_moves_from_one_key_to_the_other():
+    root, q = _clip(seed=2)
+    known = [0, 10, 20, 59]
+    contact = np.zeros((60, len(NAMES)))
+    left = NAMES.index("LeftFoot")
+    contact[5:25, left] = 1.0
+    out = lock_feet(SK, root, q, known, contact, FEET)
+    _, gp0 = SK.pose(root, q)
+    a = SK.pose(root, out)[1][:, left]
+    w = (np.arange(5, 25) - 10).clip(0, 10) / 10
+    want = gp0[10, left] + w[:, None] * (gp0[20, left] - gp0[10, left])
+    hip = SK.pose(root, out)[1][5:25, NAMES.index("LeftUpLeg")]
+    reached = np.linalg.norm(a[5:25] - want, axis=1) < 1e-3
+    straight = np.isclose(np.linalg.norm(a[5:25] - hip, axis=1), 85.0, atol=1e-3)  # out of the leg's reach
+    assert (reached | straight).all() and reached.sum() >= 10 and np.array_equal(out[known], q[known])
+
+
+@pytest.mark.parametrize("lock", [True, False])
+def test_inbetweener_locks_feet_with_a_contact_model(tiny_contact_checkpoint, lock):
+    """A model with contact channels: the Inbetweener locks by default (keys exact either way); foot_lock=False is
+    the network's output."""
+    from inbetweening.tools.inbetweener import Inbetweener
+
+    ib = Inbetweener.from_checkpoint(tiny_contact_checkpoint)
+    assert ib.foot_lock
+    root, q = _clip(80, seed=4)
+    keys = [0, 25, 50, 79]
+    nan_r, nan_q = np.full_like(root, np.nan), np.full_like(q, np.nan)
+    nan_r[keys], nan_q[keys] = root[keys], q[keys]
+    r_out, q_out = ib.fill_arrays(nan_r, nan_q, keys, foot_lock=lock)
+    assert np.array_equal(q_out[keys], q[keys]) and np.array_equal(r_out[keys], root[keys])
+    r_free, q_free = ib.fill_arrays(nan_r, nan_q, keys, foot_lock=False)
+    assert np.array_equal(r_out, r_free)  # the root is never changed by locking
+    if not lock:
+        assert np.array_equal(q_out, q_free)
