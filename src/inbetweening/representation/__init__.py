@@ -32,5 +32,6 @@ def build_representation(name: str, skeleton: Skeleton, mean, std, **kw) -> Repr
     return representation_class(name)(skeleton, mean, std, **kw)
 
 
-__all__ = ["DEFAULT_REPRESENTATION", "REPRESENTATIONS", "GlobalPosLocalQuat", "GlobalPosLocalQuatContact", "Representation", "build_representation",
+__all__ = ["DEFAULT_REPRESENTATION", "REPRESENTATIONS", "GlobalPosLocalQuat", "GlobalPosLocalQuatContact", "Representation",
+           "build_representation",
            "representation_class"]

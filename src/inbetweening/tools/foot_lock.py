@@ -4,7 +4,8 @@ For each leg (a foot joint of the data's :class:`~inbetweening.data.contacts.Foo
 grandparent are the knee and the hip; the other foot joints of the leg, e.g. the toes, follow it), the frames where
 the predicted contact of that joint is above one half form *contact runs*.  In a run the ankle is held at one
 position: a keyframe's where the run holds one (so the locked foot meets the key exactly; between two keys of a run
-it moves straight from one key's position to the other's), else the mean of the generated positions.  The leg is solved with a two-bone IK (:func:`inbetweening.geometry.ik.two_bone_ik`) so the
+it moves straight from one key's position to the other's), else the mean of the generated positions.  The leg is
+solved with a two-bone IK (:func:`inbetweening.geometry.ik.two_bone_ik`) so the
 ankle reaches it, the foot keeping its global rotation; over ``blend`` frames on each side of a run the target is
 blended from the generated position to the locked one.  Keyframes and the root are never changed: only the hip,
 knee and ankle rotations of generated frames.

@@ -101,7 +101,8 @@ def train(cfg: DictConfig) -> dict[str, float]:
             return metrics
         kf = None
         if cfg.get("test_keyframes"):  # the keyframes-only protocol on the whole test clips, through the animator path
-            kf = score_keyframes(module.predictor, dm.data, list(cfg.test_keyframes), int(cfg.seed))
+            kf = score_keyframes(module.predictor, dm.data, list(cfg.test_keyframes), int(cfg.seed),
+                                 bool(cfg.get("foot_lock", True)))
         rows = with_baselines(name, metrics, dm, cfg.data.test_lengths)
         write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split,
                         keyframes=kf, interpolation=rows.get("interpolation"))
@@ -256,7 +257,7 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     data = dm.load_data()
     ckpt_path, name, fill = cfg.get("ckpt_path"), cfg.model.name, None
     if ckpt_path:
-        ib = Inbetweener.from_checkpoint(ckpt_path)
+        ib = Inbetweener.from_checkpoint(ckpt_path, foot_lock=bool(cfg.get("foot_lock", True)))
         if not ib.skeleton.same_topology(data.skeleton):
             raise CheckpointError(f"ckpt_path: {ckpt_path} was trained on a {ib.skeleton.num_joints}-joint skeleton "
                                   f"({ib.predictor.dataset}), data {data.name!r} has {data.skeleton.num_joints} joints")
@@ -274,14 +275,15 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     return {f"{m}@{k}": float(v) for k, row in res.items() for m, v in row.items()}
 
 
-def score_keyframes(model, data, intervals: list, seed: int = 0) -> dict:
-    """The keyframes-only figures of ``model`` (a predictor, through the animator path, or a fill function; ``None``:
-    interpolation) on the whole test clips of ``data`` for each schedule of ``intervals`` (an interval ``K`` or a
-    keypose schedule name; ``seed`` seeds the random one): ``{schedule: {figure: value}}``."""
+def score_keyframes(model, data, intervals: list, seed: int = 0, foot_lock: bool = True) -> dict:
+    """The keyframes-only figures of ``model`` (a predictor, through the animator path, with its feet locked unless
+    ``foot_lock=False``; or a fill function; ``None``: interpolation) on the whole test clips of ``data`` for each
+    schedule of ``intervals`` (an interval ``K`` or a keypose schedule name; ``seed`` seeds the random one):
+    ``{schedule: {figure: value}}``."""
     from inbetweening.evaluation import keyframes as KF
     from inbetweening.tools.inbetweener import Inbetweener
 
-    fill = Inbetweener(model).fill_arrays if isinstance(model, torch.nn.Module) else model
+    fill = Inbetweener(model, foot_lock=foot_lock).fill_arrays if isinstance(model, torch.nn.Module) else model
     feet = KF.foot_spec(data.skeleton, data.contact)
     return KF.evaluate_clips(data.test, data.skeleton, fill, intervals, data.fps, feet, progress=log.info, seed=seed)
 
