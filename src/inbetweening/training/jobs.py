@@ -14,6 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import lightning as L
+import numpy as np
 import torch
 import yaml
 from lightning.pytorch.utilities.exceptions import SIGTERMException
@@ -102,7 +103,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
         kf = None
         if cfg.get("test_keyframes"):  # the keyframes-only protocol on the whole test clips, through the animator path
             kf = score_keyframes(module.predictor, dm.data, list(cfg.test_keyframes), int(cfg.seed),
-                                 bool(cfg.get("foot_lock", True)))
+                                 bool(cfg.get("foot_lock", True)), cfg.get("keyframe_clips"))
         rows = with_baselines(name, metrics, dm, cfg.data.test_lengths)
         write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split,
                         keyframes=kf, interpolation=rows.get("interpolation"))
@@ -266,7 +267,7 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
         raise ConfigError(f"ckpt_path: required for model {name!r} (or use model=zero_velocity|interpolation)")
     elif name == "zero_velocity":
         fill = KF.hold_keyframes
-    res = score_keyframes(fill, data, list(cfg.keyframe_intervals), int(cfg.seed))
+    res = score_keyframes(fill, data, list(cfg.keyframe_intervals), int(cfg.seed), max_clips=cfg.get("keyframe_clips"))
     out = output_dir(cfg)
     write_benchmark(out / "benchmark.json", data.name, name, len(data.test), {}, dm.hparams.split, keyframes=res)
     print(f"\nKeyframes-only protocol: {data.name}, split {dm.hparams.split}, {len(data.test)} whole test clips, "
@@ -275,17 +276,21 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     return {f"{m}@{k}": float(v) for k, row in res.items() for m, v in row.items()}
 
 
-def score_keyframes(model, data, intervals: list, seed: int = 0, foot_lock: bool = True) -> dict:
+def score_keyframes(model, data, intervals: list, seed: int = 0, foot_lock: bool = True,
+                    max_clips: int | None = None) -> dict:
     """The keyframes-only figures of ``model`` (a predictor, through the animator path, with its feet locked unless
     ``foot_lock=False``; or a fill function; ``None``: interpolation) on the whole test clips of ``data`` for each
     schedule of ``intervals`` (an interval ``K`` or a keypose schedule name; ``seed`` seeds the random one):
-    ``{schedule: {figure: value}}``."""
+    ``{schedule: {figure: value}}``.  ``max_clips``: score that many test clips, evenly spaced (quick comparisons)."""
     from inbetweening.evaluation import keyframes as KF
     from inbetweening.tools.inbetweener import Inbetweener
 
     fill = Inbetweener(model, foot_lock=foot_lock).fill_arrays if isinstance(model, torch.nn.Module) else model
     feet = KF.foot_spec(data.skeleton, data.contact)
-    return KF.evaluate_clips(data.test, data.skeleton, fill, intervals, data.fps, feet, progress=log.info, seed=seed)
+    clips = data.test
+    if max_clips and max_clips < len(clips):
+        clips = [clips[i] for i in np.linspace(0, len(clips) - 1, int(max_clips)).round().astype(int)]
+    return KF.evaluate_clips(clips, data.skeleton, fill, intervals, data.fps, feet, progress=log.info, seed=seed)
 
 
 def run_cli(job: Callable[[DictConfig], dict], cfg: DictConfig) -> float | None:
