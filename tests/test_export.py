@@ -134,3 +134,13 @@ def test_inference_only_checkpoint_loads_alone(tiny_checkpoint, tmp_path):
     b = InbetweenModule.load_from_checkpoint(out, map_location="cpu").eval()
     for (ka, va), (kb, vb) in zip(a.net.state_dict().items(), b.net.state_dict().items()):
         assert ka == kb and torch.equal(va, vb)
+
+
+def test_window_graph_of_a_contact_model_with_the_gate(tiny_contact_checkpoint, tmp_path):
+    """The Blender extension's window graph exports for a model with foot contact channels and the gate."""
+    pytest.importorskip("onnxruntime")
+    from inbetweening.predictor.checkpoint import load_predictor
+    from inbetweening.tools.export import export_window_onnx
+
+    info = export_window_onnx(load_predictor(str(tiny_contact_checkpoint)), tmp_path / "w.onnx")
+    assert info["max_abs_diff"] < 1e-4 and info["metadata"]["contact_slice"] == "[7, 8]"

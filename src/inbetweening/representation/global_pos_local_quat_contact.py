@@ -27,7 +27,7 @@ def _speed_np(p: np.ndarray, fps: float) -> np.ndarray:
 
 
 def _speed_torch(p: torch.Tensor, fps: float) -> torch.Tensor:
-    step = torch.linalg.vector_norm(torch.diff(p, dim=-3), dim=-1) * fps
+    step = torch.linalg.vector_norm(p[..., 1:, :, :] - p[..., :-1, :, :], dim=-1) * fps  # (slices export to ONNX)
     pad = torch.full_like(step[..., :1, :], float("nan"))
     fwd, bwd = torch.cat([step, pad], dim=-2), torch.cat([pad, step], dim=-2)
     return torch.where(torch.isnan(fwd), bwd, fwd)
@@ -63,16 +63,17 @@ class GlobalPosLocalQuatContact(GlobalPosLocalQuat):
         return out
 
     def labels(self, gp: torch.Tensor) -> torch.Tensor:
-        """Contact labels of global positions ``(..., T, J, 3) -> (..., T, J, 1)`` (torch)."""
-        out = torch.zeros(gp.shape[:-1] + (1,), dtype=gp.dtype, device=gp.device)
+        """Contact labels of global positions ``(..., T, J, 3) -> (..., T, J, 1)`` (torch; every joint computed and
+        the non-feet zeroed, so the graph has no indexed writes and exports to ONNX)."""
+        is_foot = torch.zeros(gp.shape[-2], dtype=gp.dtype, device=gp.device)
         feet = self._feet()
         if feet:
-            p = gp[..., feet, :]
-            speed = _speed_torch(p, self.fps)
-            c = (p[..., UP] < self.contact.height) & ((speed < self.contact.speed) | torch.isnan(speed))
-            out[..., feet, 0] = torch.where(torch.isnan(p[..., UP]), torch.full_like(p[..., UP], float("nan")),
-                                            c.to(gp.dtype))
-        return torch.where(torch.isnan(gp[..., :1]), torch.full_like(out, float("nan")), out)
+            is_foot[feet] = 1.0
+        speed = _speed_torch(gp, self.fps)
+        c = (gp[..., UP] < self.contact.height) & ((speed < self.contact.speed) | torch.isnan(speed))
+        c = c.to(gp.dtype) * is_foot
+        nan = torch.isnan(gp[..., UP])
+        return torch.where(nan, torch.full_like(c, float("nan")), c)[..., None]
 
     def encode(self, root, local_q):
         _, gp = self.skeleton.pose(root, local_q)
