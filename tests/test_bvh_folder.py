@@ -217,7 +217,8 @@ def test_cli_error_is_one_line_with_exit_2(tmp_path, cache_dir, capsys):
 @pytest.mark.slow
 def test_another_rig_end_to_end(rig, tmp_path, cache_dir):
     """``train.py data=bvh`` on the other rig (metres, XYZ, Z up, 60 fps), ``eval.py`` scores it (both protocols),
-    ``predict`` fills one of its clips: keys bit-exact, the output in the file's own frame (metres, Z up)."""
+    ``predict`` fills one of its clips (keys bit-exact, the output in the file's own frame: metres, Z up), and the
+    checkpoint exports to ONNX."""
     common = [f"data.path={rig}", f"paths.cache_dir={cache_dir}"]
     run = tmp_path / "run"
     train = [sys.executable, "train.py", "data=bvh", *common, *[o for o in TINY if not o.startswith("data.synthetic")],
@@ -244,6 +245,10 @@ def test_another_rig_end_to_end(rig, tmp_path, cache_dir):
     assert b.names == a.names and b.channels == a.channels and b.frame_time == a.frame_time and b.num_frames == 81
     for k in (0, 20, 50, 80):
         assert np.array_equal(b.motion[k], a.motion[k])
+    onnx = tmp_path / "rig.onnx"
+    ex = subprocess.run([sys.executable, "-m", "inbetweening.export", f"ckpt_path={ckpt}", "format=onnx", f"output={onnx}"],
+                        cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert ex.returncode == 0 and onnx.stat().st_size > 0, ex.stderr[-3000:]
     hips_z = b.motion[:, 8]  # the hips' Zposition channel: metres above the floor, Z up
     assert 0.7 < hips_z.min() and hips_z.max() < 1.1
     assert np.abs(b.motion[:, 6:9] - a.motion[:81, 6:9]).max() < 0.5  # within half a metre of the truth
