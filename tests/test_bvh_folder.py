@@ -265,3 +265,17 @@ def test_init_from_another_skeleton_is_one_line(rig, tmp_path, cache_dir, tiny_c
     lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
     assert e.value.code == 2 and len(lines) == 1
     assert "22-joint skeleton (Hips, LeftUpLeg" in lines[0] and "data 'bvh' has 20 joints (hips, thigh.L" in lines[0]
+
+
+def test_a_list_of_sources_and_duplicate_names(rig, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    for i in range(12):
+        _one_file(rig, a if i < 6 else b, f"take_{i:02d}.bvh")
+    both, rep = derive_spec([a, b], FolderOptions())
+    one, _ = derive_spec([rig], FolderOptions())
+    assert rep["files"] == 12 and both.forward_axis == one.forward_axis and both.feet == one.feet
+    data = load_dataset("bvh", path=[str(a), str(b)], cache_dir=tmp_path / "c")
+    assert len(data.train) + len(data.test) == 12 and data.source == f"{a}, {b}"
+    _one_file(rig, tmp_path / "dup", "take_03.bvh")
+    with pytest.raises(DatasetError, match=r"two files are called take_03.bvh"):
+        derive_spec([a, tmp_path / "dup"], FolderOptions())
