@@ -45,7 +45,7 @@ FLOOR_COLOR, GRID_COLOR = "#ededed", "#c4c4c4"
 DEFAULT_VIEW = (15.0, -60.0)
 #: Elevation of the automatic view, and the angle between the travel direction and the screen's x axis (a 3/4 view:
 #: the body moves to the right and a little towards the camera, so the two legs do not hide each other).
-AUTO_ELEVATION, AUTO_TURN = 18.0, 25.0
+AUTO_ELEVATION, AUTO_TURN = 16.0, 15.0
 #: At most this many grid lines across the floor (a coarser grid beyond).
 MAX_GRID_LINES = 40
 #: Number of frames shown by :func:`draw_sequences` when ``frames`` is None.
