@@ -1,5 +1,6 @@
 """The picture of RESULTS.md section 7: one clip of a held-out content filled from keyframes alone, the model,
-interpolation and the ground truth side by side (a PNG strip of frames and a GIF).
+interpolation and the ground truth side by side (a PNG strip of frames and a GIF), the feet's trails on the floor
+thick where a foot is planted (the model's predicted contact if it has contact channels, else the data's rule).
 
     python results/strip.py <checkpoint trained on the content split> [--clip NAME] [--every 30] [--out results/unseen]
 
@@ -29,9 +30,11 @@ def main(argv=None) -> None:
                     help="Bandai-Namco-2 zip or folder (default: $BANDAI_NAMCO_PATH, else ../shared/datasets)")
     a = ap.parse_args(argv)
 
+    from inbetweening.data.contacts import planted_frames
     from inbetweening.data.datasets import load_dataset
     from inbetweening.evaluation import keyframes as KF
     from inbetweening.geometry.interp import interpolate_keyframes
+    from inbetweening.tools.foot_lock import THRESHOLD
     from inbetweening.tools.inbetweener import Inbetweener
     from inbetweening.tools.render import render_gif, render_png
 
@@ -46,11 +49,17 @@ def main(argv=None) -> None:
     gen = KF.generated_frames(n, keys)
     root_in, q_in = root.copy(), q.copy()
     root_in[gen], q_in[gen] = np.nan, np.nan
-    model = Inbetweener.from_checkpoint(a.ckpt).fill_arrays(root_in, q_in, keys)
+    *model, contact = Inbetweener.from_checkpoint(a.ckpt).fill_arrays(root_in, q_in, keys, with_contacts=True)
     interp = interpolate_keyframes(root_in, q_in, keys)
     sk = data.skeleton
     pos = {name: sk.pose(*motion)[1] for name, motion in
            (("model", model), ("interpolation", interp), ("ground truth", (root, q)))}
+    # the feet's trails, thick where planted: the model's predicted contact if it has one, else the data's rule
+    feet = list(data.contact.indices(sk.names))
+    planted = {name: planted_frames(p[:, feet], data.fps, data.contact.height, data.contact.speed)
+               for name, p in pos.items()}
+    if contact is not None:
+        planted["model"] = np.nan_to_num(contact[:, feet]) > THRESHOLD
     for name in ("model", "interpolation"):
         total, count = KF.position_error(pos[name], pos["ground truth"], gen)
         print(f"{a.clip}, keys every {a.every}: {name} {total / count:.2f} cm")
@@ -59,9 +68,9 @@ def main(argv=None) -> None:
     shown = [t for t in range(0, n, max(1, a.every // 3))]
     out = Path(a.out)
     render_png(pos, sk.parents, out.with_suffix(".png"), frames=shown, highlight=highlight,
-               title=f"{a.clip}: unseen content, keys every {a.every} frames")
+               title=f"{a.clip}: unseen content, keys every {a.every} frames", feet=feet, contacts=planted)
     render_gif(pos, sk.parents, out.with_suffix(".gif"), fps=15, highlight=highlight, dpi=50,
-               title=f"{a.clip}, keys every {a.every}")
+               title=f"{a.clip}, keys every {a.every}", feet=feet, contacts=planted)
     print(f"wrote {out.with_suffix('.png')} and {out.with_suffix('.gif')}")
 
 

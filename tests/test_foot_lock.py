@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from inbetweening.data.contacts import foot_contacts
 from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.quaternion import qmul, qnormalize, qrot
@@ -123,3 +124,70 @@ def test_inbetweener_locks_feet_with_a_contact_model(tiny_contact_checkpoint, lo
     assert np.array_equal(r_out, r_free)  # the root is never changed by locking
     if not lock:
         assert np.array_equal(q_out, q_free)
+
+
+def test_fill_arrays_returns_the_contacts_it_locks_on(tiny_contact_checkpoint, tiny_checkpoint):
+    """``with_contacts``: the same motion plus the contact the lock read, the prediction on generated frames and the
+    keys' own (an isolated key: its height under the contact height) on the keys; None for a model without
+    contact channels."""
+    from inbetweening.tools.inbetweener import Inbetweener
+
+    ib = Inbetweener.from_checkpoint(tiny_contact_checkpoint)
+    root, q = _clip(80, seed=4)
+    keys = [0, 25, 50, 79]
+    nan_r, nan_q = np.full_like(root, np.nan), np.full_like(q, np.nan)
+    nan_r[keys], nan_q[keys] = root[keys], q[keys]
+    r, lq, contact = ib.fill_arrays(nan_r, nan_q, keys, with_contacts=True)
+    r0, q0 = ib.fill_arrays(nan_r, nan_q, keys)
+    assert np.array_equal(r, r0) and np.array_equal(lq, q0)
+    assert contact.shape == (80, len(NAMES)) and np.isfinite(contact).all()
+    assert ((contact >= 0) & (contact <= 1)).all()
+    feet = list(ib.predictor.contact.indices(NAMES))
+    low = SK.pose(root, q)[1][keys][:, feet, 1] < ib.predictor.contact.height
+    assert np.array_equal(contact[keys][:, feet], low.astype(float))
+    assert ib.fill_detailed(_bvh(root, q), keyframes=keys).contact.shape == (80, len(NAMES))
+    plain = Inbetweener.from_checkpoint(tiny_checkpoint)
+    assert plain.fill_arrays(nan_r, nan_q, keys, with_contacts=True)[2] is None
+
+
+def _bvh(root, q):
+    from inbetweening.data.synthetic import make_bvh
+
+    return make_bvh(q, root)
+
+
+def _foot_lock_strip():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "results" / "foot_lock_strip.py"
+    spec = importlib.util.spec_from_file_location("foot_lock_strip", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_foot_lock_strip_draws_locked_unlocked_and_truth(tiny_contact_checkpoint, tiny_checkpoint, tmp_path):
+    """results/foot_lock_strip.py's picture on a synthetic clip: three panels in its order, each titled with its foot
+    skating, the ground truth's by the evaluation's own numbers; a model without contact channels is refused."""
+    from inbetweening.evaluation import keyframes as KF
+    from inbetweening.tools.inbetweener import Inbetweener
+
+    strip = _foot_lock_strip()
+    ib = Inbetweener.from_checkpoint(tiny_contact_checkpoint)
+    root, q = _clip(61, seed=2)
+    fig, skate = strip.draw(ib, root, q, 30, "synthetic")
+    assert list(skate) == list(strip.LABELS)
+    titles = [ax.get_title() for ax in fig.axes]
+    assert [t.split(":")[0] for t in titles] == list(strip.LABELS)
+    assert all(f"skate {skate[label]:.1f} cm/s" in t for label, t in zip(strip.LABELS, titles))
+    feet = list(ib.predictor.contact.indices(NAMES))
+    gp = SK.pose(root, q)[1]
+    contact = foot_contacts(gp[:, feet], ib.fps, ib.predictor.contact.height, ib.predictor.contact.speed)
+    contact &= KF.scored_pairs(KF.generated_frames(61, [0, 30, 60]))[:, None]
+    total, count = KF.foot_skate(gp[:, feet], contact, ib.fps)
+    assert skate["ground truth"] == pytest.approx(total / count if count else 0.0)
+    fig.savefig(tmp_path / "strip.png")
+    assert (tmp_path / "strip.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(SystemExit, match="predicts no foot contact"):
+        strip.draw(Inbetweener.from_checkpoint(tiny_checkpoint), root, q, 30, "x")

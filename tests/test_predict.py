@@ -220,6 +220,7 @@ def test_cli_end_to_end_with_render(tiny_checkpoint, tmp_path):
     out = read_bvh(tmp_path / "out" / "filled.bvh")
     assert out.num_frames == 25
     assert np.array_equal(out.motion[[0, 12, 24]], read_bvh(tmp_path / "clip.bvh").motion[[0, 12, 24]])
+    assert (tmp_path / "out" / "filled.gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")
     with Image.open(tmp_path / "out" / "filled.gif") as im:
         assert im.format == "GIF" and im.n_frames == 25
 
@@ -231,12 +232,47 @@ def test_cli_render_writes_what_the_file_name_says(tiny_checkpoint, tmp_path):
     common = [f"ckpt_path={tiny_checkpoint}", "input=clip.bvh", "keyframes=[0,12,24]", "render_dpi=40"]
     r = _cli(*common, "output=a.bvh", "render=strip.png", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
+    assert (tmp_path / "strip.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"  # not a GIF under a .png name
     with Image.open(tmp_path / "strip.png") as im:
-        assert im.format == "PNG" and im.size[0] > im.size[1]  # a filmstrip, not a GIF under a .png name
+        assert im.format == "PNG" and getattr(im, "n_frames", 1) == 1
+    r = _cli(*common, "output=c.bvh", "render=anim.gif", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "anim.gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")
     r = _cli(*common, "output=b.bvh", "render=strip.jpg", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.strip().splitlines() == [
         "error: render: strip.jpg must end in .gif (an animation) or .png (a filmstrip)"], r.stderr
     assert not (tmp_path / "b.bvh").exists()  # refused before any work
+
+
+def test_render_comparison_marks_the_planted_feet(ib, tmp_path):
+    """``predict --render`` draws the feet's trails on the floor, the model's predicted contact thick in the contact
+    colour in the model's panel (the left one): a result whose feet are all planted has it there, one whose feet are
+    never planted has none; a model that records no feet gets them from the skeleton."""
+    import dataclasses
+
+    from matplotlib.colors import to_rgb
+    from PIL import Image
+
+    from inbetweening.data.contacts import FootContact
+    from inbetweening.tools.skeleton_plot import CONTACT_COLOR
+
+    res = ib.fill_detailed(_clip(40), keyframes=[0, 12, 24])
+    shape = (res.num_frames, res.skeleton.num_joints)
+
+    def model_panel_contact_pixels(result, name, contact):
+        path = predict.render_comparison(result, tmp_path / name, 30.0, contact=contact)
+        with Image.open(path) as im:
+            img = np.asarray(im.convert("RGB"), dtype=float) / 255
+        left = img[: -30, : img.shape[1] // 2]  # above the legend (its "foot planted" sample)
+        return (np.abs(left - np.asarray(to_rgb(CONTACT_COLOR))).max(axis=-1) < 0.08).sum()
+
+    planted, never = (dataclasses.replace(res, contact=np.full(shape, v)) for v in (1.0, 0.0))
+    assert ib.predictor.contact.feet
+    assert model_panel_contact_pixels(planted, "planted.png", ib.predictor.contact) > 200
+    assert model_panel_contact_pixels(never, "never.png", ib.predictor.contact) == 0
+    assert model_panel_contact_pixels(planted, "found.png", FootContact()) > 200  # feet found by their names
+    with pytest.raises(ValueError, match="must end in .gif"):
+        predict.render_comparison(res, tmp_path / "x.jpg", 30.0)
 
 
 PRINT_ATOL = 0.5e-6 + 1e-9  # BVH values are written with 6 decimals

@@ -151,23 +151,22 @@ def test_figures_are_logged_at_the_validation_steps(fitted):
     assert img.width <= 1000 and img.height <= 450 and img.encoded_image_string[:4] == b"\x89PNG"
 
 
-def test_hparams_session_starts_with_the_fit_and_names_the_metrics(fitted):
+def test_hparams_session_starts_with_the_fit(fitted):
+    """The session is written when fitting starts (running runs appear) and ended after the test; a single run
+    writes no HParams experiment of its own (a sweep's job does: see the test below)."""
     from tensorboard.plugins.hparams import metadata
 
     out, _ = fitted
     _, ea = _events(out / "tensorboard")
     tensors = set(ea.Tags()["tensors"])
-    assert {metadata.EXPERIMENT_TAG, metadata.SESSION_START_INFO_TAG, metadata.SESSION_END_INFO_TAG} <= tensors
+    assert {metadata.SESSION_START_INFO_TAG, metadata.SESSION_END_INFO_TAG} <= tensors
+    assert metadata.EXPERIMENT_TAG not in tensors
     assert "custom_scalars__config__" in tensors
     start = ea.Tensors(metadata.SESSION_START_INFO_TAG)[0].wall_time
     assert start < ea.Scalars("train/loss")[0].wall_time  # written when fitting starts: running runs appear
-    content = ea.SummaryMetadata(metadata.EXPERIMENT_TAG).plugin_data.content
-    exp = metadata.parse_experiment_plugin_data(content)
-    metric_tags = [m.name.tag for m in exp.metric_infos]
-    assert metric_tags[:5] == ["val/l2p_mean_best", *[f"test/l2p_ratio@{n}" for n in (5, 15, 30, 45)]]
-    names = [h.name for h in exp.hparam_infos]
+    content = ea.SummaryMetadata(metadata.SESSION_START_INFO_TAG).plugin_data.content
+    names = set(metadata.parse_session_start_info_plugin_data(content).hparams)
     assert "trainer/max_epochs" in names and "hp_metric" not in names
-    assert sum(h.differs for h in exp.hparam_infos) == 5
 
 
 def test_logging_leaves_the_results_and_the_rng_alone(tmp_path, cache_dir, fitted):
@@ -206,6 +205,77 @@ def test_a_resumed_fit_continues_its_tensorboard_run(tmp_path):
     assert resumed_version(tb, False) is None
     (tb / "graph_transformer").mkdir()
     assert resumed_version(tb, True) is None
+
+
+# ------------------------------------------------------------------ which experiment TensorBoard serves
+def _served_experiment(logdir: Path, runs: list[Path]):
+    """The HParams experiment TensorBoard's own plugin backend serves for ``logdir`` (what the dashboard asks for:
+    ``/data/plugin/hparams/experiment`` with its hparams limit), the runs found in the order given."""
+    from tensorboard import context
+    from tensorboard.backend.event_processing import data_provider, plugin_event_multiplexer
+    from tensorboard.plugins import base_plugin
+    from tensorboard.plugins.hparams import api_pb2, backend_context, get_experiment
+
+    mux = plugin_event_multiplexer.EventMultiplexer()
+    for run in runs:
+        mux.AddRun(str(run), str(run.relative_to(logdir)))
+    mux.Reload()
+    tb = base_plugin.TBContext(logdir=str(logdir), multiplexer=mux,
+                               data_provider=data_provider.MultiplexerDataProvider(mux, str(logdir)))
+    request = api_pb2.GetExperimentRequest(experiment_name="", hparams_limit=1000)
+    return get_experiment.Handler(context.RequestContext(), backend_context.Context(tb), "", request).run()
+
+
+def _default_columns(exp) -> list[str]:
+    """The hparam columns the HParams dashboard shows before any click: the first 5 once those marked ``differs``
+    are put first (tf-hparams-query-pane's ``_computeHParams``)."""
+    infos = sorted(exp.hparam_infos, key=lambda h: not h.differs)  # stable, as the dashboard's sort
+    return [h.name for h in infos[:5]]
+
+
+def _session(logdir: Path, cfg, overrides: list[str], swept: list[str], version: str) -> Path:
+    """One run's HParams session written as a fit writes it (:func:`make_trainer`'s wiring: curated hparams, an
+    experiment only in a sweep's job) and a few of its scalars; returns the run's folder."""
+    import lightning as L
+
+    from inbetweening.training.tb_logging import HParamsSession, RunLogger
+
+    logger = RunLogger(save_dir=str(logdir), name="", version=version)
+    hp, shown = curated_hparams(cfg, overrides, swept)
+    session = HParamsSession(hp, shown, [5, 15], [5, 15], experiment=bool(swept))
+    trainer = L.Trainer(logger=logger, enable_checkpointing=False, enable_progress_bar=False,
+                        enable_model_summary=False)
+    session.start(trainer)
+    logger.log_metrics({"val/l2p_mean_best": 0.5, "test/l2p_ratio@15": 0.9, "train/loss": 1.0}, step=1)
+    logger.end_session("success")
+    logger.finalize("success")
+    return logdir / version
+
+
+@pytest.mark.parametrize("single_first", [True, False])
+def test_a_sweeps_keys_stay_the_default_columns_next_to_a_single_run(tmp_path, cache_dir, single_first):
+    """One --logdir holding a single run and a 2-job sweep over model.norm: whichever run TensorBoard lists first,
+    the HParams experiment it serves is the sweep's, with model/norm among the columns shown by default and the
+    curated metric columns first (before the fix the single run's experiment could win: its overrides shown, the
+    swept model/norm not)."""
+    logdir = tmp_path / "logs"
+    single_over = ["data.batch_size=8", "trainer.max_steps=3", "seed=1"]
+    single = _session(logdir, compose_cfg("train", single_over, tmp_path / "s", cache_dir), single_over, [],
+                      "graph_transformer data.batch_size=8 seed=1 trainer.max_steps=3")
+    sweep = []
+    for norm in ("layer", "batch"):
+        over = [f"model.norm={norm}", "trainer.max_steps=3"]
+        cfg = compose_cfg("train", over, tmp_path / norm, cache_dir)
+        sweep.append(_session(logdir, cfg, over, ["model.norm"], f"multiruns/{norm}/model.norm={norm}"))
+    exp = _served_experiment(logdir, [single, *sweep] if single_first else [*sweep, single])
+    assert "model/norm" in _default_columns(exp), _default_columns(exp)
+    assert sum(h.differs for h in exp.hparam_infos) == 5  # the swept key, then 4 essentials
+    assert "trainer/max_epochs" in {h.name for h in exp.hparam_infos}
+    assert [m.name.tag for m in exp.metric_infos][:3] == ["val/l2p_mean_best", "test/l2p_ratio@5",
+                                                          "test/l2p_ratio@15"]
+    # the single run alone: no experiment of its own; the plugin builds one from its session
+    alone = _served_experiment(logdir, [single])
+    assert {"data/batch_size", "seed", "model/norm"} <= {h.name for h in alone.hparam_infos}
 
 
 # ------------------------------------------------------------------ the TensorBoard server, as the browser reads it
@@ -253,12 +323,14 @@ def test_tensorboard_server_shows_groups_hparams_and_figures(tmp_path, cache_dir
         tags = _get(port, "/data/plugin/scalars/tags")
         groups = {t.split("/")[0] for run_tags in tags.values() for t in run_tags}
         assert groups == {"train", "val", "test"}, groups
-        exp = _get(port, "/data/plugin/hparams/experiment", {"experimentName": "", "includeMetrics": True})
+        exp = _get(port, "/data/plugin/hparams/experiment", {"experimentName": "", "includeMetrics": True,
+                                                              "hparamsLimit": 1000})
         shown = sorted(h["name"] for h in exp["hparamInfos"] if h.get("differs"))
-        # every run writes its own experiment (the columns it shows first) and TensorBoard shows whichever it read
-        # first: a sweep run's (the swept key, then 4 essentials) or the single run's (its first 5 overrides)
-        single_run = sorted(o.partition("=")[0].replace(".", "/") for o in tiny[:5])
-        assert ("model/depth" in shown and len(shown) == 5) or shown == single_run, shown
+        # only the sweep's jobs write an experiment, so TensorBoard serves the sweep's (the swept key, then 4
+        # essentials) whichever run it reads first
+        assert "model/depth" in shown and len(shown) == 5, shown
+        first = sorted(exp["hparamInfos"], key=lambda h: not h.get("differs"))[:5]  # the dashboard's default columns
+        assert "model/depth" in [h["name"] for h in first]
         metrics = [m["name"]["tag"] for m in exp["metricInfos"]]
         assert metrics[0] == "val/l2p_mean_best" and "test/l2p@15" in metrics
         groups_req = {"experimentName": "", "allowedStatuses": ["STATUS_UNKNOWN", "STATUS_SUCCESS", "STATUS_FAILURE",

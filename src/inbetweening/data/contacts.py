@@ -20,7 +20,7 @@ from inbetweening.data.errors import DatasetError
 from inbetweening.data.mirror import side_of
 
 __all__ = ["CONTACT_HEIGHT_CM", "CONTACT_SPEED_CM_S", "FOOT_WORDS", "FootContact", "REFERENCE_HEIGHT_CM",
-           "body_height", "find_feet", "foot_contacts", "scaled_contact"]
+           "body_height", "find_feet", "foot_contacts", "planted_frames", "scaled_contact"]
 
 UP = 1  # Y up (the project's frame)
 
@@ -72,6 +72,20 @@ def foot_contacts(feet_gp: np.ndarray, fps: float, contact_height: float, contac
     height = 0.5 * (feet_gp[1:, :, UP] + feet_gp[:-1, :, UP])
     speed = np.linalg.norm(step, axis=-1) * fps
     return (height < contact_height) & (speed < contact_speed)
+
+
+def planted_frames(feet_gp: np.ndarray, fps: float, contact_height: float, contact_speed: float) -> np.ndarray:
+    """Contact per frame and foot joint, the rule of :func:`foot_contacts` on single frames (as the contact channels
+    of ``global_pos_local_quat_contact`` label them): ``feet_gp (F, K, 3) -> (F, K)`` bool, frame ``t`` planted when
+    its height is below ``contact_height`` and its speed to the next frame (the last frame: from the previous one)
+    below ``contact_speed``; a single frame is judged on its height alone."""
+    feet_gp = np.asarray(feet_gp, dtype=np.float64)
+    low = feet_gp[..., UP] < contact_height
+    if len(feet_gp) < 2:
+        return low
+    speed = np.linalg.norm(np.diff(feet_gp, axis=0), axis=-1) * fps
+    speed = np.concatenate([speed, speed[-1:]], axis=0)
+    return low & (speed < contact_speed)
 
 
 def body_height(positions: Sequence[np.ndarray], up: int = UP) -> float:

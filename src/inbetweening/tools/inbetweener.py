@@ -62,7 +62,8 @@ class FillResult:
 
     ``root``/``local_q`` are in the model's skeleton (a folded ``joint_Root`` is not part of it);
     ``known_frames`` are the output frames that are keyframes; ``pseudo_keyframes`` the split points of
-    gaps longer than ``max_gap`` (interpolated, see the module docstring).
+    gaps longer than ``max_gap`` (interpolated, see the module docstring); ``contact`` the foot contact the model
+    predicted (:meth:`Inbetweener.fill_arrays` ``with_contacts``; ``None`` for a model without contact channels).
     """
 
     bvh: BVH
@@ -71,6 +72,7 @@ class FillResult:
     known_frames: list[int]
     skeleton: Skeleton
     pseudo_keyframes: list[int] = field(default_factory=list)
+    contact: np.ndarray | None = None  # (F, J) foot contact in [0, 1]: predicted; keys: their own; None: not predicted
 
     @property
     def num_frames(self) -> int:
@@ -172,7 +174,8 @@ class Inbetweener:
 
     # ------------------------------------------------------------------ array level
     def fill_arrays(self, root, local_q, known_frames, *, max_gap: int | None = None, segment: bool | None = None,
-                    foot_lock: bool | None = None, _pseudo: list[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    foot_lock: bool | None = None, with_contacts: bool = False,
+                    _pseudo: list[int] | None = None) -> tuple[np.ndarray, ...]:
         """Generate every frame not in ``known_frames``.
 
         Args:
@@ -180,18 +183,22 @@ class Inbetweener:
                 Values of unknown frames are never read (they may be NaN).
             known_frames: sorted frame indices, at least 2, the first 0 and the last ``F - 1``.
             max_gap, segment, foot_lock: override the instance's settings (see the class docstring).
+            with_contacts: also return the foot contact ``(F, J)`` in [0, 1]: the model's prediction on generated
+                frames, the keyframes' own (the representation's rule on the keys alone) on known ones (the feet's
+                columns are the ones that mean something); ``None`` when the representation has no contact channels.
         Returns:
-            ``root (F, 3), local_q (F, J, 4)`` float64; known frames equal the input exactly.
+            ``root (F, 3), local_q (F, J, 4)`` float64 (then ``contact`` with ``with_contacts``); known frames equal
+            the input exactly.
         """
         return self.fill_many([(root, local_q, known_frames)], max_gap=max_gap, segment=segment, foot_lock=foot_lock,
-                              _pseudo=None if _pseudo is None else [_pseudo])[0]
+                              with_contacts=with_contacts, _pseudo=None if _pseudo is None else [_pseudo])[0]
 
     def fill_many(self, clips, *, max_gap: int | None = None, segment: bool | None = None, batch_size: int = 4,
-                  foot_lock: bool | None = None,
-                  _pseudo: list[list[int]] | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+                  foot_lock: bool | None = None, with_contacts: bool = False,
+                  _pseudo: list[list[int]] | None = None) -> list[tuple[np.ndarray, ...]]:
         """:meth:`fill_arrays` of many clips at once: ``clips`` is a sequence of ``(root, local_q, known_frames)``;
-        returns one ``(root, local_q)`` per clip, the same numbers as :meth:`fill_arrays` clip by clip (up to float
-        rounding of the batched network).
+        returns one ``(root, local_q)`` (with ``with_contacts``: ``(root, local_q, contact)``) per clip, the same
+        numbers as :meth:`fill_arrays` clip by clip (up to float rounding of the batched network).
 
         Gaps are still filled left to right within a clip (a gap's context is the previous gap's output), but the
         k-th gap of every clip is generated together: one :meth:`Predictor.fill_windows` forward pass per
@@ -219,20 +226,22 @@ class Inbetweener:
         out = []
         for root, q, _, known, exact_r, exact_q, contact in plans:
             root[known], q[known] = exact_r, exact_q
-            if feet and not np.isnan(contact).all():
-                q = self._lock(root, q, known, contact, feet)
-            out.append((root, q))
+            predicted = not np.isnan(contact).all()
+            if predicted and (feet or with_contacts):
+                contact = self._with_key_contacts(root, q, known, contact)
+            if feet and predicted:
+                q = lock_feet(self.skeleton, root, q, known, contact, feet)
+            out.append((root, q, contact if predicted else None) if with_contacts else (root, q))
         return out
 
-    def _lock(self, root, q, known, contact, feet) -> np.ndarray:
-        """:func:`~inbetweening.tools.foot_lock.lock_feet` with the keyframes' own contacts (the representation's
-        rule on the keys alone) next to the generated frames' predicted ones."""
+    def _with_key_contacts(self, root, q, known, contact) -> np.ndarray:
+        """The generated frames' predicted contact ``(F, J)`` with the keyframes' own next to it (the
+        representation's rule on the keys alone), as :func:`~inbetweening.tools.foot_lock.lock_feet` reads it."""
         rep = self.predictor.representation
         keys_only = np.full_like(root, np.nan), np.full_like(q, np.nan)
         keys_only[0][known], keys_only[1][known] = root[known], q[known]
         labels = rep.contacts(rep.encode_windows(*keys_only, dtype=torch.float64)).numpy()
-        contact = np.where(np.isnan(contact), labels, contact)
-        return lock_feet(self.skeleton, root, q, known, contact, feet)
+        return np.where(np.isnan(contact), labels, contact)
 
     def _plan(self, root, local_q, known_frames, limit: int, seg: bool, pseudo: list[int] | None):
         """Check one clip and lay out its segments: ``(root, q, [(a, b), ...], known, exact root, exact q)``;
@@ -340,10 +349,10 @@ class Inbetweener:
         q = np.full((n_out, self.skeleton.num_joints, 4), np.nan)
         root[out_pos], q[out_pos] = root_in[src], q_in[src]
         pseudo: list[int] = []
-        root, q = self.fill_arrays(root, q, out_pos, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
-                                   _pseudo=pseudo)
+        root, q, contact = self.fill_arrays(root, q, out_pos, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
+                                            with_contacts=True, _pseudo=pseudo)
         out = self._to_bvh(bvh, fold, root, q, src, out_pos)
-        return FillResult(out, root, q, out_pos, self.skeleton, sorted(pseudo))
+        return FillResult(out, root, q, out_pos, self.skeleton, sorted(pseudo), contact)
 
     def _model_space(self, bvh: BVH) -> tuple[bool, np.ndarray, np.ndarray]:
         """``(folded?, root (F, 3), local_q (F, J, 4))`` of a clip in the model's skeleton and frame (the file's up

@@ -52,7 +52,9 @@ options:
   foot_lock=true|false  hold a foot still where the model predicts it planted, the leg solved by IK (default true,
                         for models that predict contacts; --no-foot-lock = false: the network's output as it is)
   render=PATH.gif|.png  also write a picture: the result next to plain linear interpolation of the same
-                        keyframes, keyframes drawn in red; .gif an animation, .png a filmstrip of 8 frames
+                        keyframes, keyframes drawn in red, over a floor with the feet's trails (thick where a foot
+                        is planted: a sliding foot draws a streak); .gif an animation following the body, .png a
+                        filmstrip of 8 frames
   render_dpi=N          picture resolution (default 80)
   device=cpu|cuda       where the model runs (default cpu)
   threads=N             CPU threads of the network (default 1: one transition is too small to share between
@@ -79,9 +81,18 @@ ALIASES = {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "in": "input", "out":
 RENDER_FORMATS = (".gif", ".png")  # render=PATH: an animation, or a filmstrip of 8 frames
 
 
-def render_comparison(result, path: str | Path, fps: float, dpi: int = 80) -> Path:
+def render_comparison(result, path: str | Path, fps: float, dpi: int = 80, contact=None) -> Path:
     """A picture of a :class:`~inbetweening.tools.inbetweener.FillResult`, prediction | linear interpolation, keys in
-    red, in the format the file name says: ``.gif`` an animation, ``.png`` a filmstrip (ValueError otherwise)."""
+    red, in the format the file name says: ``.gif`` an animation, ``.png`` a filmstrip (ValueError otherwise).
+
+    ``contact``: the model's feet and contact rule (:class:`~inbetweening.data.contacts.FootContact`, the
+    predictor's ``contact``; one without feet, or ``None``: found from the skeleton's joint names or shape, the rule
+    scaled to its height): the feet's trails are drawn on the floor, thick where a foot is planted, so a sliding
+    foot draws a streak.  Planted: the model's predicted contact where it has one (``result.contact``), else the
+    rule on the drawn motion (``fps`` frames per second); interpolation: the rule."""
+    from inbetweening.data.contacts import body_height, find_feet, planted_frames, scaled_contact
+    from inbetweening.data.errors import DatasetError
+    from inbetweening.tools.foot_lock import THRESHOLD
     from inbetweening.tools.render import render_gif, render_png
 
     suffix = Path(path).suffix.lower()
@@ -94,10 +105,27 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80) -> Pa
     highlight = np.zeros(result.num_frames, dtype=bool)
     highlight[result.known_frames] = True
     seqs = {"model": result.global_positions(), "linear interpolation": lerp}
+    title = Path(path).stem
+    if contact is None or not contact.feet:  # a model trained before it recorded its data's feet
+        gt = seqs["model"]
+        found, _ = find_feet(skel.names, skel.parents, np.median(gt[..., 1], axis=0))
+        contact = scaled_contact(found, body_height([gt]))
+    try:
+        feet = list(contact.indices(skel.names))
+    except DatasetError:  # the model's feet are not in this skeleton: no trails
+        feet = []
+    kw: dict = {}
+    if feet:
+        planted = {label: planted_frames(pos[:, feet], fps, contact.height, contact.speed)
+                   for label, pos in seqs.items()}
+        if result.contact is not None:
+            planted["model"] = np.nan_to_num(result.contact[:, feet]) > THRESHOLD
+            title += "  (planted: the model's prediction | the contact rule)"
+        kw = {"feet": feet, "contacts": planted}
     if suffix == ".png":
-        return render_png(seqs, skel.parents, path, dpi=dpi, highlight=highlight, title=Path(path).stem)
+        return render_png(seqs, skel.parents, path, dpi=dpi, highlight=highlight, title=title, **kw)
     return render_gif(seqs, skel.parents, path, fps=int(max(1, min(round(fps), 50))), highlight=highlight,
-                      dpi=dpi, title=Path(path).stem)
+                      dpi=dpi, title=title, **kw)
 
 
 SHIPPED_MODEL = Path(__file__).resolve().parents[3] / "models" / "bn2_reference" / "model.ckpt"
@@ -173,7 +201,8 @@ def run(argv: Sequence[str]) -> int:
     if "render" in args:
         try:
             fps = 1.0 / res.bvh.frame_time if res.bvh.frame_time > 0 else ib.fps
-            picture = render_comparison(res, args["render"], fps, dpi=args.get("render_dpi", 80))
+            picture = render_comparison(res, args["render"], fps, dpi=args.get("render_dpi", 80),
+                                        contact=ib.predictor.contact)
         except (OSError, ValueError) as e:
             fail(f"render: {e}")
         print(f"wrote {picture}")

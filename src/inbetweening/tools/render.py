@@ -12,6 +12,8 @@ skeleton (same ``J == len(parents)``); their lengths ``T`` may differ (a shorter
 
 The data axis ``up_axis`` is shown vertically.  The three data axes are shown in cyclic order
 ``(up + 1, up + 2, up) % 3`` on the plot's ``(x, y, z)``, which keeps right-handed data right-handed (not mirrored).
+The pictures are framed on the body over a floor (``floor``, default height 0) with the feet's trails and planted
+feet (``feet``, ``contacts``): see :mod:`inbetweening.tools.skeleton_plot`.
 """
 from __future__ import annotations
 
@@ -24,20 +26,27 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from inbetweening.tools.skeleton_plot import (
-    DEFAULT_VIEW,
     KEY_COLOR,
     PALETTE,
+    Camera,
+    Panel,
+    add_legend,
+    add_title,
+    auto_view,
+    body_height,
+    check_contacts,
+    check_feet,
     check_highlight,
     check_parents,
     check_sequences,
     check_up_axis,
-    draw_pose,
     draw_sequences,
-    frame_of,
-    new_figure,
-    plot_limits,
-    pose_bones,
-    setup_axes,
+    figure_grid,
+    fit_aspect,
+    following_window,
+    grid_step,
+    ring_of,
+    shift_floor,
     to_plot,
 )
 
@@ -51,7 +60,8 @@ def render_png(
     dpi: int = 100,
     **kw,
 ) -> Path:
-    """Save :func:`draw_sequences` ``(sequences, parents, **kw)`` as a PNG at ``path`` (parents dirs created).
+    """Save :func:`draw_sequences` ``(sequences, parents, **kw)`` as a PNG at ``path`` (parent dirs created); at the
+    default ``dpi`` and ``panel_size`` three labels make a 900 px wide picture.
 
     Returns the path written.
     """
@@ -71,11 +81,15 @@ def render_gif(
     up_axis: int = 1,
     dpi: int = 80,
     *,
-    view: tuple[float, float] = DEFAULT_VIEW,
+    view: tuple[float, float] | None = None,
     panel_size: float = 3.0,
     title: str | None = None,
+    feet: Sequence[int] | None = None,
+    contacts: Mapping[str, np.ndarray] | np.ndarray | None = None,
+    floor: float | None = 0.0,
 ) -> Path:
-    """Write an animated GIF (Pillow, looping) with one image per frame and one panel per label, side by side.
+    """Write an animated GIF (Pillow, looping) with one image per frame and one panel per label, side by side, each
+    panel following its root over the floor (the grid scrolls), the feet's trails growing behind them.
 
     Args:
         sequences: ``label -> (T, J, 3)`` global joint positions (numpy or torch); shorter sequences hold their
@@ -87,9 +101,11 @@ def render_gif(
             says ``[key]``.
         up_axis: which data axis points up.
         dpi: resolution; each panel is ``panel_size * dpi`` pixels wide.
-        view: camera ``(elevation, azimuth)`` in degrees.
-        panel_size: size of one panel in inches.
+        view: camera ``(elevation, azimuth)`` in degrees; ``None``: from the side of the root's travel.
+        panel_size: width of one panel in inches.
         title: optional prefix of the per-frame title (which always shows ``frame t/T``).
+        feet, contacts, floor: the feet's trails, where they are planted, and the floor height, as in
+            :func:`~inbetweening.tools.skeleton_plot.draw_sequences`.
 
     Returns:
         The path written.
@@ -101,28 +117,35 @@ def render_gif(
     up = check_up_axis(up_axis)
     n_frames = max(s.shape[0] for s in seqs.values())
     keys = check_highlight(highlight, n_frames)
-    lo, hi = plot_limits(seqs, up)
+    foot = check_feet(feet, par.size)
+    planted = check_contacts(contacts, seqs, foot)
     plot = {label: to_plot(s, up) for label, s in seqs.items()}
     colors = {label: PALETTE[i % len(PALETTE)] for i, label in enumerate(plot)}
-
-    fig = new_figure(panel_size * len(plot), panel_size + 0.3, dpi, top=1.0 - 0.45 / (panel_size + 0.3))
-    artists = {}
-    for c, (label, seq) in enumerate(plot.items()):
-        ax = fig.add_subplot(1, len(plot), c + 1, projection="3d")
-        setup_axes(ax, lo, hi, view, label)
-        artists[label] = draw_pose(ax, seq[0], par, colors[label])
-    suptitle = fig.suptitle("")
+    every = range(n_frames)
+    cam = Camera(*(view or auto_view(plot, par, every)))
+    height = body_height(plot)
+    step = grid_step(height)
+    z = None if floor is None else float(floor)
+    rel, rect, centres = following_window(plot, par, every, cam, height, z)
+    rel = fit_aspect(rel, lo=0.75, hi=1.6)
+    fig, rects = figure_grid(1, len(plot), panel_size, rel, dpi, True, bool(keys.any()) or bool(foot))
+    add_legend(fig, bool(keys.any()), bool(foot), bool(planted))
+    panels = {label: Panel(fig.add_axes(box), cam, par, colors[label], z, label) for label, box in zip(plot, rects)}
+    for label, p in panels.items():
+        p.add_pose(plot[label][0], colors[label])
+    suptitle = add_title(fig, "")
 
     images = []
     for t in range(n_frames):
         for label, seq in plot.items():
-            pose = frame_of(seq, t)
-            color = KEY_COLOR if keys[t] else colors[label]
-            lines, joints = artists[label]
-            lines.set_segments(pose_bones(pose, par))
-            lines.set_color(color)
-            joints.set_data_3d(pose[:, 0], pose[:, 1], pose[:, 2])
-            joints.set_color(color)
+            p, s = panels[label], min(t, len(seq) - 1)
+            centre = centres[label][s]
+            p.set_view(rel + np.repeat(cam.project(centre), 2))
+            p.set_floor(shift_floor(rect, cam, centre), step)
+            flags = planted.get(label)
+            if foot:
+                p.set_trails(seq[: s + 1][:, foot], None if flags is None else flags[: s + 1])
+            p.set_pose(0, seq[s], KEY_COLOR if keys[t] else colors[label], ring_of(flags, foot, s, par.size))
         text = f"frame {t + 1}/{n_frames}" + ("  [key]" if keys[t] else "")
         suptitle.set_text(f"{title}  -  {text}" if title else text)
         suptitle.set_color(KEY_COLOR if keys[t] else "black")

@@ -88,9 +88,10 @@ def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
     if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
     elif callbacks:  # TensorBoard: throughput, epoch time, gradient norm; the HParams session from the fit's start
-        hp, shown = curated_hparams(cfg, task_overrides(), swept_keys())
+        swept = swept_keys()
+        hp, shown = curated_hparams(cfg, task_overrides(), swept)
         cbs += [TrainStats(), HParamsSession(hp, shown, cfg.data.val_lengths, cfg.data.test_lengths,
-                                             end_at_fit_end=not cfg.get("run_test", True))]
+                                             end_at_fit_end=not cfg.get("run_test", True), experiment=bool(swept))]
     if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
         cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # freed heap returned when it has grown
                 InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]

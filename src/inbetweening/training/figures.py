@@ -15,10 +15,12 @@ import torch
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from inbetweening.tools.skeleton_plot import PALETTE
+from inbetweening.tools.skeleton_plot import CONTACT_COLOR, PALETTE
 
 #: Drawing colours: ground truth grey, the model in colour, interpolation dashed.
 GT_COLOR, MODEL_COLOR, INTERP_COLOR = "0.6", "tab:blue", "tab:orange"
+#: Planted feet: the prediction's a filled dot in the contact colour, the ground truth's a dark ring.
+GT_CONTACT_COLOR = "0.2"
 
 
 def _figure(width: float, height: float) -> Figure:
@@ -64,18 +66,28 @@ def _bones(parents: Sequence[int]) -> list[tuple[int, int]]:
 
 
 def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, parents: Sequence[int], n_past: int,
-                      n: int, frames: Sequence[int], title: str = "", up_axis: int = 1, unit: str = "cm") -> Figure:
+                      n: int, frames: Sequence[int], title: str = "", up_axis: int = 1, unit: str = "cm",
+                      feet: Sequence[int] = (), contacts: Mapping[str, np.ndarray] | None = None,
+                      foot_names: Sequence[str] | None = None) -> Figure:
     """One transition: a side view per frame in ``frames`` (ground truth grey, prediction in colour, interpolation
-    dashed on top of it), each zoomed on the ground-truth root of its frame at a common scale, and below, the mean per-frame
-    position error over the transition, model vs interpolation.
+    dashed on top of it, the floor at height 0), each zoomed on the ground-truth root of its frame at a common scale,
+    and below, the mean per-frame position error over the transition, model vs interpolation.
 
     ``gt``, ``pred``, ``interp``: global positions ``(T, J, 3)``.  The windows are normalised so that the root faces
-    +X at the last context frame, so the view plots data X (forward) against ``up_axis``."""
+    +X at the last context frame, so the view plots data X (forward) against ``up_axis``.
+
+    ``contacts`` (a model with contact channels): ``{"prediction": (T, J) bool, "ground truth": (T, J) bool}``, the
+    planted feet of ``feet`` (joint indices): in the side views a filled dot in :data:`CONTACT_COLOR` on the
+    prediction's planted feet and a dark ring around the ground truth's; under the error curve one row per foot
+    (``foot_names``), the ground truth's planted frames grey, the prediction's in the contact colour over them."""
     gt, pred, interp = (np.asarray(a, np.float64) for a in (gt, pred, interp))
     frames = [int(t) for t in frames]
     fwd = 0 if up_axis != 0 else 2
+    feet = [int(j) for j in feet]
+    contacts = {k: np.asarray(v, dtype=bool) for k, v in (contacts or {}).items()} if feet else {}
     fig = _figure(1.6 * len(frames), 3.9)
-    grid = fig.add_gridspec(2, len(frames), height_ratios=[1.7, 1.0], hspace=0.2, wspace=0.05)
+    ratios = [1.7, 1.0, 0.22 + 0.1 * len(feet)] if contacts else [1.7, 1.0]
+    grid = fig.add_gridspec(len(ratios), len(frames), height_ratios=ratios, hspace=0.2, wspace=0.05)
     height = float(np.ptp(gt[..., up_axis])) or 1.0
     half = 0.65 * height
     bones = _bones(parents)
@@ -89,6 +101,12 @@ def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, pare
                             (interp[t], dict(color=INTERP_COLOR, lw=1.3, ls=(0, (3, 3)), zorder=3))):
             for j, p in bones:
                 ax.plot(pose[[j, p], fwd], pose[[j, p], up_axis], **style)
+        ax.axhline(0.0, color="0.8", lw=0.8, zorder=0)  # the floor
+        if contacts:
+            on = [j for j in feet if contacts["ground truth"][t, j]]
+            ax.plot(gt[t, on, fwd], gt[t, on, up_axis], "o", ms=7, mfc="none", mec=GT_CONTACT_COLOR, mew=1.2, zorder=4)
+            on = [j for j in feet if contacts["prediction"][t, j]]
+            ax.plot(pred[t, on, fwd], pred[t, on, up_axis], "o", ms=4.5, color=CONTACT_COLOR, mew=0, zorder=5)
         ax.set_xlim(cx - half, cx + half)
         ax.set_ylim(cy - half, cy + half)
         ax.set_aspect("equal")
@@ -107,19 +125,44 @@ def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, pare
         err.axvline(t, color="0.85", lw=0.8, zorder=0)
     err.set_xlim(n_past - 1, target)
     err.set_ylim(bottom=0)
-    err.set_xlabel("frame", fontsize=8)
+    if contacts:
+        _contact_rows(fig.add_subplot(grid[2, :], sharex=err), contacts, feet, foot_names, frames)
+        err.tick_params(labelbottom=False)
+    else:
+        err.set_xlabel("frame", fontsize=8)
     err.set_ylabel(f"position error ({unit})", fontsize=8)
     err.tick_params(labelsize=7)
     err.legend(fontsize=7, loc="upper left")
     err.grid(alpha=0.3)
     handles = [fig.axes[0].plot([], [], color=c, lw=w, ls=s)[0] for c, w, s in
                ((GT_COLOR, 3.0, "-"), (MODEL_COLOR, 1.6, "-"), (INTERP_COLOR, 1.2, "--"))]
-    fig.legend(handles, ["ground truth", "prediction", "interpolation"], loc="upper right", fontsize=7, ncol=3,
-               frameon=False)
+    labels = ["ground truth", "prediction", "interpolation"]
+    if contacts:
+        handles += [fig.axes[0].plot([], [], "o", ms=4.5, color=CONTACT_COLOR, mew=0)[0],
+                    fig.axes[0].plot([], [], "o", ms=7, mfc="none", mec=GT_CONTACT_COLOR, mew=1.2)[0]]
+        labels += ["planted (predicted)", "planted (truth)"]
+    fig.legend(handles, labels, loc="upper right", fontsize=7, ncol=len(labels), frameon=False)
     if title:
         fig.suptitle(title, fontsize=9, x=0.01, ha="left")
     fig.subplots_adjust(left=0.07, right=0.99, top=0.88, bottom=0.11)
     return fig
+
+
+def _contact_rows(ax, contacts: Mapping[str, np.ndarray], feet: Sequence[int], names: Sequence[str] | None,
+                  frames: Sequence[int]) -> None:
+    """One row per foot over the window's frames: the ground truth's planted frames a wide grey bar, the
+    prediction's a narrow bar in the contact colour on top."""
+    t = np.arange(len(contacts["ground truth"]))
+    for row, j in enumerate(feet):
+        for key, color, width in (("ground truth", GT_COLOR, 7.0), ("prediction", CONTACT_COLOR, 3.0)):
+            on = contacts[key][:, j]
+            ax.hlines(np.full(on.sum(), row), t[on] - 0.5, t[on] + 0.5, color=color, lw=width)
+    for f in frames:
+        ax.axvline(f, color="0.85", lw=0.8, zorder=0)
+    ax.set_yticks(range(len(feet)), list(names) if names else [str(j) for j in feet], fontsize=6)
+    ax.set_ylim(len(feet) - 0.5, -0.5)
+    ax.tick_params(labelsize=7, length=2)
+    ax.set_xlabel("frame (planted: truth grey, prediction in the contact colour)", fontsize=8)
 
 
 def frames_to_draw(n_past: int, n: int, count: int) -> list[int]:
@@ -158,6 +201,14 @@ class SkeletonFigure(L.Callback):
 
     def sequences(self, pl_module, root: torch.Tensor, q: torch.Tensor, n: int) -> dict[str, np.ndarray]:
         """Global positions ``(T, J, 3)`` of ground truth, prediction and interpolation for one window."""
+        return self.window_motion(pl_module, root, q, n)[0]
+
+    def window_motion(self, pl_module, root: torch.Tensor, q: torch.Tensor, n: int):
+        """``(positions, contacts)`` of one window: :meth:`sequences`' positions, and for a representation with
+        contact channels ``{"prediction", "ground truth"}`` -> ``(T, J)`` bool planted feet (the prediction above
+        :data:`~inbetweening.tools.foot_lock.THRESHOLD`, the ground truth labelled by the data's rule), else None."""
+        from inbetweening.tools.foot_lock import THRESHOLD
+
         pr = pl_module.predictor
         t = pr.n_past + n + 1
         known = pr.transition_known(1, t, n, device=pl_module.device)
@@ -169,7 +220,13 @@ class SkeletonFigure(L.Callback):
             pl_module.train(was_training)
         labelled = (("ground truth", (root, q)), ("prediction", (out.root, out.local_q)),
                     ("interpolation", (out.interp_root, out.interp_q)))
-        return {label: pr.skeleton.pose(r.cpu(), lq.cpu())[1][0].numpy() for label, (r, lq) in labelled}
+        positions = {label: pr.skeleton.pose(r.cpu(), lq.cpu())[1][0].numpy() for label, (r, lq) in labelled}
+        rep = pr.representation
+        predicted, truth = rep.contacts(out.pred), rep.contacts(out.feats)
+        if predicted is None:
+            return positions, None
+        return positions, {"prediction": (predicted[0] > THRESHOLD).cpu().numpy(),
+                           "ground truth": (truth[0] > 0.5).cpu().numpy()}
 
     def draw(self, trainer: L.Trainer, pl_module, why: str) -> None:
         ds = trainer.datamodule.val_set if trainer.datamodule is not None else None
@@ -179,12 +236,16 @@ class SkeletonFigure(L.Callback):
         n = min(self.n, item["root"].shape[0] - pl_module.n_past - 1)
         if n < 1:
             return
-        s = self.sequences(pl_module, item["root"], item["q"], n)
+        s, contacts = self.window_motion(pl_module, item["root"], item["q"], n)
         step = _step(trainer)
+        names = pl_module.skeleton.names
+        contact = pl_module.predictor.contact
+        feet = list(contact.indices(names)) if contacts is not None and contact.feet else []
         fig = transition_figure(s["ground truth"], s["prediction"], s["interpolation"], pl_module.skeleton.parents,
                                 pl_module.n_past, n, frames_to_draw(pl_module.n_past, n, self.frames),
                                 title=f"epoch {trainer.current_epoch}, step {step}{why}: window {self.window}, "
-                                      f"{n}-frame transition")
+                                      f"{n}-frame transition", feet=feet, contacts=contacts,
+                                foot_names=[names[j] for j in feet])
         _add_figure(trainer, "val/skeleton", fig, step)
 
     def on_validation_end(self, trainer: L.Trainer, pl_module) -> None:

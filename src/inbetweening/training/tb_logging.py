@@ -5,6 +5,8 @@
 - :class:`RunLogger`: Lightning's TensorBoard logger with a run name that says the configuration, ``train/epoch``
   and ``train/lr`` in the ``train`` group, and an HParams session (:meth:`RunLogger.start_session`) written when
   fitting starts, so running or interrupted runs appear in the HParams dashboard;
+- which run says the HParams dashboard's columns: only the jobs of a sweep write an HParams *experiment* (see
+  :class:`HParamsSession`);
 - :func:`curated_hparams`: the swept keys, then model, data, mask, optimiser essentials and the training budget;
 - :func:`custom_scalars_layout`: one chart per metric with every length, model vs interpolation;
 - :class:`TrainStats`: windows/s, epoch time and gradient norm under ``train/``.
@@ -201,12 +203,24 @@ class RunLogger(TensorBoardLogger):
         writer.flush()
 
     def start_session(self, hparams: Mapping, shown: Sequence[str], metrics: Sequence[str], layout: dict | None = None,
-                      ) -> None:
-        """Write the HParams experiment (every name of ``hparams``; those of ``shown`` marked so that the dashboard
-        shows them first; the ``metrics`` columns in order), this run's session start and the Custom Scalars
-        ``layout``.  Once per logger."""
+                      experiment: bool = True) -> None:
+        """Write this run's session start (its ``hparams`` values), the Custom Scalars ``layout`` and, with
+        ``experiment``, the HParams experiment (every name of ``hparams``; those of ``shown`` marked so that the
+        dashboard shows them first; the ``metrics`` columns in order).  Once per logger."""
         if self._session_started or self.experiment is None:
             return
+        from tensorboard.plugins.hparams import summary_v2 as hp_summary
+
+        if experiment:
+            self._write(self._experiment_summary(hparams, shown, metrics))
+        self._write(hp_summary.hparams_pb(dict(hparams), trial_id=self.version or None))
+        if layout:
+            self.experiment.add_custom_scalars(layout)
+        self._session_started = True
+
+    @staticmethod
+    def _experiment_summary(hparams: Mapping, shown: Sequence[str], metrics: Sequence[str]):
+        """The HParams experiment summary: typed columns for ``hparams``, ``shown`` marked ``differs``."""
         from tensorboard.plugins.hparams import summary_v2 as hp_summary
 
         exp = hp_summary.hparams_config_pb([hp_summary.HParam(k) for k in hparams],
@@ -222,11 +236,7 @@ class RunLogger(TensorBoardLogger):
                          if isinstance(v, (int, float)) else api_pb2.DATA_TYPE_STRING)
         config.metadata.CopyFrom(metadata.create_summary_metadata(metadata.plugin_data_pb2.HParamsPluginData(
             experiment=data, version=metadata.PLUGIN_DATA_VERSION)))
-        self._write(exp)
-        self._write(hp_summary.hparams_pb(dict(hparams), trial_id=self.version or None))
-        if layout:
-            self.experiment.add_custom_scalars(layout)
-        self._session_started = True
+        return exp
 
     def end_session(self, status: str = "success") -> None:
         """Mark this run's HParams session ended (``success`` | ``failure``)."""
@@ -244,12 +254,20 @@ class RunLogger(TensorBoardLogger):
 
 class HParamsSession(L.Callback):
     """Starts each :class:`RunLogger`'s HParams session (and Custom Scalars layout) when fitting starts, and
-    marks it failed if fitting raises.  ``hparams``, ``shown``: :func:`curated_hparams`."""
+    marks it failed if fitting raises.  ``hparams``, ``shown``: :func:`curated_hparams`.
+
+    ``experiment`` (a sweep's job): also write the HParams experiment, the dashboard's columns with the swept keys
+    marked to be shown first and the curated metric columns.  TensorBoard's HParams plugin (2.21,
+    ``backend_context._find_experiment_tag``) does not merge experiments: it serves the first one it finds, in the
+    order it happens to list the runs.  So a single run writes none: in a logdir that holds a sweep, the sweep's is
+    the one served (its swept keys stay the default columns); in a logdir of single runs only, the plugin builds
+    the columns from every run's session (the hparams whose values differ between the runs first)."""
 
     def __init__(self, hparams: Mapping, shown: Sequence[str], val_lengths: Sequence[int], test_lengths: Sequence[int],
-                 end_at_fit_end: bool = False):
+                 end_at_fit_end: bool = False, experiment: bool = True):
         self.hparams, self.shown, self.end_at_fit_end = dict(hparams), list(shown), end_at_fit_end
         self.val_lengths, self.test_lengths = list(val_lengths), list(test_lengths)
+        self.experiment = bool(experiment)
 
     def start(self, trainer: L.Trainer) -> None:
         if not trainer.is_global_zero:
@@ -257,7 +275,7 @@ class HParamsSession(L.Callback):
         for lg in trainer.loggers:
             if isinstance(lg, RunLogger):
                 lg.start_session(self.hparams, self.shown, hparams_metrics(self.test_lengths, self.val_lengths),
-                                 custom_scalars_layout(self.val_lengths, self.test_lengths))
+                                 custom_scalars_layout(self.val_lengths, self.test_lengths), self.experiment)
 
     def on_fit_start(self, trainer, pl_module) -> None:
         self.start(trainer)

@@ -1,0 +1,113 @@
+"""The picture of foot locking: one Bandai-Namco-2 test clip filled from keyframes alone, with the feet locked where
+the model predicts them planted, without, and the ground truth, side by side (a PNG strip of frames).
+
+    python results/foot_lock_strip.py <checkpoint with contact channels> [--clip NAME] [--every 30] \\
+        [--out results/foot_lock.png]
+
+The checkpoint's representation must predict foot contact (``representation=global_pos_local_quat_contact``).  Keys
+every ``--every`` frames, nothing else known, filled through ``Inbetweener.fill_arrays`` with ``foot_lock=True`` and
+``foot_lock=False`` (the same network output: only the lock differs).  The feet's paths are drawn on the floor,
+thick where a foot is planted (the model's predicted contact; the ground truth: the data's contact rule): a planted
+foot that holds still is a dot, one that slides a streak.  Prints each motion's foot skating (cm/s of horizontal foot
+speed where the ground truth's feet are planted, as ``eval.py protocol=keyframes`` scores it)."""
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+LABELS = ("foot lock", "no foot lock", "ground truth")
+
+
+def fill_both(ib, root: np.ndarray, q: np.ndarray, keys: list[int]) -> dict[str, tuple]:
+    """``label -> (root (F, 3), local_q (F, J, 4), planted contact (F, J) or None)``: the clip filled from ``keys``
+    with and without foot locking (the model's predicted contact with both), and the ground truth (no contact:
+    the caller applies the data's rule)."""
+    from inbetweening.evaluation import keyframes as KF
+
+    gen = KF.generated_frames(len(root), keys)
+    root_in, q_in = root.copy(), q.copy()
+    root_in[gen], q_in[gen] = np.nan, np.nan
+    out = {}
+    for label, lock in zip(LABELS[:2], (True, False)):
+        out[label] = ib.fill_arrays(root_in, q_in, keys, foot_lock=lock, with_contacts=True)
+        if out[label][2] is None:
+            raise SystemExit(f"the checkpoint's representation ({ib.predictor.representation.name}) predicts no "
+                             "foot contact: train one with representation=global_pos_local_quat_contact")
+    out[LABELS[2]] = (root, q, None)
+    return out
+
+
+def draw(ib, root: np.ndarray, q: np.ndarray, every: int, title: str, fps: float | None = None, shown: int = 10):
+    """``(figure, skate)``: the three panels of a clip ``root (F, 3), local_q (F, J, 4)`` (cut after its last key)
+    filled from keys every ``every`` frames, ``shown`` poses of each drawn; ``skate``: label -> foot skating (cm/s)
+    over the generated frames where the ground truth's feet are planted."""
+    from inbetweening.data.contacts import foot_contacts, planted_frames
+    from inbetweening.evaluation import keyframes as KF
+    from inbetweening.tools.foot_lock import THRESHOLD
+    from inbetweening.tools.skeleton_plot import draw_sequences
+
+    fps = float(fps or ib.fps)
+    keys = KF.keyframe_indices(len(root), every)
+    if not keys:
+        raise SystemExit(f"the clip has {len(root)} frames: too short for keys every {every} frames")
+    n = keys[-1] + 1
+    root, q = np.asarray(root[:n], np.float64), np.asarray(q[:n], np.float64)
+    motions = fill_both(ib, root, q, keys)
+    sk, contact = ib.skeleton, ib.predictor.contact
+    feet = list(contact.indices(sk.names, "the model's feet"))
+    pos = {label: sk.pose(r, lq)[1] for label, (r, lq, _) in motions.items()}
+    planted = {label: (np.nan_to_num(c[:, feet]) > THRESHOLD if c is not None else
+                       planted_frames(pos[label][:, feet], fps, contact.height, contact.speed))
+               for label, (_, _, c) in motions.items()}
+    gt_contact = foot_contacts(pos[LABELS[2]][:, feet], fps, contact.height, contact.speed)
+    gt_contact &= KF.scored_pairs(KF.generated_frames(n, keys))[:, None]
+    skate = {}
+    for label, p in pos.items():
+        total, count = KF.foot_skate(p[:, feet], gt_contact, fps)
+        skate[label] = total / count if count else 0.0
+    highlight = np.zeros(n, dtype=bool)
+    highlight[keys] = True
+    frames = sorted({round(t) for t in np.linspace(0, n - 1, min(shown, n))})
+    named = {f"{label}: skate {skate[label]:.1f} cm/s": p for label, p in pos.items()}
+    fig = draw_sequences(named, sk.parents, frames=frames, highlight=highlight, title=title, feet=feet,
+                         contacts=dict(zip(named, planted.values())))
+    return fig, skate
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("ckpt")
+    ap.add_argument("--clip", default="dataset-2_walk_normal_010", help="test clip name (without .bvh)")
+    ap.add_argument("--every", type=int, default=30, help="a keyframe every N frames")
+    ap.add_argument("--frames", type=int, default=91, help="frames used (from the clip's start)")
+    ap.add_argument("--out", default="results/foot_lock.png", help="output PNG")
+    ap.add_argument("--data", default=os.environ.get("BANDAI_NAMCO_PATH", str(ROOT.parent / "shared" / "datasets" /
+                                                                             "bandai-namco-2.zip")),
+                    help="Bandai-Namco-2 zip or folder (default: $BANDAI_NAMCO_PATH, else ../shared/datasets)")
+    a = ap.parse_args(argv)
+
+    from inbetweening.data.datasets import load_dataset
+    from inbetweening.tools.inbetweener import Inbetweener
+
+    data = load_dataset("bandai_namco", path=a.data)
+    clip = next((c for c in data.test if Path(str(c.name)).stem == a.clip), None)
+    if clip is None:
+        raise SystemExit(f"--clip: no test clip {a.clip!r} (e.g. {Path(str(data.test[0].name)).stem})")
+    ib = Inbetweener.from_checkpoint(a.ckpt)
+    n = min(a.frames, len(clip.root_pos))
+    fig, skate = draw(ib, clip.root_pos[:n], clip.local_q[:n], a.every,
+                      f"{a.clip}: keys every {a.every} frames, foot lock | none | ground truth", fps=data.fps)
+    for label, v in skate.items():
+        print(f"{a.clip}, keys every {a.every}: {label}: foot skating {v:.2f} cm/s")
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, format="png", dpi=100)
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
