@@ -75,17 +75,18 @@ def foot_contacts(feet_gp: np.ndarray, fps: float, contact_height: float, contac
 
 
 def planted_frames(feet_gp: np.ndarray, fps: float, contact_height: float, contact_speed: float) -> np.ndarray:
-    """Contact per frame and foot joint, the rule of :func:`foot_contacts` on single frames (as the contact channels
-    of ``global_pos_local_quat_contact`` label them): ``feet_gp (F, K, 3) -> (F, K)`` bool, frame ``t`` planted when
-    its height is below ``contact_height`` and its speed to the next frame (the last frame: from the previous one)
-    below ``contact_speed``; a single frame is judged on its height alone."""
+    """Contact per frame and foot joint, the rule of :func:`foot_contacts` on single frames (the contact channels of
+    ``global_pos_local_quat_contact`` are these labels): ``feet_gp (..., F, K, 3) -> (..., F, K)`` bool, frame ``t``
+    planted when its height is below ``contact_height`` and its speed to the next frame (where that is unknown: from
+    the previous one) below ``contact_speed``; a frame with no known neighbour is judged on its height alone, an
+    unknown (NaN) frame is not planted."""
     feet_gp = np.asarray(feet_gp, dtype=np.float64)
-    low = feet_gp[..., UP] < contact_height
-    if len(feet_gp) < 2:
-        return low
-    speed = np.linalg.norm(np.diff(feet_gp, axis=0), axis=-1) * fps
-    speed = np.concatenate([speed, speed[-1:]], axis=0)
-    return low & (speed < contact_speed)
+    step = np.linalg.norm(np.diff(feet_gp, axis=-3), axis=-1) * fps  # (..., F-1, K)
+    pad = np.full_like(step[..., :1, :], np.nan)
+    fwd, bwd = np.concatenate([step, pad], axis=-2), np.concatenate([pad, step], axis=-2)
+    speed = np.where(np.isnan(fwd), bwd, fwd)
+    with np.errstate(invalid="ignore"):
+        return (feet_gp[..., UP] < contact_height) & ((speed < contact_speed) | np.isnan(speed))
 
 
 def body_height(positions: Sequence[np.ndarray], up: int = UP) -> float:

@@ -12,21 +12,16 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from inbetweening.data.contacts import planted_frames
 from inbetweening.geometry.kinematics_np import fk_np
 from inbetweening.representation.global_pos_local_quat import GlobalPosLocalQuat
 
 UP = 1
 
 
-def _speed_np(p: np.ndarray, fps: float) -> np.ndarray:
-    step = np.linalg.norm(np.diff(p, axis=-3), axis=-1) * fps  # (..., T-1, K)
-    pad = np.full_like(step[..., :1, :], np.nan)
-    fwd, bwd = np.concatenate([step, pad], axis=-2), np.concatenate([pad, step], axis=-2)
-    with np.errstate(invalid="ignore"):
-        return np.where(np.isnan(fwd), bwd, fwd)
-
-
 def _speed_torch(p: torch.Tensor, fps: float) -> torch.Tensor:
+    """Per-frame speed (to the next frame, else from the previous one) of positions ``(..., T, K, 3)``: the torch
+    twin of :func:`~inbetweening.data.contacts.planted_frames`' (tests check they agree)."""
     step = torch.linalg.vector_norm(p[..., 1:, :, :] - p[..., :-1, :, :], dim=-1) * fps  # (slices export to ONNX)
     pad = torch.full_like(step[..., :1, :], float("nan"))
     fwd, bwd = torch.cat([step, pad], dim=-2), torch.cat([pad, step], dim=-2)
@@ -50,15 +45,12 @@ class GlobalPosLocalQuatContact(GlobalPosLocalQuat):
         return list(self.contact.indices(self.skeleton.names, "representation contact feet"))
 
     def labels_np(self, gp: np.ndarray) -> np.ndarray:
-        """Contact labels of global positions ``(..., T, J, 3) -> (..., T, J, 1)`` (numpy)."""
+        """Contact labels of global positions ``(..., T, J, 3) -> (..., T, J, 1)`` (numpy): the data's rule,
+        :func:`~inbetweening.data.contacts.planted_frames`, on the feet; NaN where the positions are."""
         out = np.zeros(gp.shape[:-1] + (1,), dtype=gp.dtype)
         feet = self._feet()
         if feet:
-            p = gp[..., feet, :]
-            speed = _speed_np(p, self.fps)
-            with np.errstate(invalid="ignore"):
-                c = (p[..., UP] < self.contact.height) & ((speed < self.contact.speed) | np.isnan(speed))
-            out[..., feet, 0] = np.where(np.isnan(p[..., UP]), np.nan, c)
+            out[..., feet, 0] = planted_frames(gp[..., feet, :], self.fps, self.contact.height, self.contact.speed)
         out[np.isnan(gp[..., :1])] = np.nan
         return out
 
