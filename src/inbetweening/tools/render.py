@@ -25,29 +25,33 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from inbetweening.tools.skeleton_plot import (
-    KEY_COLOR,
-    PALETTE,
+from inbetweening.tools.plot_camera import (
     Camera,
-    Panel,
-    add_legend,
-    add_title,
     auto_view,
     body_height,
+    fit_aspect,
+    following_window,
+    grid_step,
+    shift_floor,
+    to_plot,
+)
+from inbetweening.tools.plot_inputs import (
     check_contacts,
     check_feet,
     check_highlight,
     check_parents,
     check_sequences,
     check_up_axis,
+)
+from inbetweening.tools.skeleton_plot import (
+    KEY_COLOR,
+    PALETTE,
+    Panel,
+    add_legend,
+    add_title,
     draw_sequences,
     figure_grid,
-    fit_aspect,
-    following_window,
-    grid_step,
     ring_of,
-    shift_floor,
-    to_plot,
 )
 
 __all__ = ["draw_sequences", "figure_to_array", "render_gif", "render_png"]
