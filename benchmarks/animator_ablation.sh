@@ -9,7 +9,8 @@
 #   contacts  + representation=global_pos_local_quat_contact (predicted foot contacts; the keyframes protocol locks
 #               the feet on them)
 # Each run scores the LAFAN protocol (256 test windows) and the keyframes protocol (K = 5 and 30 and the random
-# keypose schedule, 100 test clips evenly spaced) of the unseen contents.
+# keypose schedule, 100 test clips evenly spaced) of the unseen contents; the contacts runs' keyframes protocol is
+# scored again with foot_lock=false (<run>_unlocked).  The table: python benchmarks/animator_table.py <out dir>
 #   bash benchmarks/animator_ablation.sh <out dir> [threads]
 set -euo pipefail
 OUT=${1:?out dir}
@@ -33,4 +34,11 @@ for seed in 1 2; do
     [ -f "$run/benchmark.json" ] && continue
     python train.py "${COMMON[@]}" "${extra[@]}" seed=$seed hydra.run.dir="$run" > "$run.log" 2>&1
   done
+done
+for seed in 1 2; do  # the contacts runs' feet unlocked: the same checkpoint, clips and schedules
+  run="$OUT/contacts_s$seed"
+  [ -f "$run/benchmark.json" ] && [ ! -f "${run}_unlocked/benchmark.json" ] || continue
+  python eval.py ckpt_path="$(ls "$run"/checkpoints/epoch_*.ckpt | head -1)" data=bandai_namco data.split=content \
+    protocol=keyframes "keyframe_intervals=[5,30,random]" keyframe_clips=100 foot_lock=false seed=$seed \
+    hydra.run.dir="${run}_unlocked" > "${run}_unlocked.log" 2>&1
 done
