@@ -67,10 +67,36 @@ def test_init_from_starts_from_the_checkpoints_network_and_weights(tiny_checkpoi
 
     data = [o for o in TINY_CKPT_OVERRIDES if o.startswith("data.")]
     cfg = compose_cfg("train", ["experiment=finetune", "model=unet1d", *data, f"init_from='{tiny_checkpoint}'",
-                                "trainer.max_steps=0", "callbacks=none", "logger=none"], tmp_path / "ft", cache_dir)
+                                "init_stats=checkpoint", "trainer.max_steps=0", "callbacks=none", "logger=none"], tmp_path / "ft", cache_dir)
     got = train(cfg)
     want = evaluate(compose_cfg("eval", [*data, f"ckpt_path='{tiny_checkpoint}'"], tmp_path / "ev", cache_dir))
     assert got and got == want
+
+
+@pytest.mark.parametrize("init_stats", [None, "checkpoint"])
+def test_init_stats_picks_the_datas_statistics_by_default_or_the_checkpoints(init_stats, tiny_checkpoint, tmp_path,
+                                                                            cache_dir):
+    """``init_stats: data`` (the default) estimates the new data's statistics; ``checkpoint`` keeps the checkpoint's
+    (told apart here by a checkpoint whose statistics were shifted)."""
+    import torch
+
+    from conftest import compose_cfg
+    from inbetweening.training.builders import make_datamodule, make_module
+    from inbetweening.training.jobs import start_from
+
+    ckpt = torch.load(tiny_checkpoint, map_location="cpu", weights_only=False)
+    ckpt["hyper_parameters"]["pos_mean"] = [v + 7.0 for v in ckpt["hyper_parameters"]["pos_mean"]]
+    shifted = tmp_path / "shifted.ckpt"
+    torch.save(ckpt, shifted)
+    overrides = [o for o in TINY_CKPT_OVERRIDES if o.startswith("data.")] + ([f"init_stats={init_stats}"]
+                                                                             if init_stats else [])
+    cfg = compose_cfg("train", overrides, tmp_path, cache_dir)
+    dm = make_datamodule(cfg)
+    init = start_from(str(shifted), dm)
+    dm.setup("fit")
+    module = make_module(cfg, dm, init)
+    want = ckpt["hyper_parameters"]["pos_mean"] if init_stats == "checkpoint" else dm.model_kwargs()["pos_mean"]
+    assert list(module.hparams["pos_mean"]) == list(want)
 
 
 def test_init_from_of_another_skeleton_names_both(tmp_path, cache_dir):

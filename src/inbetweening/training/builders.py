@@ -51,15 +51,16 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule, init: dict | None = No
 
     ``init``: a checkpoint (:func:`~inbetweening.predictor.checkpoint.read_checkpoint`) to start from
     (``init_from``): its network (``model``, ``representation``, ``centre``, ``mask``: the settings its weights belong
-    to, whatever the config's groups say) with its weights, and its normalisation statistics unless ``init_stats:
-    data`` (then the data's are estimated as for a new run); the loss, optimiser and data come from the config."""
+    to, whatever the config's groups say) with its weights; the normalisation statistics are the data's, estimated as
+    for a new run, unless ``init_stats: checkpoint`` keeps the checkpoint's; the loss, optimiser and data come from
+    the config."""
     kw = dm.model_kwargs()
     if init is None:
         return InbetweenModule(model=_plain(cfg.model), loss=_plain(cfg.loss), optim=_plain(cfg.optim),
                                centre=cfg.centre, representation=cfg.representation, mask=_plain(cfg.mask), **kw)
     hp = upgrade_hparams(init["hyper_parameters"])
     network = {k: hp[k] for k in ("model", "representation", "centre", "mask", "joint_mask") if hp.get(k) is not None}
-    if cfg.get("init_stats", "checkpoint") == "checkpoint":
+    if cfg.get("init_stats", "data") == "checkpoint":
         kw.update(pos_mean=list(hp["pos_mean"]), pos_std=list(hp["pos_std"]))
     module = InbetweenModule(loss=_plain(cfg.loss), optim=_plain(cfg.optim), **network, **kw)
     module.predictor.load_state_dict(predictor_state(init["state_dict"]))

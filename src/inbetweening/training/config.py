@@ -249,7 +249,7 @@ def validate(cfg: DictConfig) -> None:
         raise ConfigError(f"centre: must be one of {list(CENTRES)}, got {centre!r}")
     if _get(cfg, "init_from") and _get(cfg, "ckpt_path"):
         raise ConfigError("init_from: starts a new run from a checkpoint's weights, ckpt_path resumes a run: give one")
-    if _get(cfg, "init_stats", "checkpoint") not in ("checkpoint", "data"):
+    if _get(cfg, "init_stats", "data") not in ("checkpoint", "data"):
         raise ConfigError(f"init_stats: must be 'checkpoint' or 'data', got {_get(cfg, 'init_stats')!r}")
     rep = _get(cfg, "representation", DEFAULT_REPRESENTATION)
     if rep not in REPRESENTATIONS:
