@@ -214,7 +214,8 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         checks.integer("feature_dim", minimum=FEATURE_DIM)
         checks.integer("max_frames")
         checks.fraction("dropout")
-        if checks.values.get("gate") and not checks.values.get("residual_to_interpolation"):
+        gated = "gate" in cls.settings() and checks.values.get("gate")  # baselines ignore an experiment's gate
+        if gated and not checks.values.get("residual_to_interpolation"):
             raise ValueError(f"{prefix}gate: the gate weighs the network's correction to the interpolation; it needs "
                              f"{prefix}residual_to_interpolation=true")
         if "inputs" in checks.values:
