@@ -5,8 +5,9 @@
 # is shared; each run's log has its wall time.
 # The content-split model (models/bn2_content: Bandai-Namco-2 without `run` and `wave-both-hands`) is fine-tuned for
 # 10 minutes on takes 001-003 of every style of those two contents (42 clips, via data=bvh on a folder of them), and
-# scored on their other 483 takes (with the checkpoint's and with the data's normalisation statistics): against itself un-tuned, against 10 minutes from scratch on the same clips (the
-# 2-hour recipe cut at 10 minutes), and against interpolation.  Each run alone on the 2-core CPU (about 1 h in all).
+# scored on their other 483 takes (fine-tuned with the checkpoint's and with the data's normalisation statistics):
+# against itself un-tuned, against 10 minutes from scratch on the same clips (the 2-hour recipe cut at 10 minutes),
+# and against interpolation.  Each run alone on the 2-core CPU (about 1 h in all).
 #   bash benchmarks/finetune_unseen.sh <out dir> [<folder of the run / wave-both-hands takes>]
 set -euo pipefail
 OUT=${1:?out dir}
@@ -20,7 +21,8 @@ fi
 DATA_ARGS=(data=bvh "data.path=$DATA" 'data.test_pattern=["*_00[4-9].bvh","*_0[1-9][0-9].bvh"]')
 TEN_MIN=(trainer.max_steps=440 trainer.val_check_interval=100 threads=2 run_test=false)
 /usr/bin/time -v python train.py experiment=finetune init_from=models/bn2_content/model.ckpt init_stats=checkpoint \
-  "${DATA_ARGS[@]}" "${TEN_MIN[@]}" hydra.run.dir="$OUT/finetune_stats_checkpoint" > "$OUT/finetune_stats_checkpoint.log" 2>&1
+  "${DATA_ARGS[@]}" "${TEN_MIN[@]}" hydra.run.dir="$OUT/finetune_stats_checkpoint" \
+  > "$OUT/finetune_stats_checkpoint.log" 2>&1
 /usr/bin/time -v python train.py experiment=finetune init_from=models/bn2_content/model.ckpt "${DATA_ARGS[@]}" \
   "${TEN_MIN[@]}" hydra.run.dir="$OUT/finetune_stats_data" > "$OUT/finetune_stats_data.log" 2>&1
 /usr/bin/time -v python train.py experiment=bn2_best "${DATA_ARGS[@]}" "${TEN_MIN[@]}" hydra.run.dir="$OUT/scratch" \

@@ -67,7 +67,8 @@ def test_init_from_starts_from_the_checkpoints_network_and_weights(tiny_checkpoi
 
     data = [o for o in TINY_CKPT_OVERRIDES if o.startswith("data.")]
     cfg = compose_cfg("train", ["experiment=finetune", "model=unet1d", *data, f"init_from='{tiny_checkpoint}'",
-                                "init_stats=checkpoint", "trainer.max_steps=0", "callbacks=none", "logger=none"], tmp_path / "ft", cache_dir)
+                                "init_stats=checkpoint", "trainer.max_steps=0", "callbacks=none", "logger=none"],
+                      tmp_path / "ft", cache_dir)
     got = train(cfg)
     want = evaluate(compose_cfg("eval", [*data, f"ckpt_path='{tiny_checkpoint}'"], tmp_path / "ev", cache_dir))
     assert got and got == want
