@@ -36,7 +36,9 @@ def trained(tmp_path_factory, cache_dir):
     out = tmp_path_factory.mktemp("eval_trained")
     over = [o for o in TINY if "max_steps" not in o] + [
         "callbacks=default", "callbacks.progress_bar=null", "callbacks.skeleton_figure=null", "logger=none",
-        "+trainer.enable_progress_bar=false", "optim.optimizer.lr=1e-2", "optim.scheduler.warmup_steps=0"]
+        "+trainer.enable_progress_bar=false", "optim.optimizer.lr=1e-2", "optim.scheduler.warmup_steps=0",
+        "calibrate=false"]  # the network as trained (one epoch: its blend would be the interpolation at most gaps;
+    # test_calibration.py checks that eval.py reproduces a calibrated run too)
     metrics = train(compose_cfg("train", over, out / "run", cache_dir))
     ckpts = sorted((out / "run" / "checkpoints").glob("epoch_*.ckpt"))
     assert len(ckpts) == 1  # one epoch, one validation: this is the checkpoint train() tested

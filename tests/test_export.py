@@ -144,3 +144,29 @@ def test_window_graph_of_a_contact_model_with_the_gate(tiny_contact_checkpoint, 
 
     info = export_window_onnx(load_predictor(str(tiny_contact_checkpoint)), tmp_path / "w.onnx")
     assert info["max_abs_diff"] < 1e-4 and info["metadata"]["contact_slice"] == "[7, 8]"
+
+
+def test_window_graph_carries_the_do_no_harm_blend(tiny_contact_checkpoint, tmp_path):
+    """A calibrated predictor's blend is part of the window graph the Blender extension runs: ONNX Runtime matches
+    the blended predictor, and differs from the unblended one's graph."""
+    ort = pytest.importorskip("onnxruntime")
+    from inbetweening.predictor.checkpoint import load_predictor
+    from inbetweening.tools.export import export_window_onnx, window_example
+
+    plain = load_predictor(str(tiny_contact_checkpoint))
+    torch.manual_seed(0)
+    with torch.no_grad():  # a network whose correction is visible
+        for p in plain.net.parameters():
+            p.add_(0.05 * torch.randn_like(p))
+    blended = load_predictor(str(tiny_contact_checkpoint))
+    blended.load_state_dict(plain.state_dict())
+    blended.blend = (0.0, 0.25, 0.5, 0.75, 1.0)
+    outs = []
+    for name, pred in (("plain", plain), ("blended", blended)):
+        info = export_window_onnx(pred, tmp_path / f"{name}.onnx")
+        assert info["max_abs_diff"] < 1e-4
+        root, q, known = window_example(pred, 2, 3, seed=5)
+        sess = ort.InferenceSession(str(tmp_path / f"{name}.onnx"), providers=["CPUExecutionProvider"])
+        outs.append(sess.run(None, {"root": root.numpy(), "local_q": q.numpy(), "known": known.numpy()}))
+    assert json.loads(info["metadata"]["blend"]) == [0.0, 0.25, 0.5, 0.75, 1.0]
+    assert np.abs(outs[0][0] - outs[1][0]).max() > 1e-3  # a 3-frame gap: weight 0.5 moved the prediction

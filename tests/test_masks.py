@@ -222,3 +222,29 @@ def test_joint_gaps_defaults_config_and_known():
     assert torch.equal(k, want)
     gap = (~k).any(2).sum(1)
     assert (gap >= 3).all() and (gap <= 7).all()
+
+
+def test_gap_lengths_against_a_loop_per_joint():
+    """Each unknown value gets the length of its own joint's run of unknown frames (open at the edges too); known
+    values 0; the same numbers as a plain loop on random per-joint masks."""
+    from inbetweening.predictor.masks import gap_lengths
+
+    k = torch.tensor([1, 1, 0, 0, 0, 1, 0, 1, 0, 0], dtype=torch.bool)
+    assert gap_lengths(k[None, :, None])[0, :, 0].tolist() == [0, 0, 3, 3, 3, 0, 1, 0, 2, 2]
+    g = torch.Generator().manual_seed(0)
+    known = torch.rand(4, 23, 5, generator=g) < 0.3
+    want = torch.zeros(4, 23, 5, dtype=torch.long)
+    for b in range(4):
+        for j in range(5):
+            t = 0
+            while t < 23:
+                if known[b, t, j]:
+                    t += 1
+                    continue
+                end = t
+                while end < 23 and not known[b, end, j]:
+                    end += 1
+                want[b, t:end, j] = end - t
+                t = end
+    assert torch.equal(gap_lengths(known), want)
+    assert torch.equal(gap_lengths(torch.zeros(1, 6, 2, dtype=torch.bool)), torch.full((1, 6, 2), 6))

@@ -432,3 +432,38 @@ def test_the_network_is_built_with_the_representations_layout():
         out = wide.eval()(x, known, x)
     assert out.shape == x.shape and torch.equal(out[known], x[known])
     np.testing.assert_allclose(out[..., 0:4].norm(dim=-1).numpy(), 1.0, atol=1e-5)  # the layout's rotation channels
+
+
+def test_the_blend_weighs_the_prediction_against_the_interpolation_per_gap_length():
+    """``blend``: weight 0 gives the interpolation, 1 the network, in between positions linearly and rotations by
+    slerp; the weight is chosen by the gap a frame lies in (longer gaps take the last one); known values stay
+    bit-exact; the training forward never blends; the blend is a plain value of the checkpoint."""
+    from inbetweening.predictor.predictor import check_blend
+
+    root, q = windows(4, t=24)
+    plain = predictor(4)
+    known = plain.transition_known(3, 24, 7)
+    known[:, 12] = True  # two gaps per window: 2 frames (10-11) and 4 frames (13-16)
+    base = plain.predict_windows(root, q, known)
+    for table, want in (([0.0], "interp"), ([1.0], "pred")):
+        b = predictor(4, blend=table).predict_windows(root, q, known)
+        ref = base.interp_root if want == "interp" else base.root
+        np.testing.assert_allclose(b.root.numpy(), ref.numpy(), atol=1e-5)
+    half = predictor(4, blend=[1.0, 0.0, 1.0, 0.5])  # gap 2 -> 0, gap 4 and longer -> 0.5
+    out = half.predict_windows(root, q, known)
+    k = known[..., 0]
+    assert torch.equal(out.root[k], torch.from_numpy(root)[k]) and torch.equal(out.local_q[known],
+                                                                              torch.from_numpy(q)[known])
+    np.testing.assert_allclose(out.root[:, 10:12].numpy(), base.interp_root[:, 10:12].numpy(), atol=1e-5)
+    mid = (base.interp_root[:, 13:17] + base.root[:, 13:17]) / 2
+    np.testing.assert_allclose(out.root[:, 13:17].numpy(), mid.numpy(), atol=1e-4)
+    w = half.blend_weights(known)
+    assert w[0, :, 0].tolist() == [1.0] * 10 + [0.0, 0.0, 1.0] + [0.5] * 4 + [1.0] * 7
+    assert Predictor.from_hparams(half.hparams()).blend == (1.0, 0.0, 1.0, 0.5)
+    assert json.loads(half.metadata()["blend"]) == [1.0, 0.0, 1.0, 0.5]
+    assert plain.hparams()["blend"] is None and upgrade_hparams({"centre": "known"}).get("blend") is None
+    trained = [p(root, q, known)[0] for p in (plain, half)]  # the training forward: the network as it is
+    assert torch.equal(trained[0], trained[1])
+    for bad in ([], [0.5, 1.5], [float("nan")], "x", 3):
+        with pytest.raises(ValueError, match="blend: must be"):
+            check_blend(bad)

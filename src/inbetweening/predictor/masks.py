@@ -6,6 +6,7 @@ and ``quat`` slices, :class:`inbetweening.representation.base.Representation`).
 
 * :func:`transition_known` - the in-betweening mask: context frames, then a gap, then a target keyframe.
 * :func:`joints_known`     - the mocap-recovery mask: random joints missing over random gaps.
+* :func:`gap_lengths`      - for each unknown value, the length of the gap (run of unknown frames) holding it.
 * ``MASKS[name](x, known, layout)`` - fill the unknown values: ``zero`` (zeros) or ``lerp`` (positions
   linear, quaternions slerp between the nearest known frames of the same joint, other channels held).
 """
@@ -32,6 +33,21 @@ def transition_known(batch: int, frames: int, joints: int, n_past: int, n_trans,
     p = torch.as_tensor(n_past, device=device).reshape(-1, 1).expand(batch, 1)
     known = (t < p) | (t >= p + n)
     return known[:, :, None].expand(batch, frames, joints).clone()
+
+
+def gap_lengths(known: torch.Tensor) -> torch.Tensor:
+    """``known (B, T, J)`` bool -> ``(B, T, J)`` int64: for an unknown value, the number of consecutive unknown
+    frames of its joint that hold it (frames from the previous known frame to the next one, both excluded; a gap
+    open at the window's start or end counts to that edge); 0 for a known value.
+
+    Built from comparisons and reductions only (no loop, no ``cummax``), so it traces into an ONNX graph."""
+    t = known.shape[1]
+    idx = torch.arange(t, device=known.device)
+    k = known.transpose(1, 2)[:, :, None, :]  # (B, J, 1, T_s)
+    s_, t_ = idx[None, :], idx[:, None]  # (T_t, T_s) comparisons
+    prev = torch.where(k & (s_ <= t_), idx, -1).amax(dim=-1)  # (B, J, T_t): last known frame at or before t
+    nxt = torch.where(k & (s_ >= t_), idx, t).amin(dim=-1)  # first known frame at or after t
+    return torch.where(known, 0, (nxt - prev - 1).transpose(1, 2))
 
 
 @dataclass(frozen=True)

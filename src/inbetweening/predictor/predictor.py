@@ -24,9 +24,10 @@ from inbetweening.data.contacts import FootContact
 from inbetweening.data.convention import FileConvention
 from inbetweening.data.windows import N_PAST
 from inbetweening.geometry import canonical
+from inbetweening.geometry.interp import lerp, slerp
 from inbetweening.geometry.quaternion import qrot
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.predictor.masks import MASK_NAMES, apply_mask, transition_known
+from inbetweening.predictor.masks import MASK_NAMES, apply_mask, gap_lengths, transition_known
 from inbetweening.representation import DEFAULT_REPRESENTATION, build_representation, representation_class
 
 CENTRES = ("known", "last", "window")
@@ -34,7 +35,7 @@ LEGACY_CENTRE = "window"  # what checkpoints made before the ``centre`` option r
 
 # the predictor's hyper-parameters, as InbetweenModule records them
 HPARAMS = ("model", "skeleton", "pos_mean", "pos_std", "mask", "centre", "n_past", "forward_axis", "representation",
-           "fps", "train_window", "dataset", "contact", "convention")
+           "fps", "train_window", "dataset", "contact", "convention", "blend")
 
 
 def check_centre(centre: str) -> str:
@@ -42,6 +43,20 @@ def check_centre(centre: str) -> str:
     if centre not in CENTRES:
         raise ValueError(f"centre must be one of {list(CENTRES)}, got {centre!r}")
     return centre
+
+
+def check_blend(blend) -> tuple[float, ...] | None:
+    """``blend`` as a tuple of floats (``None`` stays ``None``), or ValueError naming ``blend``: a non-empty list of
+    numbers in [0, 1], one per gap length 1, 2, ... (:meth:`Predictor.blend_weights`)."""
+    if blend is None:
+        return None
+    try:
+        w = tuple(float(v) for v in blend)
+    except (TypeError, ValueError):
+        raise ValueError(f"blend: must be a list of weights in [0, 1] (one per gap length), got {blend!r}") from None
+    if not w or not all(0.0 <= v <= 1.0 for v in w):  # (NaN fails the comparison too)
+        raise ValueError(f"blend: must be a non-empty list of weights in [0, 1] (one per gap length), got {list(w)}")
+    return w
 
 
 def upgrade_hparams(hp: dict) -> dict:
@@ -86,13 +101,17 @@ class Predictor(nn.Module):
         contact: the training data's feet and foot-contact rule (:class:`~inbetweening.data.contacts.FootContact`).
         convention: the training files' up axis and length unit (:class:`~inbetweening.data.convention.
             FileConvention`): the tools turn a user's file into the model's frame (Y up, cm) and back with it.
+        blend: the do-no-harm blend, one weight in [0, 1] per gap length ``1, 2, ...`` (longer gaps take the last):
+            every prediction is ``interpolation + weight x (network - interpolation)`` (positions linearly,
+            rotations by slerp), the weight chosen by the gap the frame lies in; fitted after training on held-out
+            windows (:func:`inbetweening.predictor.calibration.fit_blend`); ``None``: the network as it is.
     """
 
     def __init__(self, net: nn.Module, skeleton: Skeleton, pos_mean, pos_std, *, mask: str, centre: str,
                  n_past: int = N_PAST, forward_axis: Sequence[float] = (0.0, 1.0, 0.0),
                  representation: str = DEFAULT_REPRESENTATION, model: dict | None = None, fps: float = 30.0,
                  train_window: int = 50, dataset: str = "", contact: dict | None = None,
-                 convention: dict | None = None):
+                 convention: dict | None = None, blend: Sequence[float] | None = None):
         super().__init__()
         if mask not in MASK_NAMES:
             raise ValueError(f"mask must be one of {list(MASK_NAMES)}, got {mask!r}")
@@ -108,6 +127,7 @@ class Predictor(nn.Module):
         self.fps, self.train_window, self.dataset = float(fps), int(train_window), str(dataset)
         self.contact = FootContact.from_dict(contact)
         self.convention = FileConvention.from_dict(convention)
+        self.blend = check_blend(blend)
         self.representation = build_representation(representation, skeleton, self.mean, self.std,
                                                    contact=self.contact, fps=self.fps)
 
@@ -133,7 +153,8 @@ class Predictor(nn.Module):
                 "pos_std": self.std.tolist(), "mask": self.mask_name, "centre": self.centre, "n_past": self.n_past,
                 "forward_axis": list(self.forward_axis), "representation": self.representation.name,
                 "fps": self.fps, "train_window": self.train_window, "dataset": self.dataset,
-                "contact": self.contact.to_dict(), "convention": self.convention.to_dict()}
+                "contact": self.contact.to_dict(), "convention": self.convention.to_dict(),
+                "blend": None if self.blend is None else list(self.blend)}
 
     @property
     def device(self) -> torch.device:
@@ -219,14 +240,42 @@ class Predictor(nn.Module):
         if with_raw:
             net = functools.partial(net, with_raw=True)
         feats, _ = self.canonical_features(root, local_q, known)
-        out, interp = self.network_forward(feats, known.to(feats.device), net)
-        return (out[0], interp, feats, out[1]) if with_raw else (out, interp, feats)
+        out, interp = self.network_forward(feats, known.to(feats.device), net, blend=False)  # the network is trained
+        return (out[0], interp, feats, out[1]) if with_raw else (out, interp, feats)  # as it is, never blended
 
-    def network_forward(self, feats: torch.Tensor, known: torch.Tensor, net=None):
-        """Features in the canonical frame -> ``(network output, interpolation)``: the mask fills the unknown values
-        (never read: NaN is fine), the network predicts them; known values come back as given."""
+    def network_forward(self, feats: torch.Tensor, known: torch.Tensor, net=None, blend: bool = True):
+        """Features in the canonical frame -> ``(prediction, interpolation)``: the mask fills the unknown values
+        (never read: NaN is fine), the network predicts them, the do-no-harm blend (``blend``, when the predictor
+        has one) weighs the prediction against the interpolation; known values come back as given."""
         x, interp = apply_mask(self.mask_name, feats, known, self.representation)
-        return (net or self.net)(x, known, interp), interp
+        out = (net or self.net)(x, known, interp)
+        if blend and self.blend is not None:
+            out = self.blended(out, interp, known)
+        return out, interp
+
+    # ------------------------------------------------------------------ the do-no-harm blend
+    def blend_weights(self, known: torch.Tensor) -> torch.Tensor:
+        """``known (B, T, J)`` -> the blend's weight of each value ``(B, T, J)`` float32: ``blend[L - 1]`` for a value
+        in a gap of ``L`` frames (:func:`~inbetweening.predictor.masks.gap_lengths`; gaps longer than the list take
+        its last weight), 1 for known values; all 1 without a blend."""
+        if self.blend is None:
+            return torch.ones(known.shape, device=known.device)
+        table = torch.tensor(self.blend, dtype=torch.float32, device=known.device)
+        gaps = gap_lengths(known).clamp(1, len(self.blend)) - 1
+        return torch.where(known, 1.0, table[gaps])
+
+    def blended(self, pred: torch.Tensor, interp: torch.Tensor, known: torch.Tensor, weights=None) -> torch.Tensor:
+        """``interp + w (pred - interp)`` on the position channels and ``slerp(interp, pred, w)`` on the rotation
+        channels of features ``(B, T, J, F)``; other channels (contacts) and known values as in ``pred``.
+        ``weights``: ``(B, T, J)`` or a number, default :meth:`blend_weights` of ``known``."""
+        rep = self.representation
+        w = self.blend_weights(known) if weights is None else torch.as_tensor(weights, dtype=pred.dtype,
+                                                                              device=pred.device)
+        w = w.expand(known.shape).to(pred.dtype)
+        out = pred.clone()
+        out[..., rep.pos] = lerp(interp[..., rep.pos], pred[..., rep.pos], w[..., None])
+        out[..., rep.quat] = slerp(interp[..., rep.quat], pred[..., rep.quat], w)
+        return torch.where(known[..., None], pred, out)
 
     @torch.no_grad()
     def predict_windows(self, root, local_q, known: torch.Tensor) -> Filled:
@@ -339,6 +388,7 @@ class Predictor(nn.Module):
             "max_frames": self.max_frames or 0,
             "dataset": self.dataset,
             **self.representation.metadata(),
+            "blend": None if self.blend is None else list(self.blend),
             "inputs": list(inputs),
         }
         return {k: json.dumps(v) for k, v in meta.items()}

@@ -26,10 +26,10 @@ def _get(cfg, key: str, default=None):
     return node
 
 
-POSITIVE_INT_KEYS = tuple(f"data.{k}" for k in (
+POSITIVE_INT_KEYS = (*(f"data.{k}" for k in (
     "batch_size", "eval_batch_size", "train_window", "train_offset", "max_train_windows", "max_eval_windows",
     "max_val_windows",
-))
+)), "calibrate_windows")
 
 
 def _check_model(cfg, name: str) -> None:
@@ -262,6 +262,8 @@ def validate(cfg: DictConfig) -> None:
             raise ConfigError(f"loss.{k}: unknown loss term; known: {list(LOSS_TERMS)}")
         if float(v) < 0:
             raise ConfigError(f"loss.{k}: weight must be >= 0, got {v}")
+    if not isinstance(_get(cfg, "calibrate", True), bool):
+        raise ConfigError(f"calibrate: must be true or false, got {_get(cfg, 'calibrate')!r}")
     _check_optim(cfg)
     _check_protocol(cfg)
 

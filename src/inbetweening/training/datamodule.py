@@ -190,6 +190,17 @@ class InbetweenDataModule(L.LightningDataModule):
         vX, vQ = W.prepare_windows(val_clips or train_clips[:1], sk, W.TEST_WINDOW, W.TEST_OFFSET, axis)
         vlim = h.max_val_windows or h.max_eval_windows
         self.val_set = _Windows(vX[:vlim], vQ[:vlim])
+        self.held_out = (vX, vQ)  # every validation window, uncapped (the calibration's)
+
+    def calibration_windows(self, limit: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Validation windows (never the test set), ``root (N, T, 3), local_q (N, T, J, 4)``: at most ``limit``,
+        evenly spaced over all of them (not capped by ``max_val_windows``), for the do-no-harm blend
+        (:func:`inbetweening.predictor.calibration.fit_blend`); after ``setup("fit")``."""
+        vX, vQ = self.held_out
+        idx = np.arange(len(vX))
+        if limit and limit < len(idx):
+            idx = np.linspace(0, len(vX) - 1, int(limit)).round().astype(int)
+        return vX[idx, :, 0], vQ[idx]
 
     def test_benchmark_set(self) -> W.BenchmarkSet:
         """The (possibly capped) test windows as a :class:`~inbetweening.data.windows.BenchmarkSet`."""

@@ -1,5 +1,5 @@
-"""``train(cfg)`` and ``evaluate(cfg)``: the Hydra-configured jobs behind ``train.py`` and ``eval.py`` (their parts
-are built by :mod:`inbetweening.training.builders`).
+"""``train(cfg)``, ``evaluate(cfg)`` and ``calibrate(cfg)``: the Hydra-configured jobs behind ``train.py``,
+``eval.py`` and ``calibrate.py`` (their parts are built by :mod:`inbetweening.training.builders`).
 
 Both return a metrics dict and write ``benchmark.json`` (``{"dataset", "split", "model", "n_windows",
 "metrics": {"l2q@5": ...}}``) into the run's output directory.
@@ -89,12 +89,16 @@ def train(cfg: DictConfig) -> dict[str, float]:
         except SystemExit:  # Lightning exits after a graceful Ctrl-C; the checkpoint and hint were written
             raise SystemExit(130) from None
         best = getattr(trainer.checkpoint_callback, "best_model_path", None) or None
+    if best and Path(best).exists():
+        module = load_module(best)
+    else:
+        best = None
+    if module.trainable and cfg.get("calibrate", True):  # every rank fits the same blend; rank 0 writes it
+        best = calibrate_module(module, dm, cfg, best, write=rank_world()[0] == 0) or best
     metrics: dict[str, float] = {}
     if cfg.get("run_test", True):
         trim_heap()  # the test batches start from the heap the training steps left
         test_trainer = make_trainer(cfg, callbacks=False, loggers=False)
-        if best and Path(best).exists():
-            module = load_module(best)
         test_trainer.test(module, datamodule=dm, verbose=False)
         metrics = dict(module.test_results)
         name = cfg.model.name
@@ -118,6 +122,58 @@ def train(cfg: DictConfig) -> dict[str, float]:
             print(f"\nKeyframes-only protocol ({len(dm.data.test)} whole test clips)\n" + format_table(kf))
         log_test(trainer, module)
     return metrics
+
+
+def calibrate_module(module: InbetweenModule, dm: InbetweenDataModule, cfg: DictConfig, ckpt_path: str | None,
+                     out: str | Path | None = None, write: bool = True) -> str | None:
+    """Fit the do-no-harm blend of ``module``'s predictor on ``dm``'s validation windows
+    (:func:`~inbetweening.predictor.calibration.fit_blend`, ``calibrate_windows`` of them, gaps up to the data's
+    ``transition_max``), give it to the module, print the fit, and (``write``) write the checkpoint ``ckpt_path``
+    with the blend to ``out`` (default ``calibrated.ckpt`` beside it); returns that path (``None`` without
+    ``ckpt_path``)."""
+    from inbetweening.predictor.calibration import calibrated_checkpoint, fit_blend
+
+    root, q = dm.calibration_windows(cfg.get("calibrate_windows"))
+    fit = fit_blend(module.predictor, root, q, max_gap=int(dm.hparams.transition_max))
+    module.predictor.blend = tuple(fit.weights)
+    module.hparams["blend"] = list(fit.weights)
+    if not ckpt_path:
+        return None
+    dst = Path(out) if out else Path(ckpt_path).with_name("calibrated.ckpt")
+    if not write:
+        return str(dst)
+    print(fit.table())
+    ckpt = calibrated_checkpoint(read_checkpoint(ckpt_path), fit.weights)
+    ckpt["blend_fit"] = {"rows": fit.rows, "windows": fit.windows, "source": str(ckpt_path)}
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    torch.save(ckpt, dst)
+    print(f"calibrated checkpoint (do-no-harm blend): {dst}")
+    return str(dst)
+
+
+def calibrate(cfg: DictConfig) -> dict[str, float]:
+    """``calibrate.py``: fit the do-no-harm blend of a checkpoint (``ckpt_path``) on the validation windows of
+    ``data`` and write the checkpoint with it (``out``, default ``<ckpt_path's stem>.calibrated.ckpt``).  Returns
+    ``{"weight@<gap>": ...}``."""
+    validate(cfg)
+    if cfg.get("threads"):
+        torch.set_num_threads(int(cfg.threads))
+    ckpt_path = cfg.get("ckpt_path")
+    if not ckpt_path:
+        raise ConfigError("ckpt_path: required (the checkpoint to calibrate)")
+    src = Path(ckpt_path)
+    out = Path(cfg.out) if cfg.get("out") else src.with_name(f"{src.stem}.calibrated.ckpt")
+    if out.resolve() == src.resolve():
+        raise ConfigError(f"out: {out} is the input checkpoint; write the calibrated one to another file")
+    module = load_module(ckpt_path)
+    dm = make_datamodule(cfg)
+    dm.prepare_data()
+    dm.setup("fit")
+    if not module.skeleton.same_topology(dm.skeleton):
+        raise CheckpointError(f"ckpt_path: {ckpt_path} was trained on a {module.skeleton.num_joints}-joint skeleton "
+                              f"({module.hparams.dataset}), data {dm.data.name!r} has {dm.skeleton.num_joints} joints")
+    calibrate_module(module, dm, cfg, ckpt_path, out)
+    return {f"weight@{i + 1}": w for i, w in enumerate(module.predictor.blend)}
 
 
 def report_derived(data, out: Path) -> None:

@@ -57,6 +57,8 @@ class InbetweenModule(L.LightningModule):
         representation: the feature representation's name (:mod:`inbetweening.representation`).
         contact, convention: the training data's feet and contact rule, and its files' up axis and unit (kept by the
             predictor for the tools; the foot loss uses the feet and the contact speed).
+        blend: the predictor's do-no-harm blend (one weight per gap length; written by the calibration after training,
+            :func:`inbetweening.predictor.calibration.fit_blend`); ``None``: the network as it is.
         score_stats: ``{"mean": [...], "std": [...]}``, the statistics the benchmark metrics z-score L2P with
             (``eval.py``: the scored dataset's own training statistics, the protocol's); ``None``: the model's.
     """
@@ -84,6 +86,7 @@ class InbetweenModule(L.LightningModule):
         score_stats: dict | None = None,
         contact: dict | None = None,
         convention: dict | None = None,
+        blend: Sequence[float] | None = None,
     ):
         super().__init__()
         if isinstance(mask, Mapping):  # the ``mask`` config group: its name, and the gap settings of mask=joints
