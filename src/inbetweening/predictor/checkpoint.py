@@ -107,6 +107,16 @@ def peek_hyper_parameters(source) -> dict:
     return dict(hp) if isinstance(hp, dict) else {}
 
 
+def trained_gap(ckpt: dict) -> int | None:
+    """The longest transition a checkpoint's model was trained on: the data module's ``transition_max`` it records
+    (not for the mocap-recovery task, ``mask=joints``, whose gaps are per joint); ``None`` when it records none
+    (inference-only exports: the tools then take ``train_window - n_past - 1``)."""
+    dm = ckpt.get("datamodule_hyper_parameters") or {}
+    if dm.get("mask", "lerp") != "joints" and dm.get("transition_max"):
+        return int(dm["transition_max"])
+    return None
+
+
 def load_predictor(path: str | Path, device: str | torch.device = "cpu", ckpt: dict | None = None):
     """The :class:`~inbetweening.predictor.predictor.Predictor` of a checkpoint (training or inference-only, any
     layout; older checkpoints without ``centre`` get ``window``), in eval mode on ``device``, without Lightning.

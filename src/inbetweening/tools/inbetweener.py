@@ -150,12 +150,11 @@ class Inbetweener:
         ``kw`` go to the constructor (``max_gap``, ``segment``); ``trained_gap`` defaults to the data module's
         ``transition_max`` recorded in the checkpoint.
         """
-        from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint
+        from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint, trained_gap
 
         ckpt = read_checkpoint(str(path))
-        dm = ckpt.get("datamodule_hyper_parameters") or {}
-        if "trained_gap" not in kw and dm.get("mask", "lerp") != "joints" and dm.get("transition_max"):
-            kw["trained_gap"] = int(dm["transition_max"])
+        if "trained_gap" not in kw and trained_gap(ckpt):
+            kw["trained_gap"] = trained_gap(ckpt)
         return cls(load_predictor(str(path), device, ckpt=ckpt), **kw)
 
     @property

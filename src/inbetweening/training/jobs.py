@@ -24,7 +24,7 @@ from inbetweening.atomic import write_text
 from inbetweening.data.bvh import BVHError
 from inbetweening.data.datasets import DatasetError
 from inbetweening.evaluation import benchmark as B
-from inbetweening.predictor.checkpoint import CheckpointError, predictor_state, read_checkpoint
+from inbetweening.predictor.checkpoint import CheckpointError, predictor_state, read_checkpoint, trained_gap
 from inbetweening.training.builders import make_datamodule, make_module, make_trainer, output_dir
 from inbetweening.training.callbacks import NonFiniteError, trim_heap
 from inbetweening.training.config import ConfigError, validate
@@ -93,7 +93,9 @@ def train(cfg: DictConfig) -> dict[str, float]:
         module = load_module(best)
     else:
         best = None
-    if module.trainable and cfg.get("calibrate", True):  # every rank fits the same blend; rank 0 writes it
+    fitted = module.trainable and cfg.trainer.get("max_steps", -1) != 0
+    if fitted and cfg.get("calibrate", True) and (best or cfg.get("run_test", True)):
+        # every rank fits the same blend; rank 0 writes it
         best = calibrate_module(module, dm, cfg, best, write=rank_world()[0] == 0) or best
     metrics: dict[str, float] = {}
     if cfg.get("run_test", True):
@@ -125,16 +127,16 @@ def train(cfg: DictConfig) -> dict[str, float]:
 
 
 def calibrate_module(module: InbetweenModule, dm: InbetweenDataModule, cfg: DictConfig, ckpt_path: str | None,
-                     out: str | Path | None = None, write: bool = True) -> str | None:
+                     out: str | Path | None = None, write: bool = True, max_gap: int | None = None) -> str | None:
     """Fit the do-no-harm blend of ``module``'s predictor on ``dm``'s validation windows
-    (:func:`~inbetweening.predictor.calibration.fit_blend`, ``calibrate_windows`` of them, gaps up to the data's
-    ``transition_max``), give it to the module, print the fit, and (``write``) write the checkpoint ``ckpt_path``
-    with the blend to ``out`` (default ``calibrated.ckpt`` beside it); returns that path (``None`` without
-    ``ckpt_path``)."""
+    (:func:`~inbetweening.predictor.calibration.fit_blend`, ``calibrate_windows`` of them, gaps up to ``max_gap``,
+    default the data's ``transition_max``: the longest gap the tools generate in one window), give it to the module,
+    print the fit, and (``write``) write the checkpoint ``ckpt_path`` with the blend to ``out`` (default
+    ``calibrated.ckpt`` beside it); returns that path (``None`` without ``ckpt_path``)."""
     from inbetweening.predictor.calibration import calibrated_checkpoint, fit_blend
 
     root, q = dm.calibration_windows(cfg.get("calibrate_windows"))
-    fit = fit_blend(module.predictor, root, q, max_gap=int(dm.hparams.transition_max))
+    fit = fit_blend(module.predictor, root, q, max_gap=max_gap or int(dm.hparams.transition_max))
     module.predictor.blend = tuple(fit.weights)
     module.hparams["blend"] = list(fit.weights)
     if not ckpt_path:
@@ -153,8 +155,9 @@ def calibrate_module(module: InbetweenModule, dm: InbetweenDataModule, cfg: Dict
 
 def calibrate(cfg: DictConfig) -> dict[str, float]:
     """``calibrate.py``: fit the do-no-harm blend of a checkpoint (``ckpt_path``) on the validation windows of
-    ``data`` and write the checkpoint with it (``out``, default ``<ckpt_path's stem>.calibrated.ckpt``).  Returns
-    ``{"weight@<gap>": ...}``."""
+    ``data`` (gaps up to the longest the checkpoint was trained on, :func:`~inbetweening.predictor.checkpoint.
+    trained_gap`, else ``train_window - n_past - 1``) and write the checkpoint with it (``out``, default
+    ``<ckpt_path's stem>.calibrated.ckpt``).  Returns ``{"weight@<gap>": ...}``."""
     validate(cfg)
     if cfg.get("threads"):
         torch.set_num_threads(int(cfg.threads))
@@ -172,7 +175,9 @@ def calibrate(cfg: DictConfig) -> dict[str, float]:
     if not module.skeleton.same_topology(dm.skeleton):
         raise CheckpointError(f"ckpt_path: {ckpt_path} was trained on a {module.skeleton.num_joints}-joint skeleton "
                               f"({module.hparams.dataset}), data {dm.data.name!r} has {dm.skeleton.num_joints} joints")
-    calibrate_module(module, dm, cfg, ckpt_path, out)
+    p = module.predictor
+    longest = trained_gap(read_checkpoint(ckpt_path)) or p.train_window - p.n_past - 1
+    calibrate_module(module, dm, cfg, ckpt_path, out, max_gap=longest)
     return {f"weight@{i + 1}": w for i, w in enumerate(module.predictor.blend)}
 
 
