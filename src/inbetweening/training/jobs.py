@@ -96,7 +96,8 @@ def train(cfg: DictConfig) -> dict[str, float]:
     fitted = module.trainable and cfg.trainer.get("max_steps", -1) != 0
     if fitted and cfg.get("calibrate", True) and (best or cfg.get("run_test", True)):
         # every rank fits the same blend; rank 0 writes it
-        best = calibrate_module(module, dm, cfg, best, write=rank_world()[0] == 0) or best
+        best = calibrate_module(module, dm, cfg, best, write=rank_world()[0] == 0,
+                                max_gap=int(dm.hparams.transition_max)) or best
     metrics: dict[str, float] = {}
     if cfg.get("run_test", True):
         trim_heap()  # the test batches start from the heap the training steps left
@@ -129,15 +130,16 @@ def train(cfg: DictConfig) -> dict[str, float]:
 def calibrate_module(module: InbetweenModule, dm: InbetweenDataModule, cfg: DictConfig, ckpt_path: str | None,
                      out: str | Path | None = None, write: bool = True, max_gap: int | None = None) -> str | None:
     """Fit the do-no-harm blend of ``module``'s predictor on ``dm``'s validation windows
-    (:func:`~inbetweening.predictor.calibration.fit_blend`, ``calibrate_windows`` of them, gaps up to ``max_gap``,
-    default the data's ``transition_max``: the longest gap the tools generate in one window), give it to the module,
+    (:func:`~inbetweening.predictor.calibration.fit_blend`, ``calibrate_windows`` of them, gaps up to ``max_gap``:
+    the longest gap the tools generate in one window; ``None``: ``train_window - n_past - 1``), give it to the module,
     print the fit, and (``write``) write the checkpoint ``ckpt_path`` with the blend to ``out`` (default
     ``calibrated.ckpt`` beside it); returns that path (``None`` without ``ckpt_path``)."""
     from inbetweening.predictor.calibration import calibrated_checkpoint, fit_blend
+    from inbetweening.predictor.predictor import check_blend
 
     root, q = dm.calibration_windows(cfg.get("calibrate_windows"))
-    fit = fit_blend(module.predictor, root, q, max_gap=max_gap or int(dm.hparams.transition_max))
-    module.predictor.blend = tuple(fit.weights)
+    fit = fit_blend(module.predictor, root, q, max_gap=max_gap)
+    module.predictor.blend = check_blend(fit.weights)
     module.hparams["blend"] = list(fit.weights)
     if not ckpt_path:
         return None
@@ -175,9 +177,7 @@ def calibrate(cfg: DictConfig) -> dict[str, float]:
     if not module.skeleton.same_topology(dm.skeleton):
         raise CheckpointError(f"ckpt_path: {ckpt_path} was trained on a {module.skeleton.num_joints}-joint skeleton "
                               f"({module.hparams.dataset}), data {dm.data.name!r} has {dm.skeleton.num_joints} joints")
-    p = module.predictor
-    longest = trained_gap(read_checkpoint(ckpt_path)) or p.train_window - p.n_past - 1
-    calibrate_module(module, dm, cfg, ckpt_path, out, max_gap=longest)
+    calibrate_module(module, dm, cfg, ckpt_path, out, max_gap=trained_gap(read_checkpoint(ckpt_path)))
     return {f"weight@{i + 1}": w for i, w in enumerate(module.predictor.blend)}
 
 
