@@ -126,3 +126,27 @@ def test_init_from_and_ckpt_path_are_exclusive(tmp_path):
         validate(compose_cfg("train", ["init_from=a.ckpt", "ckpt_path=b.ckpt"], tmp_path, tmp_path))
     with pytest.raises(ConfigError, match="^init_stats: must be"):
         validate(compose_cfg("train", ["init_stats=mine"], tmp_path, tmp_path))
+
+
+@pytest.mark.parametrize("config", ["train", "eval", "calibrate"])
+def test_every_job_takes_threads(config, tmp_path):
+    """``threads`` is a key of train.py, eval.py and calibrate.py alike (jobs share the CPU), checked the same way,
+    and sets the process's torch threads."""
+    import torch
+    from omegaconf import OmegaConf
+
+    from conftest import compose_cfg
+    from inbetweening.training.config import ConfigError, validate
+    from inbetweening.training.jobs import use_threads
+
+    cfg = compose_cfg(config, ["threads=1"], tmp_path, tmp_path)
+    validate(cfg)
+    before = torch.get_num_threads()
+    try:
+        use_threads(cfg)
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(before)
+    OmegaConf.update(cfg, "threads", 0)
+    with pytest.raises(ConfigError, match="threads: must be an integer >= 1"):
+        validate(cfg)

@@ -60,13 +60,18 @@ def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metric
     return res
 
 
+def use_threads(cfg: DictConfig) -> None:
+    """``threads``: the torch threads of this job (null: torch's default), so that jobs can share the CPU."""
+    if cfg.get("threads"):
+        torch.set_num_threads(int(cfg.threads))
+
+
 # ------------------------------------------------------------------------------------------
 def train(cfg: DictConfig) -> dict[str, float]:
     """Fit (unless the model is a non-trainable baseline), then run the test benchmark with the best
     checkpoint and write ``benchmark.json``.  Returns the test metrics."""
     validate(cfg)
-    if cfg.get("threads"):
-        torch.set_num_threads(int(cfg.threads))
+    use_threads(cfg)
     L.seed_everything(cfg.seed, workers=True)
     out = output_dir(cfg)
     dm = make_datamodule(cfg)
@@ -161,8 +166,7 @@ def calibrate(cfg: DictConfig) -> dict[str, float]:
     trained_gap`, else ``train_window - n_past - 1``) and write the checkpoint with it (``out``, default
     ``<ckpt_path's stem>.calibrated.ckpt``).  Returns ``{"weight@<gap>": ...}``."""
     validate(cfg)
-    if cfg.get("threads"):
-        torch.set_num_threads(int(cfg.threads))
+    use_threads(cfg)
     ckpt_path = cfg.get("ckpt_path")
     if not ckpt_path:
         raise ConfigError("ckpt_path: required (the checkpoint to calibrate)")
@@ -270,6 +274,7 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
     """Benchmark a checkpoint (``ckpt_path``) or a baseline (``model=zero_velocity|interpolation``) with the
     LAFAN1 protocol, or with ``protocol=keyframes`` (:func:`evaluate_keyframes`)."""
     validate(cfg)
+    use_threads(cfg)
     if cfg.get("protocol", "lafan") == "keyframes":
         return evaluate_keyframes(cfg)
     out = output_dir(cfg)
