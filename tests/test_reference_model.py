@@ -21,12 +21,23 @@ BN2 = ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip"
 needs_bn2 = pytest.mark.skipif(not BN2.exists(), reason=f"Bandai-Namco-2 not found at {BN2}")
 
 
-def test_reference_model_loads_without_training_state():
-    ckpt = torch.load(CKPT, map_location="cpu", weights_only=False)
+CONTENT_CKPT = ROOT / "models" / "bn2_content" / "model.ckpt"
+
+
+@pytest.mark.parametrize("path", [CKPT, CONTENT_CKPT], ids=["bn2_reference", "bn2_content"])
+def test_shipped_models_load_without_training_state_and_carry_the_blend(path):
+    ckpt = torch.load(path, map_location="cpu", weights_only=False)
     assert "optimizer_states" not in ckpt and "lr_schedulers" not in ckpt
-    m = InbetweenModule.load_from_checkpoint(CKPT, map_location="cpu")
+    m = InbetweenModule.load_from_checkpoint(path, map_location="cpu")
     assert m.hparams.dataset == "bandai_namco" and m.skeleton.num_joints == 21 and m.skeleton.names[0] == "Hips"
     assert m.hparams.model["name"] == "graph_transformer" and m.hparams.model["depth"] == 6
+    # the do-no-harm blend fitted on the validation windows (RESULTS.md section 12): one weight per gap length 1-54
+    # (the longest gap a 65-frame window holds), near interpolation for 1-frame gaps, near the network's from 15 on
+    blend = list(m.hparams.blend)
+    assert len(blend) == 54 and all(0.0 <= w <= 1.0 for w in blend) and blend[0] <= 0.25 and min(blend[14:]) >= 0.85
+    rows = ckpt["blend_fit"]["rows"]
+    assert [r["weight"] for r in rows] == blend
+    assert all(r["blended"] <= min(r["network"], r["interpolation"]) + 1e-12 for r in rows)
 
 
 @needs_bn2
@@ -58,13 +69,16 @@ def test_reference_model_fills_real_test_clips(tmp_path):
 
 @pytest.mark.slow
 @needs_bn2
-def test_eval_reproduces_reported_benchmark(tmp_path):
+@pytest.mark.parametrize("name,split", [("bn2_reference", "standard"), ("bn2_content", "content")])
+def test_eval_reproduces_reported_benchmark(name, split, tmp_path):
     import subprocess
     import sys
 
-    r = subprocess.run([sys.executable, "eval.py", f"ckpt_path={CKPT}", "data=bandai_namco", f"data.path={BN2}",
-                        f"hydra.run.dir={tmp_path}"], cwd=ROOT, capture_output=True, text=True, timeout=1800)
+    ckpt = ROOT / "models" / name / "model.ckpt"
+    r = subprocess.run([sys.executable, "eval.py", f"ckpt_path={ckpt}", "data=bandai_namco", f"data.path={BN2}",
+                        f"data.split={split}", f"hydra.run.dir={tmp_path}"], cwd=ROOT, capture_output=True, text=True,
+                       timeout=1800)
     assert r.returncode == 0, r.stderr[-2000:]
     got = json.loads((tmp_path / "benchmark.json").read_text())["metrics"]
-    want = json.loads((ROOT / "results" / "bn2_reference_benchmark.json").read_text())["metrics"]
+    want = json.loads((ROOT / "results" / f"{name}_benchmark.json").read_text())["metrics"]
     assert got == pytest.approx(want, abs=1e-6)
