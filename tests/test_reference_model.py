@@ -69,7 +69,8 @@ def test_reference_model_fills_real_test_clips(tmp_path):
 
 @pytest.mark.slow
 @needs_bn2
-@pytest.mark.parametrize("name,split", [("bn2_reference", "standard"), ("bn2_content", "content")])
+@pytest.mark.parametrize("name,split", [("bn2_reference", "standard"), ("bn2_content", "content"),
+                                        ("bn2_v2", "standard")])
 def test_eval_reproduces_reported_benchmark(name, split, tmp_path):
     import subprocess
     import sys
@@ -82,3 +83,38 @@ def test_eval_reproduces_reported_benchmark(name, split, tmp_path):
     got = json.loads((tmp_path / "benchmark.json").read_text())["metrics"]
     want = json.loads((ROOT / "results" / f"{name}_benchmark.json").read_text())["metrics"]
     assert got == pytest.approx(want, abs=1e-6)
+
+
+V2_CKPT = ROOT / "models" / "bn2_v2" / "model.ckpt"
+
+
+def test_model_v2_predicts_contacts_and_carries_the_blend():
+    """models/bn2_v2 (RESULTS.md section 13): inference-only, foot contact channels, the do-no-harm blend up to its
+    trained 45-frame gap; the Inbetweener locks its feet by default."""
+    ckpt = torch.load(V2_CKPT, map_location="cpu", weights_only=False)
+    assert "optimizer_states" not in ckpt and ckpt["global_step"] == 4800
+    ib = Inbetweener.from_checkpoint(V2_CKPT)
+    assert ib.predictor.representation.name == "global_pos_local_quat_contact" and ib.foot_lock
+    assert ib.skeleton.num_joints == 21 and ib.predictor.model_cfg["gate"] is True
+    blend = list(ib.predictor.blend)
+    assert len(blend) == 45 and all(0.0 <= w <= 1.0 for w in blend) and blend[0] < blend[-1]
+
+
+@needs_bn2
+def test_model_v2_locks_only_the_legs_of_generated_frames():
+    """A real test clip filled from keys every 30 frames with and without foot locking: keys bit-exact in both, and
+    the lock changes only hip, knee and ankle rotations of generated frames (never the root or the upper body)."""
+    from inbetweening.tools.foot_lock import legs
+
+    ib = Inbetweener.from_checkpoint(V2_CKPT)
+    sk = ib.skeleton
+    name, raw = next((n, r) for n, r in iter_bvh_sources(BN2) if bandai_namco_split(n) == "test" and "walk" in n)
+    clip, _ = fold_static_root(parse_bvh(raw, name), name)
+    keys = list(range(0, 91, 30))
+    root, q = clip.root_pos[:91], clip.local_q[:91]
+    (r1, q1), (r0, q0) = (ib.fill_arrays(root, q, keys, foot_lock=lock) for lock in (True, False))
+    assert np.array_equal(r1[keys], root[keys]) and np.array_equal(q1[keys], q[keys])
+    assert np.array_equal(r1, r0)
+    leg = sorted({j for chain in legs(sk, list(ib.predictor.contact.indices(sk.names, "feet"))) for j in chain})
+    rest = [j for j in range(sk.num_joints) if j not in leg]
+    assert np.array_equal(q1[:, rest], q0[:, rest]) and not np.array_equal(q1[:, leg], q0[:, leg])
