@@ -8,7 +8,7 @@
 #   <split>_blended_unlocked     the calibrated checkpoint, keyframes protocol with foot_lock=false
 #   <split>_plain_lafan          the best checkpoint without the blend, LAFAN protocol
 #   <split>_plain_keyframes      the best checkpoint without the blend, keyframes protocol (feet locked)
-# One job at a time (each keyframes scoring takes 10-20 min on the 2-core CPU); finished scorings are skipped.
+# One job at a time (each keyframes scoring about 3 min alone on the 2-core CPU); finished scorings are skipped.
 # Table: python benchmarks/model_v2_table.py <out dir>
 #   bash benchmarks/model_v2.sh <out dir> standard=<run dir> [content=<run dir>] [threads]
 set -euo pipefail

@@ -12,21 +12,16 @@ Reads ``<out>/<split>_run_benchmark.json`` (the run's own test: the calibrated c
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 from pathlib import Path
 
+from do_no_harm_table import LENGTHS, SCHEDULES, SPLITS, load  # the same splits, lengths, schedules and reader
+
 ROOT = Path(__file__).resolve().parents[1]
-SPLITS, LENGTHS = ("standard", "content"), (5, 15, 30, 45)
-SCHEDULES = ("5", "15", "30", "45", "random", "extremes")
 # issue 25's targets (v2, test splits)
 LAFAN_TARGET = {"standard": (0.45, 0.40, 0.45, 0.50), "content": (0.90, 0.70, 0.75, 0.85)}
 K30_TARGET = {"standard": 0.50, "content": 0.75}
 SKATE_MAX_STANDARD, LOCK_COST_MAX = 5.0, 0.02
-
-
-def load(path: Path) -> dict | None:
-    return json.loads(path.read_text()) if path.is_file() else None
 
 
 def rows(out: Path, split: str) -> dict[str, dict]:
@@ -106,7 +101,7 @@ def targets(split: str, r: dict, interp: dict | None) -> list[str]:
         out.append(f"- {split}: {what}: {figures} -> {'–' if ok is None else 'met' if ok else 'MISSED'}")
 
     got = {s: kf[s]["ratio"] for s in SCHEDULES if s in kf}
-    line("keys only <= 1.00 at every schedule", bool(got) and max(got.values()) <= 1.0 if got else None,
+    line("keys only <= 1.00 at every schedule", max(got.values()) <= 1.0 if got else None,
          ", ".join(f"{s}: {v:.3f}" for s, v in got.items()))
     line(f"keys every 30 <= {K30_TARGET[split]:.2f}", kf["30"]["ratio"] <= K30_TARGET[split] if "30" in kf else None,
          fmt(kf.get("30", {}).get("ratio")))
