@@ -70,7 +70,7 @@ def test_reference_model_fills_real_test_clips(tmp_path):
 @pytest.mark.slow
 @needs_bn2
 @pytest.mark.parametrize("name,split", [("bn2_reference", "standard"), ("bn2_content", "content"),
-                                        ("bn2_v2", "standard")])
+                                        ("bn2_v2", "standard"), ("bn2_v2_content", "content")])
 def test_eval_reproduces_reported_benchmark(name, split, tmp_path):
     import subprocess
     import sys
@@ -86,14 +86,16 @@ def test_eval_reproduces_reported_benchmark(name, split, tmp_path):
 
 
 V2_CKPT = ROOT / "models" / "bn2_v2" / "model.ckpt"
+V2_CONTENT_CKPT = ROOT / "models" / "bn2_v2_content" / "model.ckpt"
 
 
-def test_model_v2_predicts_contacts_and_carries_the_blend():
-    """models/bn2_v2 (RESULTS.md section 13): inference-only, foot contact channels, the do-no-harm blend up to its
-    trained 45-frame gap; the Inbetweener locks its feet by default."""
-    ckpt = torch.load(V2_CKPT, map_location="cpu", weights_only=False)
+@pytest.mark.parametrize("path", [V2_CKPT, V2_CONTENT_CKPT], ids=["bn2_v2", "bn2_v2_content"])
+def test_model_v2_predicts_contacts_and_carries_the_blend(path):
+    """models/bn2_v2 and its content-split companion (RESULTS.md section 13): inference-only, 4,800 steps, foot
+    contact channels, the do-no-harm blend up to the trained 45-frame gap; the Inbetweener locks feet by default."""
+    ckpt = torch.load(path, map_location="cpu", weights_only=False)
     assert "optimizer_states" not in ckpt and ckpt["global_step"] == 4800
-    ib = Inbetweener.from_checkpoint(V2_CKPT)
+    ib = Inbetweener.from_checkpoint(path)
     assert ib.predictor.representation.name == "global_pos_local_quat_contact" and ib.foot_lock
     assert ib.skeleton.num_joints == 21 and ib.predictor.model_cfg["gate"] is True
     blend = list(ib.predictor.blend)
