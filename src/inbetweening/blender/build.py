@@ -1,7 +1,11 @@
-"""Build the Blender extension: per-platform zips with the add-on, the model as ONNX + JSON metadata and the
-``onnxruntime`` wheels (with their dependencies, except numpy: Blender's own is used)."""
+"""Build the Blender extension: per-platform zips with the add-on, the model as ONNX + JSON metadata, the fill runtime
+as a wheel of its own (:func:`runtime_wheel`: the project's own ``inbetweening.runtime`` and the modules it imports,
+not a copy) and the ``onnxruntime`` wheels (with their dependencies, except numpy: Blender's own is used)."""
 from __future__ import annotations
 
+import ast
+import base64
+import hashlib
 import json
 import os
 import re
@@ -13,7 +17,10 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
-EXTENSION_FILES = ("__init__.py", "engine.py", "operators.py", "rig.py")
+EXTENSION_FILES = ("__init__.py", "operators.py", "rig.py")
+RUNTIME = "inbetweening.runtime"  # bundled with every module of the package it imports
+RUNTIME_LEFT_OUT = ("inbetweening.runtime.torch_backend",)  # the torch backend stays behind
+RUNTIME_THIRD_PARTY = ("numpy", "onnxruntime")  # what the bundled modules may import besides the standard library
 # Blender platform name -> pip platform tag of the wheels (Blender 4.2 and 5.0 run Python 3.11)
 PLATFORMS = {
     "linux-x64": "manylinux_2_28_x86_64",
@@ -85,6 +92,92 @@ def export_model(ckpt_path: str | Path, out_dir: Path) -> tuple[Path, Path, dict
     return out_dir / "model.onnx", out_dir / "model.json", meta
 
 
+def _module_file(name: str) -> Path | None:
+    """The source file of module ``name`` of this package (a package's ``__init__.py``), or None."""
+    base = Path(resources.files("inbetweening")).parent
+    path = base.joinpath(*name.split("."))
+    if (path / "__init__.py").is_file():
+        return path / "__init__.py"
+    return path.with_suffix(".py") if path.with_suffix(".py").is_file() else None
+
+
+def _optional(node, parents: dict) -> bool:
+    """Whether an import node is not needed to import its module: inside a function (run when that function is
+    called: the torch-only helpers of the geometry) or a ``try`` that catches ImportError (an optional dependency)."""
+    while node in parents:
+        node = parents[node]
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            return True
+        if isinstance(node, ast.Try) and any(
+                h.type is None or "ImportError" in ast.unparse(h.type) for h in node.handlers):
+            return True
+    return False
+
+
+def runtime_modules() -> dict[str, Path]:
+    """``{module name: file}`` of the fill runtime and every module of this package it imports, transitively (with the
+    packages' ``__init__``), read from the source; :class:`BuildError` when one of them imports anything but the
+    standard library, :data:`RUNTIME_THIRD_PARTY` and the package itself at import time (imports inside functions and
+    those guarded by ``except ImportError`` are not followed)."""
+    found: dict[str, Path] = {}
+    package = _module_file(RUNTIME).parent
+    todo = [RUNTIME, *(f"{RUNTIME}.{f.stem}" for f in sorted(package.glob("*.py")) if f.stem != "__init__")]
+    while todo:
+        name = todo.pop()
+        if name in found or name in RUNTIME_LEFT_OUT:
+            continue
+        file = _module_file(name)
+        if file is None:
+            raise BuildError(f"the runtime imports {name}, which is not a module of the package")
+        found[name] = file
+        parts = name.split(".")
+        todo += [".".join(parts[:i]) for i in range(1, len(parts))]  # the packages above it
+        package = name if file.name == "__init__.py" else ".".join(parts[:-1])
+        tree = ast.parse(file.read_text(), str(file))
+        parents = {c: n for n in ast.walk(tree) for c in ast.iter_child_nodes(n)}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                mod = node.module or ""
+                if node.level:
+                    mod = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + ([mod] if mod else []))
+                targets = [mod] + [f"{mod}.{a.name}" for a in node.names if _module_file(f"{mod}.{a.name}")]
+            else:
+                continue
+            if _optional(node, parents):
+                continue
+            for t in targets:
+                top = t.split(".")[0]
+                if top == "inbetweening":
+                    todo.append(t)
+                elif top not in sys.stdlib_module_names and top not in RUNTIME_THIRD_PARTY and top != "__future__":
+                    raise BuildError(f"{name} imports {t}: the bundled runtime may import only the standard library, "
+                                     f"{', '.join(RUNTIME_THIRD_PARTY)} and the package itself")
+    return dict(sorted(found.items()))
+
+
+def runtime_wheel(out_dir: Path, version: str) -> Path:
+    """Write ``inbetweening_runtime-<version>-py3-none-any.whl`` into ``out_dir``: the :func:`runtime_modules` files
+    under their package paths (Blender installs it as it installs every wheel of an extension)."""
+    dist = f"inbetweening_runtime-{version}"
+    files = {name.replace(".", "/") + ("/__init__.py" if f.name == "__init__.py" else ".py"): f.read_bytes()
+             for name, f in runtime_modules().items()}
+    files[f"{dist}.dist-info/METADATA"] = (f"Metadata-Version: 2.1\nName: inbetweening-runtime\nVersion: {version}\n"
+                                           "Summary: The in-betweening fill runtime (numpy; no PyTorch)\n"
+                                           "Requires-Dist: numpy\n").encode()
+    files[f"{dist}.dist-info/WHEEL"] = (b"Wheel-Version: 1.0\nGenerator: inbetweening.blender.build\n"
+                                        b"Root-Is-Purelib: true\nTag: py3-none-any\n")
+    record = [f"{path},sha256={base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b'=').decode()},{len(data)}"
+              for path, data in files.items()]
+    files[f"{dist}.dist-info/RECORD"] = ("\n".join([*record, f"{dist}.dist-info/RECORD,,"]) + "\n").encode()
+    target = Path(out_dir) / f"{dist}-py3-none-any.whl"
+    with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as z:
+        for path, data in files.items():
+            z.writestr(zipfile.ZipInfo(path, date_time=(2020, 1, 1, 0, 0, 0)), data)
+    return target
+
+
 def _version() -> str:
     try:
         from importlib.metadata import version
@@ -125,10 +218,12 @@ def build(out_dir: str | Path, ckpt_path: str | Path = DEFAULT_CKPT, platforms=D
         manifest_in = (src / "blender_manifest.toml.in").read_text()
         readme = (src / "README.md").read_text()
         licence = model_licence(meta)
+        runtime = runtime_wheel(tmp, version)
+        log(f"fill runtime: {runtime.name} ({len(runtime_modules())} modules of the package)")
         zips = []
         for platform in platforms:
             log(f"wheels for {platform} (onnxruntime {onnxruntime})")
-            whls = download_wheels(platform, onnxruntime, Path(wheels) if wheels else None)
+            whls = [runtime, *download_wheels(platform, onnxruntime, Path(wheels) if wheels else None)]
             manifest = (manifest_in.replace("@VERSION@", version).replace("@PLATFORM@", platform)
                         .replace("@WHEELS@", "\n".join(f'  "./wheels/{w.name}",' for w in whls)))
             target = out_dir / f"inbetweening-{version}-{platform}.zip"

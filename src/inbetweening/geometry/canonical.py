@@ -11,13 +11,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import torch
 
-from inbetweening.geometry.quaternion import Array, qbetween, qinv, qmul, qnormalize, qrot
+from inbetweening.geometry.arrays import Array, is_tensor, torch
+from inbetweening.geometry.quaternion import qbetween, qinv, qmul, qnormalize, qrot
 
 
-def _is_torch(x) -> bool:
-    return isinstance(x, torch.Tensor)
+_is_torch = is_tensor
 
 
 def _const(values, like: Array) -> Array:

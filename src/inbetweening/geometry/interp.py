@@ -9,9 +9,9 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-import torch
 
-from inbetweening.geometry.quaternion import Array, slerp_np, slerp_torch
+from inbetweening.geometry.arrays import Array, is_tensor
+from inbetweening.geometry.quaternion import slerp_np, slerp_torch
 
 
 def lerp(a: Array, b: Array, w: Array) -> Array:
@@ -21,7 +21,7 @@ def lerp(a: Array, b: Array, w: Array) -> Array:
 
 def slerp(q0: Array, q1: Array, w: Array) -> Array:
     """Shortest-arc slerp with the reference's linear fallback.  ``(..., 4), (..., 4), (...) -> (..., 4)``."""
-    if isinstance(q0, torch.Tensor):
+    if is_tensor(q0):
         return slerp_torch(q0, q1, w)
     return slerp_np(q0, q1, w)
 

@@ -12,15 +12,14 @@ check them against each other.
 from __future__ import annotations
 
 import numpy as np
-import torch
 
-Array = np.ndarray | torch.Tensor
+from inbetweening.geometry.arrays import Array, is_tensor, torch
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
 def _stack(parts: list) -> Array:
-    if isinstance(parts[0], torch.Tensor):
+    if is_tensor(parts[0]):
         return torch.stack(parts, dim=-1)
     return np.stack(parts, axis=-1)
 
@@ -32,8 +31,7 @@ def _cross(a: Array, b: Array) -> Array:
     return _stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
 
 
-def _is_torch(x) -> bool:
-    return isinstance(x, torch.Tensor)
+_is_torch = is_tensor
 
 
 def _sum_last(x: Array, keepdims: bool = True) -> Array:

@@ -10,13 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import torch
 
-from inbetweening.geometry.quaternion import Array, qinv, qmul, qrot
+from inbetweening.geometry.arrays import Array, is_tensor, torch
+from inbetweening.geometry.quaternion import qinv, qmul, qrot
 
 
 def _cat_joints(parts: list) -> Array:
-    if isinstance(parts[0], torch.Tensor):
+    if is_tensor(parts[0]):
         return torch.cat(parts, dim=-2)
     return np.concatenate(parts, axis=-2)
 
@@ -98,7 +98,7 @@ class Skeleton:
 
     def local_positions(self, root_pos: Array) -> Array:
         """Root positions ``(..., 3)`` -> local positions ``(..., J, 3)`` with the offsets for non-root joints."""
-        if isinstance(root_pos, torch.Tensor):
+        if is_tensor(root_pos):
             off = torch.as_tensor(self.offsets, dtype=root_pos.dtype, device=root_pos.device)
             off = off.expand(root_pos.shape[:-1] + off.shape).clone()
             off[..., 0, :] = root_pos

@@ -222,61 +222,27 @@ if __name__ == "__main__":
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# The whole per-window path as one graph (the Blender extension's model; :mod:`inbetweening.blender`)
+# The whole per-window path as one graph (the runtime's ONNX backend: the Blender extension's model)
 # ---------------------------------------------------------------------------------------------------------------
-WINDOW_FORMAT = "inbetweening-window-onnx/1"
-
-
-class WindowPath(torch.nn.Module):
-    """``(root (B, T, 3), local_q (B, T, J, 4), known (B, T, J)) -> (root (B, T, 3), local_q (B, T, J, 4))``: the
-    predictor's whole path for canonicalised windows, float64 in and out.
-
-    It is :meth:`Predictor.encode <inbetweening.predictor.predictor.Predictor.encode>` (FK in float64, features cast
-    to float32), :meth:`Predictor.network_forward` (mask, network, known values kept) and :meth:`Predictor.decode`:
-    what :meth:`Predictor.predict_windows` runs between the canonical frame and back.  Unknown input values are never
-    read."""
-
-    def __init__(self, predictor):
-        super().__init__()
-        self.predictor = predictor
-
-    def forward(self, root, local_q, known):
-        p = self.predictor
-        feats = p.representation.encode(root, local_q).to(torch.float32)
-        pred, _ = p.network_forward(feats, known)
-        return p.decode(pred)
-
-
-def window_metadata(model, trained_gap: int | None = None) -> dict[str, str]:
-    """:func:`metadata` of the window graph: the network's keys plus ``format``, ``inputs``, ``outputs``,
-    ``trained_gap`` (the longest transition generated in one window; default ``train_window - n_past - 1``) and
-    ``frame_centre`` (``known``: windows are centred on the known frames' mean root XZ; ``last``: on the last
-    context frame's)."""
-    predictor = _predictor(model)
-    meta = metadata(predictor, ["root", "local_q", "known"])
-    gap = trained_gap or predictor.train_window - predictor.n_past - 1
-    # where the caller centres the windows (Predictor.canonical_frame): the last context frame's root XZ for
-    # centre="last", else the known frames' mean root XZ
-    frame_centre = "last" if predictor.centre == "last" else "known"
-    meta.update({"format": json.dumps(WINDOW_FORMAT), "outputs": json.dumps(["root_out", "local_q_out"]),
-                 "trained_gap": json.dumps(int(gap)), "frame_centre": json.dumps(frame_centre)})
-    return meta
-
-
 def export_window_onnx(model, path: str | Path, opset: int = 17, check: bool = True, trained_gap: int | None = None,
                        extra: dict | None = None) -> dict:
-    """Export :class:`WindowPath` of ``model`` (a predictor, a training module or an ``Inbetweener``, whose
-    ``trained_gap`` is then the default) to ONNX at ``path``, with :func:`window_metadata` (and ``extra``, JSON
-    values) in ``metadata_props``.  Inputs ``root`` float64 ``(B, T, 3)``, ``local_q`` float64 ``(B, T, J, 4)``,
-    ``known`` bool ``(B, T, J)`` (windows already canonicalised); outputs ``root_out``, ``local_q_out`` (float64,
-    unit quaternions).  Returns ``{"path", "metadata", "max_abs_diff"}`` (ONNX Runtime vs PyTorch, or None)."""
+    """Export the runtime's window computation (:class:`~inbetweening.runtime.torch_backend.WindowPath`) of ``model``
+    (a predictor, a training module or an ``Inbetweener``, whose ``trained_gap`` is then the default) to ONNX at
+    ``path``, with :func:`~inbetweening.runtime.torch_backend.window_metadata` (and ``extra``, JSON values) in
+    ``metadata_props``: what :class:`~inbetweening.runtime.onnx_backend.OnnxBackend` runs.  Inputs ``root`` float64
+    ``(B, T, 3)``, ``local_q`` float64 ``(B, T, J, 4)``, ``known`` bool ``(B, T, J)`` (windows already canonicalised),
+    ``weight`` float32 ``(B, T, J)`` (the do-no-harm blend's weights; only a model with a blend has it); outputs
+    ``root_out``, ``local_q_out`` (float64) and, for a model with contact channels, ``contact_out`` (float32).
+    Returns ``{"path", "metadata", "max_abs_diff"}`` (ONNX Runtime vs PyTorch, or None)."""
+    from inbetweening.runtime.torch_backend import WindowPath, window_metadata
+
     trained_gap = trained_gap or getattr(model, "trained_gap", None)
     predictor = _predictor(model).eval().cpu()
     path = Path(path)
     meta = window_metadata(predictor, trained_gap)
     meta.update({k: json.dumps(v) for k, v in (extra or {}).items()})
-    _write_onnx(WindowPath(predictor).eval(), window_example(predictor, 2, 15), path, ["root", "local_q", "known"],
-                ["root_out", "local_q_out"], opset, meta)
+    _write_onnx(WindowPath(predictor).eval(), window_example(predictor, 2, 15), path,
+                ["root", "local_q", "known", "weight"], json.loads(meta["outputs"]), opset, meta)
     info = {"path": str(path), "metadata": meta, "max_abs_diff": None}
     if check:
         info["max_abs_diff"] = check_window_onnx(predictor, path)
@@ -284,22 +250,28 @@ def export_window_onnx(model, path: str | Path, opset: int = 17, check: bool = T
 
 
 def window_example(model, batch: int, gap: int, seed: int = 0):
-    """Random canonical-looking windows ``(root, local_q, known)`` (float64, float64, bool) with a ``gap``-frame
-    transition after ``n_past`` context frames."""
+    """Random canonical-looking windows ``(root, local_q, known, weight)`` (float64, float64, bool, float32) with a
+    ``gap``-frame transition after ``n_past`` context frames (weights in [0, 1] on the gap, 1 elsewhere)."""
     predictor = _predictor(model)
     g = torch.Generator().manual_seed(seed)
     j, t = predictor.skeleton.num_joints, predictor.n_past + gap + 1
     mean = torch.as_tensor(predictor.mean[:3], dtype=torch.float64)
     root = mean + 20.0 * torch.randn(batch, t, 3, generator=g, dtype=torch.float64)
     q = torch.randn(batch, t, j, 4, generator=g, dtype=torch.float64)
-    return root, q / q.norm(dim=-1, keepdim=True), predictor.transition_known(batch, t, gap)
+    known = predictor.transition_known(batch, t, gap)
+    weight = torch.where(known, 1.0, torch.rand(batch, 1, 1, generator=g).expand(batch, t, j))
+    return root, q / q.norm(dim=-1, keepdim=True), known, weight
 
 
 def check_window_onnx(model, path: str | Path, batch: int = 3, gap: int = 7, seed: int = 1) -> float:
-    """Largest absolute difference between ONNX Runtime and :class:`WindowPath` in PyTorch (root and quaternions)."""
+    """Largest absolute difference between ONNX Runtime and the window path in PyTorch (every output)."""
+    from inbetweening.runtime.torch_backend import WindowPath
+
     session = _ort_session(path)
-    root, q, known = window_example(model, batch, gap, seed)
-    got = session.run(None, {"root": root.numpy(), "local_q": q.numpy(), "known": known.numpy()})
+    root, q, known, weight = window_example(model, batch, gap, seed)
+    names = {i.name for i in session.get_inputs()}
+    feeds = {"root": root.numpy(), "local_q": q.numpy(), "known": known.numpy(), "weight": weight.numpy()}
+    got = session.run(None, {k: v for k, v in feeds.items() if k in names})
     with torch.no_grad():
-        ref = WindowPath(_predictor(model).eval().cpu())(root, q, known)
+        ref = WindowPath(_predictor(model).eval().cpu())(root, q, known, weight)
     return float(max(np.abs(a - b.numpy()).max() for a, b in zip(got, ref)))

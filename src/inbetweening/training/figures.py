@@ -206,8 +206,8 @@ class SkeletonFigure(L.Callback):
     def window_motion(self, pl_module, root: torch.Tensor, q: torch.Tensor, n: int):
         """``(positions, contacts)`` of one window: :meth:`sequences`' positions, and for a representation with
         contact channels ``{"prediction", "ground truth"}`` -> ``(T, J)`` bool planted feet (the prediction above
-        :data:`~inbetweening.tools.foot_lock.THRESHOLD`, the ground truth labelled by the data's rule), else None."""
-        from inbetweening.tools.foot_lock import THRESHOLD
+        :data:`~inbetweening.runtime.foot_lock.THRESHOLD`, the ground truth labelled by the data's rule), else None."""
+        from inbetweening.runtime.foot_lock import THRESHOLD
 
         pr = pl_module.predictor
         t = pr.n_past + n + 1

@@ -8,7 +8,10 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, PointerProperty, StringProperty
 
-from . import engine, rig
+from inbetweening.runtime import FillRuntime, InbetweenError, ModelError
+from inbetweening.runtime.onnx_backend import OnnxBackend
+
+from . import rig
 
 MODEL_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "model")
 LICENCE = ("The bundled model is trained on Bandai-Namco-Research-Motiondataset-2 (CC BY-NC 4.0): "
@@ -21,20 +24,21 @@ def bundled_model() -> str:
     return os.path.join(MODEL_DIR, "model.onnx")
 
 
-def load_model(path: str) -> engine.Model:
+def load_model(path: str) -> OnnxBackend:
     """The model at ``path`` (default: the bundled one), cached by path and modification time."""
     path = bpy.path.abspath(path) if path else bundled_model()
     key = (path, os.path.getmtime(path) if os.path.isfile(path) else None)
     if key not in _MODELS:
         _MODELS.clear()
-        _MODELS[key] = engine.Model(path)
+        _MODELS[key] = OnnxBackend(path)
     return _MODELS[key]
 
 
-def fill_range(context, obj, model, only_selected: bool, report_progress=True) -> dict:
-    """Fill the armature ``obj``'s in-betweens; returns a summary dict.  Raises ``rig.RigError`` /
-    ``engine.ModelError`` before changing anything."""
-    r = rig.Rig(obj, model)
+def fill_range(context, obj, model, only_selected: bool, report_progress=True, foot_lock: bool = True) -> dict:
+    """Fill the armature ``obj``'s in-betweens with the fill runtime (``model``: its ONNX backend); returns a summary
+    dict.  Raises ``rig.RigError`` / ``ModelError`` / ``InbetweenError`` before changing anything."""
+    info = model.info
+    r = rig.Rig(obj, info)
     if r.fcurves is None:
         raise rig.RigError(f"armature '{obj.name}' has no animation: key at least two poses first")
     scene = context.scene
@@ -54,13 +58,13 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True) -
     if not gaps:
         raise rig.RigError(f"nothing to fill: frames {lo}..{hi} hold {len(keys)} key(s) and no gap between two keys")
     first, last = keys[0], keys[-1]
-    p = model.n_past
+    p = info.n_past
     frames = np.arange(first - (p - 1), last + 1)
     known = set(range(first - (p - 1), first)) | set(keys)
     read_frames = [int(f) for f in frames if f in known]
     root_k, q_k, raw = r.read(read_frames)
     root = np.zeros((len(frames), 3))
-    q = np.zeros((len(frames), model.num_joints, 4))
+    q = np.zeros((len(frames), info.skeleton.num_joints, 4))
     q[..., 0] = 1.0
     pos = {int(f): i for i, f in enumerate(frames)}
     for t, f in enumerate(read_frames):
@@ -78,7 +82,8 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True) -
     t0 = time.perf_counter()
     try:
         keys_idx = [pos[k] for k in keys]
-        out_r, out_q = engine.fill(model, root, q, keys_idx, progress)
+        filled = FillRuntime(model, foot_lock=foot_lock).fill(root, q, keys_idx, progress=progress)
+        out_r, out_q = filled.root, filled.local_q
     finally:
         if report_progress:
             wm.progress_end()
@@ -105,7 +110,8 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True) -
             fr, val = np.concatenate([fr, missing]), np.concatenate([val, extra])
         rig.write_curve(fc, fr, val, spans, prefs.keyframe_new_interpolation_type, prefs.keyframe_new_handle_type)
     return {"gaps": len(gaps), "frames": total_frames, "keys": len(keys), "range": (first, last),
-            "model_seconds": t_model, "windows": model.calls}
+            "model_seconds": t_model, "windows": model.calls, "feet_locked": filled.locked,
+            "network_share": [w for _, _, w in filled.segments]}
 
 
 def only_selected_range_property():
@@ -114,6 +120,14 @@ def only_selected_range_property():
         name="Only Selected Range",
         description="Fill only the gaps spanned by the selected keys (no keys selected: the preview range)",
         default=False)
+
+
+def foot_lock_property():
+    """The ``foot_lock`` option (the operator's and the panel's settings share it)."""
+    return BoolProperty(
+        name="Lock Feet",
+        description="Hold the feet still where the model predicts them planted (models that predict foot contact)",
+        default=True)
 
 
 def model_path_property():
@@ -133,6 +147,7 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
 
     only_selected_range: only_selected_range_property()
     model_path: model_path_property()
+    foot_lock: foot_lock_property()
 
     @classmethod
     def poll(cls, context):
@@ -143,13 +158,13 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
         t0 = time.perf_counter()
         try:
             model = load_model(self.model_path)
-            info = fill_range(context, obj, model, self.only_selected_range)
-        except (rig.RigError, engine.ModelError) as e:
+            info = fill_range(context, obj, model, self.only_selected_range, foot_lock=self.foot_lock)
+        except (rig.RigError, ModelError, InbetweenError) as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         context.view_layer.update()
         fps = context.scene.render.fps / context.scene.render.fps_base
-        model_fps = float(model.meta.get("fps", fps) or fps)
+        model_fps = model.info.fps
         if abs(fps - model_fps) > 0.5:
             self.report({"WARNING"}, f"the scene runs at {fps:.3g} fps, the model was trained at {model_fps:.3g} fps; "
                                      "gaps are counted in frames")
@@ -163,6 +178,7 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
 class InbetweenSettings(bpy.types.PropertyGroup):
     only_selected_range: only_selected_range_property()
     model_path: model_path_property()
+    foot_lock: foot_lock_property()
 
 
 class _Panel:
@@ -175,10 +191,12 @@ class _Panel:
         settings = context.scene.inbetween_settings
         col = layout.column()
         col.prop(settings, "only_selected_range")
+        col.prop(settings, "foot_lock")
         col.prop(settings, "model_path", text="Model")
         op = col.operator(INBETWEEN_OT_fill.bl_idname, icon="IPO_BEZIER")
         op.only_selected_range = settings.only_selected_range
         op.model_path = settings.model_path
+        op.foot_lock = settings.foot_lock
         obj = context.active_object
         box = layout.box()
         box.scale_y = 0.7

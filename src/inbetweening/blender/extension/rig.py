@@ -14,7 +14,8 @@ import bpy
 import numpy as np
 from mathutils import Euler, Matrix, Quaternion, Vector
 
-from . import engine
+from inbetweening.geometry.quaternion import qinv, qmul, qnormalize
+from inbetweening.runtime import ModelInfo
 
 ROT_PATH = {"QUATERNION": ("rotation_quaternion", 4), "AXIS_ANGLE": ("rotation_axis_angle", 4)}
 GENERATED = "GENERATED" if "GENERATED" in bpy.types.Keyframe.bl_rna.properties["type"].enum_items.keys() else "BREAKDOWN"
@@ -82,26 +83,27 @@ def _fit_rotation(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
 class Rig:
     """The model's joints on an armature object: bone mapping, the model-to-armature frame, channel reading."""
 
-    def __init__(self, obj, model: engine.Model):
+    def __init__(self, obj, model: ModelInfo):
+        sk = model.skeleton
         if obj is None or obj.type != "ARMATURE":
             raise RigError("select an armature (the active object is not one)")
         bones = obj.data.bones
-        missing = [n for n in model.names if bones.get(n) is None]
+        missing = [n for n in sk.names if bones.get(n) is None]
         if missing:
             raise RigError(f"armature '{obj.name}' does not match the model's skeleton: missing bones "
-                           f"{', '.join(missing)} (the model expects {len(model.names)} bones: "
-                           f"{', '.join(model.names)})")
-        for j, name in enumerate(model.names[1:], start=1):
+                           f"{', '.join(missing)} (the model expects {len(sk.names)} bones: "
+                           f"{', '.join(sk.names)})")
+        for j, name in enumerate(sk.names[1:], start=1):
             parent = bones[name].parent
-            want = model.names[model.parents[j]]
+            want = sk.names[sk.parents[j]]
             if parent is None or parent.name != want:
                 raise RigError(f"armature '{obj.name}' does not match the model's skeleton: bone '{name}' has parent "
                                f"'{parent.name if parent else None}', the model's is '{want}'")
         self.obj, self.model = obj, model
-        self.pbones = [obj.pose.bones[n] for n in model.names]
-        heads = np.array([bones[n].head_local for n in model.names], dtype=np.float64)
-        vec = np.array([heads[j] - heads[p] for j, p in enumerate(model.parents) if p >= 0])
-        off = np.array([model.offsets[j] for j, p in enumerate(model.parents) if p >= 0])
+        self.pbones = [obj.pose.bones[n] for n in sk.names]
+        heads = np.array([bones[n].head_local for n in sk.names], dtype=np.float64)
+        vec = np.array([heads[j] - heads[p] for j, p in enumerate(sk.parents) if p >= 0])
+        off = np.array([sk.offsets[j] for j, p in enumerate(sk.parents) if p >= 0])
         c, s = _fit_rotation(off, vec)
         err = np.abs(vec - s * off @ c.T).max()
         if not np.isfinite(err) or s <= 0 or err > 1e-3 * max(np.abs(vec).max(), 1e-6):
@@ -109,10 +111,10 @@ class Rig:
                            f"(residual {err:.3g}); import the clip with Blender's BVH importer")
         self.C, self.s = c, s
         self.c = _to_np(Matrix(c.tolist()).to_quaternion())
-        rest = [bones[n].matrix_local for n in model.names]
+        rest = [bones[n].matrix_local for n in sk.names]
         self.r = np.array([_to_np(m.to_quaternion()) for m in rest])  # bone rest rotations
-        self.A = engine.qmul(engine.qinv(self.r), self.c[None])  # (J, 4)
-        root = bones[model.names[0]]
+        self.A = qmul(qinv(self.r), self.c[None])  # (J, 4)
+        root = bones[sk.names[0]]
         # armature-space matrix of the root = P(f) @ root_rel @ basis, P(f) = the parent's pose @ its rest^-1
         self.root_rel = (root.parent.matrix_local.inverted() @ root.matrix_local) if root.parent else root.matrix_local.copy()
         self.ancestors = []
@@ -176,24 +178,24 @@ class Rig:
                 vals = [c.evaluate(fr) if c is not None and not c.mute else cur[i] for i, c in enumerate(curves)]
                 raw[t][k] = vals
                 qb[t, k] = _to_np(_rot_quat(pb, vals))
-        local = engine.qmul(engine.qmul(engine.qinv(self.A)[None], qb), self.A[None])
+        local = qmul(qmul(qinv(self.A)[None], qb), self.A[None])
         cinv = np.linalg.inv(self.C)
         rots = np.zeros((f, 4))
         for t, fr in enumerate(frames):
             m = self.parent_matrix(fr) @ self._basis(self.pbones[0], fr)
             rots[t] = _to_np(m.to_quaternion())
             root[t] = cinv @ np.array(m.translation) / self.s
-        local[:, 0] = engine.qmul(engine.qmul(engine.qinv(self.c)[None], rots),
-                                  engine.qmul(engine.qinv(self.r[0]), self.c)[None])
-        return root, engine.qnormalize(local, 0.0), raw
+        local[:, 0] = qmul(qmul(qinv(self.c)[None], rots),
+                                  qmul(qinv(self.r[0]), self.c)[None])
+        return root, qnormalize(local, 0.0), raw
 
     def basis_values(self, frames, root, local_q, raw_prev):
         """Channel values ``{(joint, path, index): array over frames}`` that pose the armature as ``root (F, 3),
         local_q (F, J, 4)`` at ``frames`` (in order; Euler and quaternion values continuous with ``raw_prev``, the
         rotation channel values at the frame before each run of frames: ``{frame: [J values]}``)."""
-        qb = engine.qmul(engine.qmul(self.A[None], local_q), engine.qinv(self.A)[None])
+        qb = qmul(qmul(self.A[None], local_q), qinv(self.A)[None])
         locs = np.zeros((len(frames), 3))
-        rots = engine.qmul(engine.qmul(self.c[None], local_q[:, 0]), engine.qmul(engine.qinv(self.c), self.r[0])[None])
+        rots = qmul(qmul(self.c[None], local_q[:, 0]), qmul(qinv(self.c), self.r[0])[None])
         heads = (root @ self.C.T) * self.s
         for t, fr in enumerate(frames):
             m = Matrix.LocRotScale(Vector(heads[t]), Quaternion(rots[t]), None)

@@ -16,10 +16,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from inbetweening.data.contacts import FootContact, planted_frames
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["BLEND_FRAMES", "THRESHOLD", "legs", "lock_feet"]
+__all__ = ["BLEND_FRAMES", "THRESHOLD", "key_contacts", "legs", "lock_feet"]
 
 BLEND_FRAMES = 4  # frames over which a lock is blended in and out
 THRESHOLD = 0.5  # predicted contact above which a foot is planted
@@ -95,3 +96,21 @@ def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_f
         q[frames, hip], q[frames, knee], q[frames, ankle] = h, k, a
     q[keys] = local_q[keys]
     return q
+
+
+def key_contacts(skeleton: Skeleton, contact: FootContact, fps: float, root: np.ndarray, local_q: np.ndarray,
+                 known_frames: Sequence[int]) -> np.ndarray:
+    """The keys' own foot contact ``(F, J)``: the data's rule (:func:`~inbetweening.data.contacts.planted_frames`) on
+    the keyframes alone (a key's speed from its neighbouring key frame where there is one, else its height alone),
+    1/0 on the feet, 0 on the other joints, NaN on the frames that are not keys."""
+    keys = np.asarray(list(known_frames))
+    root_k = np.full(np.shape(root), np.nan)
+    q_k = np.full(np.shape(local_q), np.nan)
+    root_k[keys], q_k[keys] = np.asarray(root)[keys], np.asarray(local_q)[keys]
+    gp = skeleton.pose(root_k, q_k)[1]
+    out = np.zeros(gp.shape[:-1])
+    feet = list(contact.indices(skeleton.names, "the model's feet"))
+    if feet:
+        out[:, feet] = planted_frames(gp[:, feet], fps, contact.height, contact.speed)
+    out[np.isnan(gp[..., 0])] = np.nan
+    return out

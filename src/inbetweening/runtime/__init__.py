@@ -1,0 +1,18 @@
+"""The fill runtime: one path from an animator's keys to the filled motion, shared by every front end.
+
+``python -m inbetweening.predict``, the Python API (:class:`inbetweening.Inbetweener`), ``eval.py protocol=keyframes``
+and the Blender extension all fill through :class:`FillRuntime`.  It holds every stage around the network: the
+file's unit and up axis, the gap plan (long gaps split at interpolated pseudo-keyframes), the context windows and
+their canonical frame, the do-no-harm blend's weights, foot locking and the keys copied back exactly.  The network
+itself is a *backend* (:class:`Backend`): the trained torch module (:mod:`.torch_backend`) or its exported window
+graph run by ONNX Runtime (:mod:`.onnx_backend`); both describe their model with the same :class:`ModelInfo`.
+
+numpy only: this package and the geometry it uses import no PyTorch (``torch_backend`` excepted), so the Blender
+extension bundles the very same files (``python -m inbetweening.blender build``).
+"""
+from __future__ import annotations
+
+from .fill import Filled, FillRuntime
+from .model import Backend, InbetweenError, ModelError, ModelInfo
+
+__all__ = ["Backend", "FillRuntime", "Filled", "InbetweenError", "ModelError", "ModelInfo"]
