@@ -47,7 +47,7 @@ def draw(ib, root: np.ndarray, q: np.ndarray, every: int, title: str, fps: float
     over the generated frames where the ground truth's feet are planted."""
     from inbetweening.data.contacts import foot_contacts, planted_frames
     from inbetweening.evaluation import keyframes as KF
-    from inbetweening.tools.foot_lock import THRESHOLD
+    from inbetweening.runtime.foot_lock import THRESHOLD
     from inbetweening.tools.skeleton_plot import draw_sequences
 
     fps = float(fps or ib.fps)

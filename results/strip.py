@@ -34,7 +34,7 @@ def main(argv=None) -> None:
     from inbetweening.data.datasets import load_dataset
     from inbetweening.evaluation import keyframes as KF
     from inbetweening.geometry.interp import interpolate_keyframes
-    from inbetweening.tools.foot_lock import THRESHOLD
+    from inbetweening.runtime.foot_lock import THRESHOLD
     from inbetweening.tools.inbetweener import Inbetweener
     from inbetweening.tools.render import render_gif, render_png
 

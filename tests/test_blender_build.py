@@ -1,5 +1,6 @@
-"""The Blender extension without Blender: the build command's argument errors, the exported window graph against
-the Predictor (ONNX Runtime vs PyTorch), and the extension's numpy engine against the project's own functions."""
+"""The Blender extension without Blender: the build command's argument errors, the runtime wheel it bundles (the
+project's own runtime modules, importable and filling without PyTorch), and what the extension's sources import.
+The ONNX backend against the torch one: tests/test_runtime_backends.py."""
 from __future__ import annotations
 
 import ast
@@ -11,11 +12,9 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening.blender.extension import engine
-from inbetweening.geometry import canonical
-from inbetweening.geometry.quaternion import remove_discontinuities, slerp_np
+import zipfile
+
 from inbetweening.predictor import masks
-from inbetweening.tools.export import WindowPath, export_onnx, export_window_onnx
 
 REPO = Path(__file__).resolve().parents[1]
 CKPT = REPO / "models" / "bn2_reference" / "model.ckpt"
@@ -64,115 +63,39 @@ def test_neighbour_known_without_cummax_is_exact():
             assert torch.equal(a, b)
 
 
-@pytest.fixture(scope="module")
-def inbetweener():
-    from inbetweening.tools.inbetweener import Inbetweener
+def test_the_runtime_wheel_holds_the_runtime_and_what_it_imports(tmp_path):
+    from inbetweening.blender.build import runtime_modules, runtime_wheel
 
-    return Inbetweener.from_checkpoint(CKPT)
-
-
-@pytest.fixture(scope="module")
-def window_model(inbetweener, tmp_path_factory):
-    path = tmp_path_factory.mktemp("onnx") / "model.onnx"
-    info = export_window_onnx(inbetweener, path)
-    assert info["max_abs_diff"] < 1e-4
-    return engine.Model(str(path))
-
-
-def test_window_graph_matches_the_predictor(inbetweener, window_model):
-    """ONNX Runtime on the window graph vs PyTorch: the graph's own module on canonical windows, and
-    ``Predictor.fill_windows`` (world space; the extension's numpy canonical frame around the graph)."""
-    p = inbetweener.predictor
-    rng = np.random.default_rng(3)
-    for gap in (1, 15, 40):
-        t = p.n_past + gap + 1
-        root = np.array([0.0, 90.0, 0.0]) + rng.normal(0, 20, (2, t, 3))
-        root[..., [0, 2]] += rng.normal(0, 300, (2, 1, 2))  # anywhere on the floor
-        q = rng.normal(size=(2, t, p.skeleton.num_joints, 4))
-        q /= np.linalg.norm(q, axis=-1, keepdims=True)
-        known = p.transition_known(2, t, gap)
-        got_r, got_q = window_model.predict(root, q, known.numpy())
-        with torch.no_grad():
-            ref_r, ref_q = WindowPath(p)(torch.from_numpy(root), torch.from_numpy(q), known)
-        sl = slice(p.n_past, p.n_past + gap)
-        assert np.abs(got_r[:, sl] - ref_r[:, sl].numpy()).max() <= 1e-4
-        assert np.abs(got_q[:, sl] - ref_q[:, sl].numpy()).max() <= 1e-4
-        wr, wq = window_model.fill_windows(root, q)
-        pr, pq = p.fill_windows(root, q)
-        assert np.abs(wr - pr).max() <= 1e-4 and np.abs(wq - pq).max() <= 1e-4
+    mods = runtime_modules()
+    assert "inbetweening.runtime.fill" in mods and "inbetweening.runtime.onnx_backend" in mods
+    assert "inbetweening.geometry.ik" in mods and "inbetweening.data.contacts" in mods
+    assert "inbetweening.runtime.torch_backend" not in mods and not any(m.startswith("inbetweening.tools") for m in mods)
+    whl = runtime_wheel(tmp_path, "9.9")
+    with zipfile.ZipFile(whl) as z:
+        names = set(z.namelist())
+        record = z.read("inbetweening_runtime-9.9.dist-info/RECORD").decode()
+        src = z.read("inbetweening/runtime/fill.py")
+    assert "inbetweening/runtime/fill.py" in names and "inbetweening/__init__.py" in names
+    assert src == (REPO / "src" / "inbetweening" / "runtime" / "fill.py").read_bytes()  # the file itself, no copy
+    assert all(n in record for n in names if not n.endswith("RECORD"))
 
 
-def test_window_graph_metadata(window_model, inbetweener):
-    m = window_model
-    assert m.names == list(inbetweener.skeleton.names) and m.n_past == inbetweener.n_past
-    assert m.trained_gap == inbetweener.trained_gap
-    assert np.allclose(m.offsets, inbetweener.skeleton.offsets)
+def test_a_runtime_module_that_imports_torch_fails_the_build(monkeypatch):
+    from inbetweening.blender import build
 
-
-def clip(frames=200, joints=21, seed=0):
-    rng = np.random.default_rng(seed)
-    t = np.arange(frames)
-    root = np.stack([60 * np.sin(t / 40), 90 + 3 * np.sin(t / 7), 2.5 * t], -1)
-    ang = 0.4 * np.sin(t[:, None, None] / rng.uniform(8, 20, (1, joints, 3)) + rng.uniform(0, 6, (1, joints, 3)))
-    q = np.concatenate([np.ones((frames, joints, 1)), ang], -1)
-    q[:, 0] = np.stack([np.cos(t / 60), 0 * t, np.sin(t / 60), 0 * t], -1)  # turning about +Y
-    return root, q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
-@pytest.mark.parametrize("keys", [[0, 15, 30, 45, 60, 90, 120, 150, 199], [0, 1, 2, 70, 199], [0, 199]])
-def test_engine_fill_matches_the_inbetweener(inbetweener, window_model, keys):
-    """The extension's gap planning (pseudo-keyframes of long gaps included), context and frame change give the
-    Inbetweener's poses; the keys and the frames outside the keys come back bit for bit."""
-    root, q = clip()
-    ref_r, ref_q = inbetweener.fill_arrays(root, q, keys)
-    got_r, got_q = engine.fill(window_model, root, q, keys)
-    sk = inbetweener.skeleton
-    err = np.abs(sk.pose(ref_r, ref_q)[1] - sk.pose(got_r, got_q)[1]).max()
-    assert err <= 1e-3, err
-    assert np.array_equal(got_r[keys], root[keys]) and np.array_equal(got_q[keys], q[keys])
-
-
-def test_engine_context_before_the_first_key_and_frames_after(window_model):
-    """Frames before the first key are context (read, not written); frames after the last key are untouched."""
-    root, q = clip(120)
-    keys = [20, 50, 80]
-    got_r, got_q = engine.fill(window_model, root, q, keys)
-    assert np.array_equal(got_r[:21], root[:21]) and np.array_equal(got_q[80:], q[80:])
-    assert not np.allclose(got_r[21:50], root[21:50])
-    other = root.copy()
-    other[11:20] += 50.0  # different context -> a different first gap
-    assert not np.allclose(engine.fill(window_model, other, q, keys)[0][21:50], got_r[21:50])
-
-
-def test_engine_geometry_matches_the_project():
-    rng = np.random.default_rng(1)
-    q = rng.normal(size=(50, 4))
-    q /= np.linalg.norm(q, axis=-1, keepdims=True)
-    for fwd in ([0.0, 0.0, 1.0], [0.0, 1.0, 0.0]):
-        ref = canonical.facing_rotation(q, fwd)
-        ref = ref / np.linalg.norm(ref, axis=-1, keepdims=True)
-        assert np.abs(engine.facing_rotation(q, fwd) - ref).max() < 1e-12
-    q2 = rng.normal(size=(50, 4))
-    w = rng.uniform(size=(50, 1))
-    assert np.abs(engine.slerp(q, q2, w[:, 0]) - slerp_np(q, q2, w[:, 0])).max() < 1e-12
-    assert np.array_equal(engine.continuous(q[:, None]), remove_discontinuities(q[:, None], axis=0))
-
-
-def test_model_errors(tmp_path, inbetweener):
-    with pytest.raises(engine.ModelError, match="not found"):
-        engine.Model(str(tmp_path / "none.onnx"))
-    (tmp_path / "junk.onnx").write_bytes(b"\x00junk")
-    with pytest.raises(engine.ModelError, match="not a readable ONNX model"):
-        engine.Model(str(tmp_path / "junk.onnx"))
-    export_onnx(inbetweener.predictor, tmp_path / "net.onnx", check=False)  # the bare network: not the window graph
-    with pytest.raises(engine.ModelError, match="not an in-betweening window model"):
-        engine.Model(str(tmp_path / "net.onnx"))
+    monkeypatch.setattr(build, "RUNTIME_LEFT_OUT", ())  # torch_backend imports torch at the top
+    with pytest.raises(build.BuildError, match=r"inbetweening.runtime.torch_backend imports torch"):
+        build.runtime_modules()
 
 
 def test_extension_sources_need_no_torch():
-    """Inside Blender only numpy, onnxruntime, bpy/mathutils and the extension's own modules are imported."""
+    """Inside Blender only numpy, onnxruntime, bpy/mathutils, the extension's own modules and the bundled runtime's
+    modules are imported."""
+    from inbetweening.blender.build import runtime_modules
+
+    bundled = set(runtime_modules())
     allowed = {"numpy", "onnxruntime", "bpy", "mathutils", "bpy_extras", "__future__", "os", "json", "math",
-               "itertools", "time", "importlib"}
+               "itertools", "time", "importlib", "inbetweening"}  # inbetweening: the runtime wheel
     for f in EXT.glob("*.py"):
         for node in ast.walk(ast.parse(f.read_text())):
             if isinstance(node, ast.Import):
@@ -182,3 +105,4 @@ def test_extension_sources_need_no_torch():
             else:
                 continue
             assert all(n.split(".")[0] in allowed for n in names), (f.name, names)
+            assert all(n in bundled for n in names if n.startswith("inbetweening")), (f.name, names)

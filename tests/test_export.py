@@ -147,8 +147,8 @@ def test_window_graph_of_a_contact_model_with_the_gate(tiny_contact_checkpoint, 
 
 
 def test_window_graph_carries_the_do_no_harm_blend(tiny_contact_checkpoint, tmp_path):
-    """A calibrated predictor's blend is part of the window graph the Blender extension runs: ONNX Runtime matches
-    the blended predictor, and differs from the unblended one's graph."""
+    """A calibrated predictor's blend is part of the window graph the Blender extension runs, its weights an input
+    (the runtime's): ONNX Runtime with weight 1 is the unblended graph, with the blend's weights it differs."""
     ort = pytest.importorskip("onnxruntime")
     from inbetweening.predictor.checkpoint import load_predictor
     from inbetweening.tools.export import export_window_onnx, window_example
@@ -165,8 +165,14 @@ def test_window_graph_carries_the_do_no_harm_blend(tiny_contact_checkpoint, tmp_
     for name, pred in (("plain", plain), ("blended", blended)):
         info = export_window_onnx(pred, tmp_path / f"{name}.onnx")
         assert info["max_abs_diff"] < 1e-4
-        root, q, known = window_example(pred, 2, 3, seed=5)
+        root, q, known, weight = window_example(pred, 2, 3, seed=5)
         sess = ort.InferenceSession(str(tmp_path / f"{name}.onnx"), providers=["CPUExecutionProvider"])
-        outs.append(sess.run(None, {"root": root.numpy(), "local_q": q.numpy(), "known": known.numpy()}))
+        feeds = {"root": root.numpy(), "local_q": q.numpy(), "known": known.numpy()}
+        inputs = {i.name for i in sess.get_inputs()}
+        assert ("weight" in inputs) == (name == "blended")  # only a model with a blend reads the weights
+        outs.append(sess.run(None, feeds if name == "plain" else {**feeds, "weight": np.full(weight.shape, 0.5, np.float32)}))
+        if name == "blended":
+            ones = sess.run(None, {**feeds, "weight": np.ones(weight.shape, np.float32)})
     assert json.loads(info["metadata"]["blend"]) == [0.0, 0.25, 0.5, 0.75, 1.0]
-    assert np.abs(outs[0][0] - outs[1][0]).max() > 1e-3  # a 3-frame gap: weight 0.5 moved the prediction
+    assert np.abs(outs[0][0] - outs[1][0]).max() > 1e-3  # weight 0.5 moved the prediction
+    assert np.abs(outs[0][0] - ones[0]).max() < 1e-4  # weight 1: the network as it is

@@ -1,4 +1,4 @@
-"""Foot locking (tools/foot_lock.py) and the two-bone IK behind it (geometry/ik.py)."""
+"""Foot locking (runtime/foot_lock.py) and the two-bone IK behind it (geometry/ik.py)."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,7 +9,7 @@ from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.quaternion import qmul, qnormalize, qrot
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.tools.foot_lock import legs, lock_feet
+from inbetweening.runtime.foot_lock import legs, lock_feet
 
 SK = Skeleton(NAMES, PARENTS, OFFSETS)
 FEET = [NAMES.index(n) for n in ("LeftFoot", "LeftToe", "RightFoot", "RightToe")]

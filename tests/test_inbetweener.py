@@ -1,5 +1,6 @@
-"""The batched fill (``Predictor.fill_windows``, ``Inbetweener.fill_many``) is the one-at-a-time fill, and the fast
-numpy features are the torch ones; checked on the shipped default model (``models/bn2_reference``)."""
+"""The batched fill (the runtime's windows, ``Inbetweener.fill_many``) is the one-at-a-time fill and the path written
+out by hand, and the fast numpy features are the torch ones; checked on the shipped default model
+(``models/bn2_reference``)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,6 +12,8 @@ import torch
 from inbetweening.geometry import canonical
 from inbetweening.predictor.checkpoint import load_predictor
 from inbetweening.predictor.masks import apply_mask
+from inbetweening.runtime import FillRuntime
+from inbetweening.runtime.torch_backend import TorchBackend
 from inbetweening.tools.inbetweener import Inbetweener, InbetweenError
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "bn2_reference" / "model.ckpt"
@@ -61,7 +64,7 @@ def test_numpy_features_are_the_torch_features_bit_for_bit(predictor):
     assert torch.isnan(f_np[0, 12, :, :3]).all() and torch.isfinite(f_np[0, 11]).all()
 
 
-def test_fill_windows_is_fill_window_one_at_a_time_and_the_old_path(predictor):
+def test_batched_windows_are_one_at_a_time_and_the_path_by_hand(predictor):
     rng = np.random.default_rng(1)
     j = predictor.skeleton.num_joints
     wins = [_motion(rng, 41, j, yaw) for yaw in (0.0, 1.3, -2.5, 3.0)]
@@ -69,10 +72,12 @@ def test_fill_windows_is_fill_window_one_at_a_time_and_the_old_path(predictor):
     q = np.stack([w[1] for w in wins])
     root[:, 10:40] = np.nan  # the transition frames are never read
     q[:, 10:40] = np.nan
-    br, bq = predictor.fill_windows(root, q)
+    runtime = FillRuntime(TorchBackend(predictor))
+    br, bq, _, _ = runtime.predict_windows(root, q)
     assert br.shape == (4, 30, 3) and bq.shape == (4, 30, j, 4)
     for i in range(4):
-        r1, q1 = predictor.fill_window(root[i], q[i])
+        r1, q1, _, _ = runtime.predict_windows(root[i : i + 1], q[i : i + 1])
+        r1, q1 = r1[0], q1[0]
         np.testing.assert_allclose(br[i], r1, atol=1e-4)
         np.testing.assert_allclose(bq[i], q1, atol=1e-5)
         r0, q0 = _old_fill_window(predictor, np.nan_to_num(root[i]), np.nan_to_num(q[i]))
@@ -80,8 +85,6 @@ def test_fill_windows_is_fill_window_one_at_a_time_and_the_old_path(predictor):
         np.testing.assert_allclose(q1, q0, atol=1e-5)
     # the windows really differ (a batch that repeated one window would pass the loop above only by luck)
     assert np.abs(br[0] - br[1]).max() > 1.0
-    with pytest.raises(ValueError, match="fill_windows: expected"):
-        predictor.fill_windows(root[0], q[0])
 
 
 def test_fill_many_is_fill_arrays_clip_by_clip(predictor):
@@ -95,9 +98,9 @@ def test_fill_many_is_fill_arrays_clip_by_clip(predictor):
         unknown = np.setdiff1d(np.arange(frames), keys)
         root[unknown], q[unknown] = np.nan, np.nan
         clips.append((root, q, keys))
-    pseudo = [[], [], []]
-    many = ib.fill_many(clips, _pseudo=pseudo, batch_size=2)  # the first gaps: a batch of 2, then one of 1
+    pseudo = [f.pseudo_keyframes for f in ib.runtime.fill_many(clips)]
     assert pseudo[2] and not pseudo[0]
+    many = ib.fill_many(clips, batch_size=2)  # the first gaps: a batch of 2, then one of 1
     for (root, q, keys), (mr, mq) in zip(clips, many):
         one_r, one_q = ib.fill_arrays(root, q, keys)
         assert np.isfinite(mr).all() and np.isfinite(mq).all()

@@ -302,25 +302,6 @@ def test_predict_transitions_matches_the_numpy_interpolation_and_ignores_batchin
     assert other[0].shape == (5, 7, 3)
 
 
-def test_fill_window_interpolation_network_is_keyframe_interpolation_and_equivariant():
-    p = Predictor.from_hparams(hparams(model={"name": "interpolation"})).eval()
-    root, q = windows(5, b=1, t=16)
-    root, q = root[0], q[0]
-    r, lq = p.fill_window(root, q)  # n_past 10, 5 transition frames, target
-    assert r.shape == (5, 3) and lq.shape == (5, 4, 4)
-    np.testing.assert_allclose(np.linalg.norm(lq, axis=-1), 1.0, atol=1e-12)
-    ir, iq = interpolate_keyframes(root, q, [9, 15])
-    np.testing.assert_allclose(r, ir[10:15], atol=1e-3)
-    np.testing.assert_allclose(np.abs((lq * iq[10:15]).sum(-1)), 1.0, atol=1e-5)
-    # a world yaw + shift of the window moves the prediction alike
-    y = np.array([np.cos(0.6), 0.0, np.sin(0.6), 0.0])
-    moved_q = q.copy()
-    moved_q[:, 0] = qmul(y[None], q[:, 0])
-    r2, lq2 = p.fill_window(qrot(y[None], root) + np.array([40.0, 0.0, -7.0]), moved_q)
-    np.testing.assert_allclose(r2, qrot(y[None], r) + np.array([40.0, 0.0, -7.0]), atol=1e-3)
-    np.testing.assert_allclose(np.abs((lq2[:, 1:] * lq[:, 1:]).sum(-1)), 1.0, atol=1e-5)
-
-
 def test_representation_registry_and_layout():
     rep = R.build_representation("global_pos_local_quat", SK, MEAN, STD)
     assert (rep.features, rep.pos, rep.quat) == (7, slice(0, 3), slice(3, 7))

@@ -107,7 +107,7 @@ def test_model_v2_predicts_contacts_and_carries_the_blend(path, step):
 def test_model_v2_locks_only_the_legs_of_generated_frames():
     """A real test clip filled from keys every 30 frames with and without foot locking: keys bit-exact in both, and
     the lock changes only hip, knee and ankle rotations of generated frames (never the root or the upper body)."""
-    from inbetweening.tools.foot_lock import legs
+    from inbetweening.runtime.foot_lock import legs
 
     ib = Inbetweener.from_checkpoint(V2_CKPT)
     sk = ib.skeleton

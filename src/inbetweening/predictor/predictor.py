@@ -317,44 +317,6 @@ class Predictor(nn.Module):
             outs_q.append(out.local_q[:, sl].cpu().numpy())
         return np.concatenate(outs_r), np.concatenate(outs_q)
 
-    def fill_window(self, root: np.ndarray, local_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One transition in world space, as the animator tool needs it.
-
-        ``root (T, 3), local_q (T, J, 4)``: ``n_past`` context frames, ``n = T - n_past - 1`` transition frames
-        (never read) and the target.  Returns the ``n`` predicted frames ``root (n, 3), local_q (n, J, 4)``, float64,
-        unit quaternions.  This is :meth:`fill_windows` of a batch of one.
-        """
-        pr, pq = self.fill_windows(np.asarray(root)[None], np.asarray(local_q)[None])
-        return pr[0], pq[0]
-
-    def fill_windows(self, root: np.ndarray, local_q: np.ndarray, with_contacts: bool = False):
-        """:meth:`fill_window` of ``B`` windows of the same length in one forward pass.
-
-        ``root (B, T, 3), local_q (B, T, J, 4)`` -> ``root (B, n, 3), local_q (B, n, J, 4)``, ``n = T - n_past - 1``.
-        Each window gets its own canonical frame; the windows do not interact (the same numbers as one at a time,
-        up to float rounding of the batched network).  ``with_contacts``: also the predicted foot contact
-        ``(B, n, J)`` in [0, 1] (``None`` when the representation has no contact channels).
-        """
-        root = np.asarray(root, dtype=np.float64)
-        local_q = np.asarray(local_q, dtype=np.float64)
-        p, j = self.n_past, self.skeleton.num_joints
-        if root.ndim != 3 or root.shape[-1] != 3 or local_q.shape != root.shape[:2] + (j, 4):
-            raise ValueError(f"fill_windows: expected root (B, T, 3) and local_q (B, T, {j}, 4), got {root.shape} "
-                             f"and {local_q.shape}")
-        b, t = root.shape[:2]
-        n = t - p - 1
-        if n < 1:
-            raise ValueError(f"fill_windows: {t} frames leave no transition after {p} context frames and the target")
-        known = self.transition_known(b, t, n, device=self.device)
-        with torch.inference_mode():
-            out = self.predict_windows(root, local_q, known)
-        pr, pq = out.root[:, p : p + n].cpu().numpy(), out.local_q[:, p : p + n].cpu().numpy()
-        pq = pq / np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit (decode's normalisation has an epsilon)
-        if not with_contacts:
-            return pr, pq
-        c = self.representation.contacts(out.pred)
-        return pr, pq, None if c is None else c[:, p : p + n].float().cpu().numpy()
-
     # ------------------------------------------------------------------ export
     def example_inputs(self, batch: int, gap: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Random network inputs ``(x, known, interp)`` for ``batch`` windows with a ``gap``-frame transition (CPU)."""

@@ -5,7 +5,7 @@ on the floor in that frame, 0 otherwise (every other joint: always 0).  A frame 
 below the contact height and its speed (to the next frame, else from the previous one) below the contact speed; a
 frame whose neighbours are both unknown (an isolated keyframe) is judged on its height alone; unknown frames stay
 NaN.  The network predicts ``c`` like any channel; the tools read it back with :meth:`contacts` to lock the feet
-(:mod:`inbetweening.tools.foot_lock`).
+(:mod:`inbetweening.runtime.foot_lock`).
 """
 from __future__ import annotations
 

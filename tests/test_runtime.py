@@ -1,0 +1,272 @@
+"""The fill runtime's own stages (:mod:`inbetweening.runtime`), each with a test that fails when that stage is wrong:
+the gap plan, the canonical frame (decided by the known frames only), the blend's weights, foot locking's key
+contacts, the file's frame, and the keys copied back exactly.  A recording numpy backend stands in for the network
+where the stage is the runtime's; the torch backend where the network matters."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from inbetweening.data.contacts import FootContact
+from inbetweening.data.convention import FileConvention
+from inbetweening.geometry import canonical
+from inbetweening.geometry.interp import interpolate_keyframes
+from inbetweening.geometry.quaternion import qmul, qrot
+from inbetweening.geometry.skeleton import Skeleton
+from inbetweening.predictor.predictor import Predictor
+from inbetweening.runtime import FillRuntime, InbetweenError, ModelError, ModelInfo
+from inbetweening.runtime.foot_lock import key_contacts
+from inbetweening.runtime.model import WINDOW_FORMAT
+from inbetweening.runtime.plan import check_keys, plan_gaps
+from inbetweening.runtime.torch_backend import TorchBackend, window_metadata
+
+SK = Skeleton(("hips", "spine", "head", "thigh", "shin", "foot"), (-1, 0, 1, 0, 3, 4),
+              np.array([[0, 0, 0], [0, 20, 0], [0, 25, 0], [10, -5, 0], [0, -40, 0], [0, -40, 0]], dtype=float))
+
+
+def info(**kw) -> ModelInfo:
+    base = {"skeleton": SK, "n_past": 4, "forward_axis": (0.0, 0.0, 1.0), "centre": "known", "trained_gap": 8,
+            "hard_max_gap": 20, "fps": 30.0}
+    return ModelInfo(**{**base, **kw})
+
+
+class Recorder:
+    """A backend that records what it is given and predicts, in the canonical frame, a fixed pose: root at
+    ``(5, 90, 0)`` facing +X, every joint's rotation the identity; weights scale the distance to frame ``n_past - 1``."""
+
+    def __init__(self, model_info: ModelInfo, contact: float | None = None):
+        self.info, self.contact, self.seen = model_info, contact, []
+
+    def predict(self, root, local_q, known, weight):
+        self.seen.append((root.copy(), local_q.copy(), known.copy(), None if weight is None else weight.copy()))
+        r = np.broadcast_to(np.array([5.0, 90.0, 0.0]), root.shape).copy()
+        q = np.zeros(local_q.shape)
+        q[..., 0] = 1.0
+        if weight is not None:  # the blend: the interpolation (here: the last context frame) + w (prediction - it)
+            last = root[:, self.info.n_past - 1 : self.info.n_past]
+            r = last + weight[..., :1] * (r - last)
+        c = None if self.contact is None else np.full(known.shape, self.contact)
+        return r, q, c
+
+
+def motion(frames=60, seed=0, yaw_rate=0.02):
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames)
+    root = np.stack([80 * np.sin(t / 25), 90 + 3 * np.sin(t / 5), 3.0 * t], -1) + rng.normal(0, 30, (1, 3))
+    ang = 0.3 * np.sin(t[:, None, None] / rng.uniform(6, 15, (1, SK.num_joints, 3)))
+    q = np.concatenate([np.ones((frames, SK.num_joints, 1)), ang], -1)
+    q[:, 0] = np.stack([np.cos(yaw_rate * t), 0 * t, np.sin(yaw_rate * t), 0 * t], -1)
+    return root, q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+# ------------------------------------------------------------------------------------------------ plan and keys
+def test_plan_splits_long_gaps_into_equal_segments():
+    plan = plan_gaps([0, 5, 6, 40], limit=10)
+    # 6 -> 40: m = ceil(34 / 11) = 4 equal parts; no window between the neighbouring keys 5 and 6
+    assert plan.segments == [(0, 5), (6, 14), (14, 23), (23, 32), (32, 40)]
+    assert plan.pseudo == [(6, 40, [14, 23, 32])] and plan.pseudo_keyframes == [14, 23, 32]
+    assert all(b - a - 1 <= 10 for a, b in plan.segments)
+    with pytest.raises(InbetweenError, match=r"gap between keyframes 6 and 40 is 33 frames, longer than max_gap=10 "
+                                             r"\(the model was trained on gaps up to 10\)"):
+        plan_gaps([0, 5, 6, 40], limit=10, segment=False, trained_gap=10)
+
+
+@pytest.mark.parametrize("keys, match", [([0], "at least 2"), ([0, 0, 5], "listed twice"), ([5, 2], "sorted"),
+                                         ([0, 99], "out of range"), ([0, 2.5], "not an integer"), ("0,5", "list")])
+def test_bad_keys_are_one_clear_error(keys, match):
+    with pytest.raises(InbetweenError, match=match):
+        check_keys(keys, 50)
+
+
+def test_pseudo_keyframes_are_interpolated_and_generated_around():
+    root, q = motion(60)
+    rt = FillRuntime(Recorder(info(trained_gap=9)), foot_lock=False)  # 30 frames: 3 segments of 9 generated frames
+    out = rt.fill(root, q, [0, 30])
+    assert out.pseudo_keyframes == [10, 20]
+    ir, iq = interpolate_keyframes(root, q, [0, 30])
+    assert np.allclose(out.root[[10, 20]], ir[[10, 20]]) and np.allclose(out.local_q[[10, 20]], iq[[10, 20]])
+    assert [(a, b) for a, b, _ in out.segments] == [(0, 10), (10, 20), (20, 30)]
+
+
+# ------------------------------------------------------------------------------------------------ canonical frame
+def test_windows_reach_the_backend_in_the_canonical_frame_of_their_known_frames():
+    root, q = motion(40, seed=1)
+    rec = Recorder(info())
+    FillRuntime(rec, foot_lock=False).fill(root, q, [0, 10, 25, 39])
+    p = rec.info.n_past
+    for croot, cq, known, _ in rec.seen:
+        k = known[0, :, 0]
+        assert k[:p].all() and k[-1] and not k[p:-1].any()
+        # the root faces +X at the last context frame (its forward axis turned about +Y), ...
+        fwd = qrot(cq[0, p - 1, 0], np.array(rec.info.forward_axis))
+        assert fwd[0] > 0 and abs(fwd[2]) < 1e-6  # (the facing's normalisation epsilon)
+        # ... the known frames' mean root XZ is the origin, heights unchanged
+        assert np.allclose(croot[0, k][:, [0, 2]].mean(0), 0.0, atol=1e-9)
+
+
+def test_unknown_frames_are_never_read_and_the_fill_is_equivariant():
+    root, q = motion(40, seed=2)
+    keys = [0, 12, 39]
+    a = FillRuntime(Recorder(info()), foot_lock=False).fill(root, q, keys)
+    junk_r, junk_q = root.copy(), q.copy()
+    gaps = np.setdiff1d(np.arange(40), keys)
+    junk_r[gaps], junk_q[gaps] = np.nan, np.nan
+    b = FillRuntime(Recorder(info()), foot_lock=False).fill(junk_r, junk_q, keys)
+    assert np.array_equal(a.root, b.root) and np.array_equal(a.local_q, b.local_q)
+    # a yaw and a shift of the world move the fill alike (the canonical frame takes them out)
+    y = np.array([np.cos(0.4), 0.0, np.sin(0.4), 0.0])
+    moved_q = q.copy()
+    moved_q[:, 0] = qmul(y[None], q[:, 0])
+    c = FillRuntime(Recorder(info()), foot_lock=False).fill(qrot(y[None], root) + [40.0, 0.0, -7.0], moved_q, keys)
+    assert np.allclose(c.root, qrot(y[None], a.root) + [40.0, 0.0, -7.0], atol=1e-9)
+
+
+def test_centre_last_puts_the_last_context_frame_at_the_origin():
+    root, q = motion(30, seed=3)
+    rec = Recorder(info(centre="last"))
+    FillRuntime(rec, foot_lock=False).fill(root, q, [0, 12, 29])
+    for croot, *_ in rec.seen:
+        assert np.allclose(croot[0, rec.info.n_past - 1, [0, 2]], 0.0, atol=1e-9)
+
+
+def test_context_before_the_first_key_is_read_and_frames_after_the_last_are_kept():
+    root, q = motion(50, seed=4)
+    rec = Recorder(info(trained_gap=12))
+    out = FillRuntime(rec, foot_lock=False).fill(root, q, [10, 20, 30])
+    croot, cq, _, _ = rec.seen[0]
+    centre, rot = canonical.canonical_frame(root[7:22][None], q[7:22][None], rec.info.forward_axis, 3,
+                                            np.isin(np.arange(7, 22), [7, 8, 9, 10, 20])[None])
+    assert np.allclose(canonical.uncanonicalise(croot, cq, centre, rot)[0][0, :4], root[7:11])  # frames 7..10
+    assert np.array_equal(out.root[:11], root[:11]) and np.array_equal(out.root[30:], root[30:])
+    nan_r = root.copy()
+    nan_r[:10] = np.nan  # no usable context: the first key's pose is repeated
+    rec2 = Recorder(info(trained_gap=12))
+    FillRuntime(rec2, foot_lock=False).fill(nan_r, q, [10, 20, 30])
+    assert np.isfinite(rec2.seen[0][0]).all()
+
+
+# ------------------------------------------------------------------------------------------------ the blend
+def test_blend_weights_per_gap_length_reach_the_backend():
+    root, q = motion(40, seed=5)
+    rec = Recorder(info(blend=(0.0, 0.2, 0.6), trained_gap=12))
+    out = FillRuntime(rec, foot_lock=False).fill(root, q, [0, 2, 5, 15, 39])
+    gaps = [int((~known[0, :, 0]).sum()) for _, _, known, _ in rec.seen]
+    assert gaps == [1, 2, 9, 11, 11]  # the last gap (23 frames) is split in two
+    for (_, _, known, w), g in zip(rec.seen, gaps):
+        assert w.dtype == np.float32 and np.all(w[known] == 1.0)
+        assert np.all(w[~known] == np.float32((0.0, 0.2, 0.6)[min(g, 3) - 1]))
+    assert [w for _, _, w in out.segments] == [0.0, 0.2, 0.6, 0.6, 0.6]
+    rec_none = Recorder(info())
+    FillRuntime(rec_none, foot_lock=False).fill(root, q, [0, 5, 39])
+    assert all(w is None for *_, w in rec_none.seen)
+
+
+def hparams(**kw) -> dict:
+    rng = np.random.default_rng(0)
+    return {"model": {"name": "interpolation"}, "skeleton": SK.to_dict(), "pos_mean": rng.normal(0, 5, 18).tolist(),
+            "pos_std": rng.uniform(1, 5, 18).tolist(), "mask": "lerp", "centre": "known", "n_past": 10,
+            "forward_axis": [0.0, 0.0, 1.0], "train_window": 50, **kw}
+
+
+def test_a_zero_blend_gives_the_interpolation_back_through_a_real_network():
+    """With the blend's weight 0 the network's correction is dropped: the fill is the keys' interpolation (root
+    linearly, joints by slerp), whatever the network; with weight 1 it is the network's own output."""
+    root, q = motion(50, seed=6)
+    keys = [0, 17, 40, 49]
+    net = {"name": "frame_transformer", "d_model": 16, "depth": 1, "heads": 2, "ffn_dim": 16, "dropout": 0.0}
+    state, fills = None, {}
+    for name, blend in (("zero", [0.0]), ("one", [1.0]), ("none", None)):
+        pr = Predictor.from_hparams(hparams(model=net, blend=blend)).eval()
+        state = pr.state_dict() if state is None else state
+        pr.load_state_dict(state)
+        fills[name] = FillRuntime(TorchBackend(pr), foot_lock=False).fill(root, q, keys)
+    ir, iq = interpolate_keyframes(root, q, keys)
+    assert np.abs(fills["zero"].root - ir).max() < 1e-4
+    assert np.abs(np.abs((fills["zero"].local_q * iq).sum(-1)) - 1).max() < 1e-6
+    assert np.abs(fills["one"].root - fills["none"].root).max() < 1e-4
+    assert np.abs(fills["none"].root - ir).max() > 1e-2  # the untrained network does move away from it
+
+
+def test_the_interpolation_network_is_keyframe_interpolation_and_equivariant():
+    p = Predictor.from_hparams(hparams()).eval()
+    rt = FillRuntime(TorchBackend(p))
+    root, q = motion(16, seed=7)
+    r, lq, c, w = rt.predict_windows(root[None], q[None])  # n_past 10, 5 transition frames, target
+    assert r.shape == (1, 5, 3) and lq.shape == (1, 5, SK.num_joints, 4) and c is None and w == 1.0
+    np.testing.assert_allclose(np.linalg.norm(lq, axis=-1), 1.0, atol=1e-12)
+    ir, iq = interpolate_keyframes(root, q, [9, 15])
+    np.testing.assert_allclose(r[0], ir[10:15], atol=1e-3)
+    np.testing.assert_allclose(np.abs((lq[0] * iq[10:15]).sum(-1)), 1.0, atol=1e-5)
+    y = np.array([np.cos(0.6), 0.0, np.sin(0.6), 0.0])
+    moved_q = q.copy()
+    moved_q[:, 0] = qmul(y[None], q[:, 0])
+    r2, lq2, _, _ = rt.predict_windows((qrot(y[None], root) + [40.0, 0.0, -7.0])[None], moved_q[None])
+    np.testing.assert_allclose(r2[0], qrot(y[None], r[0]) + [40.0, 0.0, -7.0], atol=1e-3)
+    np.testing.assert_allclose(np.abs((lq2[0, :, 1:] * lq[0, :, 1:]).sum(-1)), 1.0, atol=1e-5)
+
+
+# ------------------------------------------------------------------------------------------------ keys exact, frames
+def test_keys_come_back_bit_for_bit_in_the_files_frame():
+    root, q = motion(45, seed=8)
+    q = q * 1.0000001  # not exactly unit: still copied as given
+    conv = FileConvention("z", 100.0)
+    file_root, file_q = conv.to_file(root, q)
+    keys = [0, 9, 30, 44]
+    rec = Recorder(info(convention=conv, has_contacts=True, contact=FootContact(("foot",), 5.0, 30.0)), contact=1.0)
+    out = FillRuntime(rec).fill(file_root, file_q, keys, file_frame=True)
+    assert np.array_equal(out.root[keys], file_root[keys]) and np.array_equal(out.local_q[keys], file_q[keys])
+    assert out.locked and out.contact is not None
+    # the backend saw the project's frame (Y up, cm): heights near the root's 90 cm, not the file's metres
+    assert np.abs(rec.seen[0][0][..., 1]).max() > 50
+    same = FillRuntime(Recorder(info(), contact=None), foot_lock=False).fill(root, q, keys)
+    back = FillRuntime(Recorder(info(convention=conv)), foot_lock=False).fill(file_root, file_q, keys, file_frame=True)
+    assert np.allclose(conv.to_project(back.root, back.local_q)[0], same.root, atol=1e-9)
+
+
+def test_key_contacts_are_the_data_rule_on_the_keys_alone():
+    root, q = motion(20, seed=9)
+    root[:, 1] = 46.0  # the foot 1 cm above the floor ... (hips 46, shin and foot 80 cm below the thigh's -5)
+    gp = SK.pose(root, q)[1]
+    contact = FootContact(("foot",), 10.0, 30.0)
+    labels = key_contacts(SK, contact, 30.0, root, q, [0, 1, 10])
+    foot = SK.names.index("foot")
+    assert np.isnan(labels[2:10]).all() and np.isnan(labels[11:]).all()
+    assert (labels[[0, 1, 10]][:, [0, 1, 2, 3, 4]] == 0).all()
+    speed01 = np.linalg.norm(gp[1, foot] - gp[0, foot]) * 30.0  # keys 0 and 1: their speed to each other
+    low = gp[[0, 1, 10], foot, 1] < 10.0
+    expect = [low[0] and speed01 < 30.0, low[1] and speed01 < 30.0, low[2]]  # key 10: its height alone
+    assert list(labels[[0, 1, 10], foot] == expect) == [True] * 3
+
+
+def test_max_gap_and_batch_size_are_checked():
+    rt = FillRuntime(Recorder(info()))
+    assert rt.max_gap == 8
+    with pytest.raises(InbetweenError, match="max_gap=21 exceeds what the network supports"):
+        FillRuntime(Recorder(info()), max_gap=21)
+    with pytest.raises(InbetweenError, match="batch_size must be a positive integer"):
+        FillRuntime(Recorder(info()), batch_size=0)
+    root, q = motion(20)
+    with pytest.raises(InbetweenError, match=r"local_q \(F, 6, 4\)"):
+        rt.fill(root, q[:, :3], [0, 19])
+    bad = root.copy()
+    bad[19] = np.nan
+    with pytest.raises(InbetweenError, match="NaN"):
+        rt.fill(bad, q, [0, 19])
+
+
+def test_model_info_from_the_torch_backends_metadata():
+    p = Predictor.from_hparams(hparams(blend=[0.1, 0.5], contact={"feet": ["foot"], "height": 5.0, "speed": 20.0},
+                                       convention={"up_axis": "z", "unit_cm": 2.54}))
+    meta = {k: json.loads(v) for k, v in window_metadata(p, trained_gap=30).items()}
+    assert meta["format"] == WINDOW_FORMAT and meta["inputs"] == ["root", "local_q", "known", "weight"]
+    m = ModelInfo.from_metadata(meta)
+    assert (m.n_past, m.trained_gap, m.blend, m.centre) == (10, 30, (0.1, 0.5), "known")
+    assert m.contact.feet == ("foot",) and m.convention.unit_cm == 2.54 and not m.has_contacts
+    assert m.skeleton == SK and m.blend_weight(1) == 0.1 and m.blend_weight(7) == 0.5
+    assert ModelInfo.from_metadata({**meta, "trained_gap": 99}).trained_gap == 39  # at most train_window - n_past - 1
+    with pytest.raises(ModelError, match="older in-betweening window model"):
+        ModelInfo.from_metadata({**meta, "format": "inbetweening-window-onnx/1"}, "x.onnx")
+    with pytest.raises(ModelError, match="not an in-betweening window model"):
+        ModelInfo.from_metadata({"format": "inbetweening-onnx/1"}, "x.onnx")
