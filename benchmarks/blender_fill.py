@@ -87,7 +87,7 @@ A 300-frame timeline (frames 1-300 of `{Path(long).name}`, imported with Blender
 {statistics.median(model):.3f} s |
 
 CPU time is the process's (one busy thread), which depends less on the other jobs of the shared machine than the
-wall time.  The model part is the engine (ONNX Runtime and the numpy frame changes); the rest is Blender glue:
+wall time.  The model part is the fill runtime (ONNX Runtime and the numpy frame changes); the rest is Blender glue:
 evaluating the keys' poses, converting 290 poses to bone channels, writing the keys.
 """
     _report.publish(body, SECTION, not args.no_write)

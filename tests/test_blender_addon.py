@@ -102,10 +102,10 @@ def fitted_error(ours: np.ndarray, theirs: np.ndarray, key_idx) -> float:
     return float(np.linalg.norm(mapped - ours.reshape(-1, 3), axis=-1).max())
 
 
-def inbetweener_positions(bvh_path, keys_blender):
+def inbetweener_positions(bvh_path, keys_blender, ckpt=CKPT, foot_lock=True):
     from inbetweening.tools.inbetweener import Inbetweener
 
-    ib = Inbetweener.from_checkpoint(CKPT)
+    ib = Inbetweener.from_checkpoint(ckpt, foot_lock=foot_lock)
     res = ib.fill_detailed(read_bvh(bvh_path), keyframes=[k - 1 for k in keys_blender])
     return res.global_positions()
 
@@ -225,3 +225,30 @@ def test_build_reports_a_failed_wheel_download_in_one_line(tmp_path):
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.startswith("error: downloading onnxruntime==0.0.1 wheels for linux-x64 failed")
     assert proc.stderr.count("\n") == 1 and not list((tmp_path / "out").glob("*.zip"))
+
+
+@pytest.mark.skipif(not BN2.is_file(), reason="Bandai-Namco-2 zip not available")
+def test_foot_locking_in_blender_gives_the_clis_poses(bpy_exe, built, tmp_path):
+    """A model with contact channels (models/bn2_v2) exported for the extension: with Lock Feet (the default) Blender's
+    fill is the command line's locked fill, without it the unlocked one, and the two differ (the feet)."""
+    v2 = REPO / "models" / "bn2_v2" / "model.ckpt"
+    proc = subprocess.run([sys.executable, "-m", "inbetweening.blender", "export", f"ckpt_path={v2}",
+                           f"output={tmp_path / 'v2.onnx'}"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    with zipfile.ZipFile(BN2) as zf:
+        (tmp_path / "clip.bvh").write_bytes(zf.read(BN2_CLIP))
+    zip_path = next(built.glob("*-linux-x64.zip"))
+    model = str(tmp_path / "v2.onnx")
+    res = run_blender(bpy_exe, zip_path, tmp_path / "clip.bvh",
+                      [{"name": "locked", "keys_every": 30, "model_path": model},
+                       {"name": "unlocked", "keys_every": 30, "model_path": model, "foot_lock": False}], tmp_path)
+    heads = {}
+    for name, lock in (("locked", True), ("unlocked", False)):
+        r = res[name]
+        assert r["result"] == ["FINISHED"] and r["feet_locked"] is lock and r["n_lost_keys"] == 0
+        heads[name] = np.load(tmp_path / f"{name}_heads.npy")
+        ref = inbetweener_positions(tmp_path / "clip.bvh", r["in_range_keys"], v2, foot_lock=lock)
+        key_idx = [k - r["in_range_keys"][0] for k in r["in_range_keys"]]
+        err = fitted_error(ref, heads[name], key_idx)
+        assert err <= 1e-3, (name, err)
+    assert np.abs(heads["locked"] - heads["unlocked"]).max() > 0.5  # the lock moved the legs

@@ -101,7 +101,7 @@ def model_names():
 
     mod = sys.modules.get("bl_ext.user_default.inbetweening.operators") or importlib.import_module(
         "bl_ext.user_default.inbetweening.operators")
-    return mod, mod.load_model("").names
+    return mod, list(mod.load_model("").info.skeleton.names)
 
 
 def run_fill(**kw):
@@ -160,9 +160,11 @@ def scenario(cfg: dict, sc: dict, out_dir: str) -> dict:
                 k.select_control_point = lo_sel <= round(k.co[0]) <= hi_sel
     bpy.ops.ed.undo_push(message="before fill")
     res["undo_poll_before"] = bpy.ops.ed.undo.poll()
-    kw = {k: sc[k] for k in ("only_selected_range", "model_path") if k in sc}
+    kw = {k: sc[k] for k in ("only_selected_range", "model_path", "foot_lock") if k in sc}
+    mod.LAST_FILL.clear()
     result, error, seconds = run_fill(**kw)
-    res.update({"result": result, "error": error, "seconds": seconds})
+    res.update({"result": result, "error": error, "seconds": seconds, "feet_locked": mod.LAST_FILL.get("feet_locked"),
+                "network_share": mod.LAST_FILL.get("network_share")})
     res["undo_poll_after"] = bpy.ops.ed.undo.poll()
     res["bl_options"] = sorted(bpy.types.ANIM_OT_inbetween_fill.bl_options)
     after = snapshot(obj)

@@ -22,7 +22,8 @@ UP = 1
 def _speed_torch(p: torch.Tensor, fps: float) -> torch.Tensor:
     """Per-frame speed (to the next frame, else from the previous one) of positions ``(..., T, K, 3)``: the torch
     twin of :func:`~inbetweening.data.contacts.planted_frames`' (tests check they agree)."""
-    step = torch.linalg.vector_norm(p[..., 1:, :, :] - p[..., :-1, :, :], dim=-1) * fps  # (slices export to ONNX)
+    d = p[..., 1:, :, :] - p[..., :-1, :, :]  # (slices export to ONNX; sqrt of a sum, not vector_norm: ONNX
+    step = (d * d).sum(-1).sqrt() * fps  # Runtime 1.19, which the Blender extension bundles, has no float64 ReduceL2)
     pad = torch.full_like(step[..., :1, :], float("nan"))
     fwd, bwd = torch.cat([step, pad], dim=-2), torch.cat([pad, step], dim=-2)
     return torch.where(torch.isnan(fwd), bwd, fwd)
