@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 25's ablation of levers 2-4 at an equal short budget, 2 seeds (RESULTS.md section 11): the 2-hour recipe
+# The ablation of model v2's levers 2-4 at an equal short budget, 2 seeds (RESULTS.md section 6.1): the 2-hour recipe
 # (experiment=bn2_best) on the content split, at a proxy size (depth 3, batch 16, 500 optimiser steps: a fixed number
 # of steps, so runs sharing the CPU stay comparable), adding one lever at a time:
 #   base      the recipe as it is (10 context frames, one target, transitions 5-45)

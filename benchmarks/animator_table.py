@@ -1,4 +1,4 @@
-"""The table of issue 25's ablation (RESULTS.md section 11) from the runs of ``benchmarks/animator_ablation.sh``.
+"""The table of model v2's lever ablation (RESULTS.md section 6.1) from the runs of ``benchmarks/animator_ablation.sh``.
 
     python benchmarks/animator_table.py <out dir of animator_ablation.sh> [--copy results/animator_ablation]
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 24's measurement (RESULTS.md section 10): how far 10 minutes get a model on motions it never saw.
+# The fine-tuning measurement (RESULTS.md section 4): how far 10 minutes get a model on motions it never saw.
 # "10 minutes" is a number of optimiser steps, 440: what 10 minutes of wall time give alone on the 2-core CPU (the
 # 2-hour recipe's graph transformer: 1.35 s/step, validation included), so the runs stay comparable when the machine
 # is shared; each run's log has its wall time.
