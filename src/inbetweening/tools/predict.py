@@ -23,7 +23,7 @@ key=value or as --key value.
 
 Two ways to say which frames are keyframes:
 
-  keyframes=[0,30,75]   (form A) keep these frames of the input clip (at least 2, increasing, any spacing;
+  'keyframes=[0,30,75]' (form A) keep these frames of the input clip (at least 2, increasing, any spacing;
                         keyframes=0,30,75 works too) and generate every other frame between the first and
                         the last one.  Frames before the first / after the last keyframe are dropped: the
                         output has last - first + 1 frames and input frame k is output frame k - first.
@@ -63,7 +63,7 @@ options:
   -h, --help            show this help
 
 examples:
-  python -m inbetweening.predict ckpt_path=run/checkpoints/last.ckpt input=walk.bvh keyframes=[0,30,75] \\
+  python -m inbetweening.predict ckpt_path=run/checkpoints/last.ckpt input=walk.bvh 'keyframes=[0,30,75]' \\
       output=walk_filled.bvh
   python -m inbetweening.predict --ckpt_path run/last.ckpt --input keys.bvh --gap 30 --output out.bvh \\
       --render out.gif
