@@ -95,7 +95,7 @@ def tiny_contact_checkpoint(tmp_path_factory, cache_dir) -> Path:
 
 
 def _tiny_checkpoint(out: Path, cache_dir: Path, overrides: list[str]) -> Path:
-    from inbetweening.training.jobs import train
+    from inbetweening.training.train import train
 
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):

@@ -96,7 +96,8 @@ def test_cli_exits_2_with_one_line(overrides, match, tmp_path):
 
 
 def test_an_unknown_split_is_one_line_and_exit_2_before_data_loads(tmp_path, capsys):
-    from inbetweening.training.jobs import evaluate, run_cli
+    from inbetweening.training.evaluate import evaluate
+    from inbetweening.training.job import run_cli
 
     # the path does not exist either: the split is checked first, from the spec, before anything is read
     cfg = compose_cfg("eval", ["data=lafan1", "data.split=content", "model=interpolation",

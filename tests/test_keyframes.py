@@ -18,7 +18,8 @@ from inbetweening.evaluation.collect import collect, to_markdown
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.training.callbacks import NonFiniteError
 from inbetweening.training.config import ConfigError, validate
-from inbetweening.training.jobs import evaluate, write_benchmark
+from inbetweening.training.evaluate import evaluate
+from inbetweening.training.job import write_benchmark
 
 FPS = 30.0
 H, S = 5.0, 60.0  # contact height (cm) and speed (cm/s) of the hand-made cases

@@ -22,8 +22,8 @@ from inbetweening.predictor.predictor import Predictor
 from inbetweening.representation import GlobalPosLocalQuat
 from inbetweening.training.builders import make_datamodule, make_module
 from inbetweening.training.config import ConfigError, validate
-from inbetweening.training.jobs import train
 from inbetweening.training.module import InbetweenModule, load_module
+from inbetweening.training.train import train
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL_TINY = {name: model_overrides(name) for name in MODELS}  # every registered model, its declared TINY sizes
@@ -93,7 +93,7 @@ def test_reported_test_metrics_equal_the_checkpoint_scored_by_the_numpy_benchmar
 def test_interpolation_model_matches_numpy_baseline(tmp_path, cache_dir):
     """The torch Interpolation model through the Lightning test loop scores like the numpy reference baseline."""
     torch_metrics, cfg = run_train(tmp_path, cache_dir, BASE + ["model=interpolation"])
-    from inbetweening.training.jobs import evaluate
+    from inbetweening.training.evaluate import evaluate
 
     ecfg = compose_cfg("eval", ["model=interpolation", "data.synthetic.num_clips=10", "data.synthetic.min_frames=120",
                                 "data.synthetic.max_frames=160"], tmp_path / "eval", cache_dir)
