@@ -176,19 +176,18 @@ def _check_protocol(cfg) -> None:
 
 
 def check_schedules(key: str, ks, allow_empty: bool) -> None:
-    """Keyframes-protocol schedules: distinct entries, each an interval ``K >= 2`` (a key every ``K`` frames) or a
-    keypose schedule name (:data:`inbetweening.evaluation.keyframes.SCHEDULES`)."""
-    from inbetweening.evaluation.keyframes import SCHEDULES
+    """Keyframes-protocol schedules: distinct entries, each one :func:`inbetweening.evaluation.schedules.
+    check_schedule` accepts (an interval ``K >= 2``, a key every ``K`` frames, or a keypose schedule's name)."""
+    from inbetweening.evaluation.schedules import MIN_INTERVAL, SCHEDULES, check_schedule
 
     if isinstance(ks, (str, bytes)) or not hasattr(ks, "__len__") or (len(ks) == 0 and not allow_empty):
-        raise ConfigError(f"{key}: must be a non-empty list of intervals >= 2 and schedules {list(SCHEDULES)} "
-                          f"(e.g. [5, 15, 30, 45, random, extremes]), got {ks!r}")
+        raise ConfigError(f"{key}: must be a non-empty list of intervals >= {MIN_INTERVAL} and schedules "
+                          f"{list(SCHEDULES)} (e.g. [5, 15, 30, 45, random, extremes]), got {ks!r}")
     for k in ks:
-        if isinstance(k, str) and k in SCHEDULES:
-            continue
-        if isinstance(k, bool) or not isinstance(k, int) or k < 2:
-            raise ConfigError(f"{key}: intervals must be integers >= 2 (a keyframe every K frames) or one of "
-                              f"{list(SCHEDULES)}, got {k!r}")
+        try:
+            check_schedule(k)
+        except ValueError as e:
+            raise ConfigError(f"{key}: {e}") from None
     if len(set(ks)) != len(ks):
         raise ConfigError(f"{key}: an interval is listed twice in {list(ks)}")
 
