@@ -21,6 +21,7 @@ from inbetweening.data import windows as W
 from inbetweening.data.bvh_folder import FolderOptions
 from inbetweening.data.datasets import MotionData, load_dataset
 from inbetweening.predictor.masks import JointGaps
+from inbetweening.predictor.settings import PredictorSettings
 from inbetweening.training.sampling import (
     EpochPermutation,
     IndexDataset,
@@ -213,13 +214,11 @@ class InbetweenDataModule(L.LightningDataModule):
         return self.data.skeleton
 
     def model_kwargs(self) -> dict:
-        """Plain values the LightningModule needs from the data (skeleton, statistics, name)."""
-        d = self.data
-        return {"skeleton": d.skeleton.to_dict(), "pos_mean": d.pos_mean.tolist(), "pos_std": d.pos_std.tolist(),
-                "dataset": d.name, "forward_axis": list(d.forward_axis), "fps": float(d.fps),
-                "contact": d.contact.to_dict(), "convention": d.convention.to_dict(),
-                "train_window": int(self.hparams.train_window), "val_lengths": list(self.hparams.val_lengths),
-                "test_lengths": list(self.hparams.test_lengths)}
+        """Plain values the LightningModule needs from the data: the predictor's settings the data decides
+        (:meth:`~inbetweening.predictor.settings.PredictorSettings.from_data`: skeleton, statistics, name, conventions,
+        training window) and the benchmark lengths."""
+        return {**PredictorSettings.from_data(self.data, self.hparams.train_window),
+                "val_lengths": list(self.hparams.val_lengths), "test_lengths": list(self.hparams.test_lengths)}
 
     # ------------------------------------------------------------------ batches
     def collate_train(self, items: list) -> dict:

@@ -14,7 +14,6 @@ import lightning as L
 import numpy as np
 import torch
 
-from inbetweening.data.windows import N_PAST
 from inbetweening.evaluation.metrics import BenchmarkMetric, PerJointError
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor.checkpoint import (
@@ -26,10 +25,12 @@ from inbetweening.predictor.checkpoint import (
 )
 from inbetweening.predictor.masks import JointGaps
 from inbetweening.predictor.predictor import LEGACY_CENTRE, Predictor
-from inbetweening.representation import DEFAULT_REPRESENTATION
+from inbetweening.predictor.settings import PredictorSettings
 from inbetweening.training.losses import total_loss
 from inbetweening.training.schedules import build_optimizers, upgrade_optim
 from inbetweening.training.tb_logging import tb_scalars
+
+_DEFAULT = PredictorSettings.defaults()  # the predictor's settings take the defaults they persist with
 
 
 class InbetweenModule(L.LightningModule):
@@ -69,20 +70,20 @@ class InbetweenModule(L.LightningModule):
         skeleton: dict,
         pos_mean: Sequence[float],
         pos_std: Sequence[float],
-        mask: str | Mapping = "lerp",
+        mask: str | Mapping = _DEFAULT["mask"],
         loss: dict | None = None,
         optim: dict | None = None,
         val_lengths: Sequence[int] = (5, 15, 30),
         test_lengths: Sequence[int] = (5, 15, 30, 45),
-        dataset: str = "",
-        n_past: int = N_PAST,
-        forward_axis: Sequence[float] = (0.0, 1.0, 0.0),
-        fps: float = 30.0,
-        train_window: int = 50,
+        dataset: str = _DEFAULT["dataset"],
+        n_past: int = _DEFAULT["n_past"],
+        forward_axis: Sequence[float] = _DEFAULT["forward_axis"],
+        fps: float = _DEFAULT["fps"],
+        train_window: int = _DEFAULT["train_window"],
         joint_mask: dict | None = None,
         *,
         centre: str,
-        representation: str = DEFAULT_REPRESENTATION,
+        representation: str = _DEFAULT["representation"],
         score_stats: dict | None = None,
         contact: dict | None = None,
         convention: dict | None = None,
