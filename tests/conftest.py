@@ -34,11 +34,12 @@ def tiny_adjacency(parents=TINY_PARENTS) -> list[list[float]]:
 
 
 def tiny_model(name: str, **kw):
-    """``MODELS[name]`` with its TINY sizes on the 6-joint test skeleton, ``max_frames=16``, no dropout; ``kw`` wins."""
+    """``MODELS[name]`` with its TINY sizes on the 6-joint test skeleton, ``max_frames=16``, no dropout, predicting
+    frames (not a correction to the interpolation: the output head keeps its random start); ``kw`` wins."""
     from inbetweening.models import MODELS
 
     args = {"num_joints": len(TINY_PARENTS), "adjacency": tiny_adjacency(), "max_frames": TINY_MAX_FRAMES,
-            "dropout": 0.0, **MODELS[name].TINY}
+            "dropout": 0.0, "residual_to_interpolation": False, **MODELS[name].TINY}
     return MODELS[name](**{**args, **kw})
 
 

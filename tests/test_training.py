@@ -351,7 +351,8 @@ def test_the_canonical_frame_removes_the_window_centring_leak(centre):
     torch.manual_seed(0)
     sk = Skeleton(NAMES, PARENTS, OFFSETS)
     mean, std = np.zeros(66), np.full(66, 50.0)
-    module = InbetweenModule(model={"name": "graph_transformer", "d_model": 16, "depth": 1, "heads": 2, "dropout": 0.0},
+    module = InbetweenModule(model={"name": "graph_transformer", "d_model": 16, "depth": 1, "heads": 2, "dropout": 0.0,
+                                    "residual_to_interpolation": False},
                              skeleton=sk.to_dict(), pos_mean=mean.tolist(), pos_std=std.tolist(), centre=centre).eval()
     with torch.no_grad():  # a non-trivial head so the prediction depends on the input
         module.net.out_weight.normal_(0, 0.3)
