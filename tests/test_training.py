@@ -402,7 +402,7 @@ def test_recipe_levers_train_end_to_end_and_report_keyframes_and_ratios(tmp_path
     """Clip sampling every 2 frames, mirroring, 1-10 context frames, intermediate keyframes, centre=last: the run
     trains, and benchmark.json holds the interpolation reference and the keyframes-only figures."""
     over = BASE + MODEL_TINY["graph_transformer"] + [
-        "data.sampling=clips", "data.train_offset=2", "data.mirror=true", "data.context_min=1",
+        "data.train_offset=2", "data.mirror=true", "data.context_min=1",
         "data.keyframes_max=2", "data.keyframe_prob=0.5", "centre=last", "test_keyframes=[5]", "threads=1",
         "model.inputs=[rot6d,velocity]", "loss.keyframe=0.5"]
     threads = torch.get_num_threads()

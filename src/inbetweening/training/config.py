@@ -268,10 +268,7 @@ def validate(cfg: DictConfig) -> None:
 
 
 def _check_task(cfg: DictConfig) -> None:
-    """The training task's options: sampling, context range, intermediate keyframes, mirroring."""
-    sampling = _get(cfg, "data.sampling", "windows")
-    if sampling not in ("windows", "clips"):
-        raise ConfigError(f"data.sampling: must be 'windows' or 'clips', got {sampling!r}")
+    """The training task's options: context range, intermediate keyframes, time warp."""
     cmin, cmax = int(_get(cfg, "data.context_min", N_PAST)), int(_get(cfg, "data.context_max", N_PAST))
     if not 1 <= cmin <= cmax <= N_PAST:
         raise ConfigError(f"data.context_min/max: need 1 <= min <= max <= {N_PAST}, got {cmin}..{cmax}")
@@ -280,8 +277,6 @@ def _check_task(cfg: DictConfig) -> None:
     prob = float(_get(cfg, "data.keyframe_prob", 0.0))
     if not 0.0 <= prob <= 1.0:
         raise ConfigError(f"data.keyframe_prob: must be in [0, 1], got {prob}")
-    if _get(cfg, "data.mirror", False) and sampling != "clips":
-        raise ConfigError("data.mirror: mirroring needs data.sampling=clips (windows are mirrored before normalising)")
     speed = _get(cfg, "data.speed", None)
     if speed is not None:
         try:
@@ -290,5 +285,3 @@ def _check_task(cfg: DictConfig) -> None:
             raise ConfigError(f"data.speed: must be null or [lo, hi] with 1 <= lo <= hi, got {speed!r}") from None
         if not 1.0 <= lo <= hi or hi > 4.0:
             raise ConfigError(f"data.speed: need 1 <= lo <= hi <= 4 (play-back faster than recorded), got {[lo, hi]}")
-        if sampling != "clips":
-            raise ConfigError("data.speed: the time warp needs data.sampling=clips (windows are cut from the clips)")

@@ -79,17 +79,13 @@ class InbetweenDataModule(L.LightningDataModule):
         transition_min, transition_max, transition_per: transition lengths drawn for training batches
             (per ``batch`` or per ``sample``).
         train_window, train_offset: training windows (frames, stride).
-        sampling: ``windows`` or ``clips``: both cut the windows from the clips per batch (the names of the two
-            former modes, kept so configs and recorded commands still compose; ``mirror`` and ``speed`` need
-            ``clips``).
         context_min, context_max: context frames per training sample (``10, 10``: the benchmark's; ``1, 10``
             trains for keyframes alone too).
         keyframes_max, keyframe_prob: with probability ``keyframe_prob`` a sample gets ``1..keyframes_max`` extra
             known frames inside its transition.
-        mirror: mirror each training window left/right with probability 0.5 (the dataset's mirror map; ``sampling:
-            clips``).
+        mirror: mirror each training window left/right with probability 0.5 (the dataset's mirror map).
         speed: ``[lo, hi]`` play each training window at a speed drawn uniformly in that range (time warp: faster
-            versions of the training motions; ``sampling: clips``; capped where the clip ends); ``None``: off.
+            versions of the training motions; capped where the clip ends); ``None``: off.
         val_lengths, test_lengths: transition lengths the validation and test benchmarks score (passed on to
             the LightningModule by :meth:`model_kwargs`).
         max_train_windows, max_eval_windows, max_val_windows: caps for quick runs (``None``: all windows;
@@ -127,7 +123,6 @@ class InbetweenDataModule(L.LightningDataModule):
         transition_per: str,
         train_window: int,
         train_offset: int,
-        sampling: str,
         context_min: int,
         context_max: int,
         keyframes_max: int,
