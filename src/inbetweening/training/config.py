@@ -1,7 +1,9 @@
 """Configuration checks that run before any data is loaded: one clear line per problem."""
 from __future__ import annotations
 
+import importlib
 import inspect
+import types
 
 from omegaconf import DictConfig
 
@@ -55,15 +57,41 @@ def _check_model(cfg, name: str) -> None:
         raise ConfigError(str(e)) from None
 
 
-def _resolve(cfg, key: str):
-    """The object ``<key>._target_`` names, found as ``hydra.utils.instantiate`` finds it (without its error log)."""
-    from hydra._internal.utils import _locate
+def locate(path: str):
+    """The object a dotted ``path`` names (``torch.optim.AdamW``, ``package.module.function``), found the way
+    ``hydra.utils.instantiate`` finds a ``_target_``: import the first name, then take each further name as an
+    attribute, or, of a module that has no such attribute, import it as a submodule; ImportError when that fails
+    (ValueError for a path with an empty name, ``a..b``).
+    (``hydra.utils.get_object`` does the same but logs an error first; here a failure is the caller's one line.)"""
+    parts = str(path).split(".")
+    if not path:
+        raise ImportError("empty path")
+    if not all(parts):
+        raise ValueError(f"{path!r} is not a dotted path (relative imports are not supported)")
+    try:
+        obj = importlib.import_module(parts[0])
+    except Exception as e:  # noqa: BLE001 - whatever the import raised
+        raise ImportError(f"cannot import {parts[0]!r}: {e!r}") from e
+    for i, name in enumerate(parts[1:], start=2):
+        try:
+            obj = getattr(obj, name)
+        except AttributeError as e:
+            if not isinstance(obj, types.ModuleType):
+                raise ImportError(f"{'.'.join(parts[:i - 1])!r} has no attribute {name!r}") from e
+            try:
+                obj = importlib.import_module(".".join(parts[:i]))
+            except Exception as e2:  # noqa: BLE001 - whatever the import raised
+                raise ImportError(f"cannot import {'.'.join(parts[:i])!r}: {e2!r}") from e2
+    return obj
 
+
+def _resolve(cfg, key: str):
+    """The object ``<key>._target_`` names (:func:`locate`)."""
     target = _get(cfg, f"{key}._target_")
     if target is None:
         raise ConfigError(f"{key}._target_: missing")
     try:
-        return _locate(str(target))
+        return locate(str(target))
     except Exception as e:  # noqa: BLE001 - whatever the import raised, the key is the message
         raise ConfigError(f"{key}._target_: cannot import {target!r} ({type(e).__name__})") from None
 

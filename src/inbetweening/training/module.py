@@ -179,9 +179,17 @@ class InbetweenModule(L.LightningModule):
     def forward_axis(self) -> tuple[float, ...]:
         return self.predictor.forward_axis
 
+    def _attached_trainer(self) -> L.Trainer | None:
+        """The trainer running this module, ``None`` outside a fit or test (where Lightning's ``trainer`` raises)."""
+        try:
+            return self.trainer
+        except RuntimeError:
+            return None
+
     @property
     def _distributed(self) -> bool:
-        return self._trainer is not None and self.trainer.world_size > 1
+        trainer = self._attached_trainer()
+        return trainer is not None and trainer.world_size > 1
 
     @property
     def trainable(self) -> bool:
@@ -336,9 +344,9 @@ class InbetweenModule(L.LightningModule):
         """Optimiser steps of the whole run, as ``Trainer.estimated_stepping_batches`` counts them, but without
         building the training loader early: that would happen before a resumed run restores the loader's
         position, and the resumed epoch would restart from its first batch."""
-        if self._trainer is None:
+        t = self._attached_trainer()
+        if t is None:
             return 1
-        t = self.trainer
         dm = t.datamodule
         per_epoch = getattr(dm, "steps_per_epoch", None)
         if per_epoch is None or t.limit_train_batches != 1.0:
