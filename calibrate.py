@@ -5,7 +5,8 @@ correction to the interpolation (src/inbetweening/predictor/calibration.py)."""
 import hydra
 from omegaconf import DictConfig
 
-from inbetweening.training.jobs import calibrate, run_cli
+from inbetweening.training.calibrate import calibrate
+from inbetweening.training.job import run_cli
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="calibrate")

@@ -5,7 +5,8 @@ Writes benchmark.json into the run directory (hydra.run.dir=... to choose it).""
 import hydra
 from omegaconf import DictConfig
 
-from inbetweening.training.jobs import evaluate, run_cli
+from inbetweening.training.evaluate import evaluate
+from inbetweening.training.job import run_cli
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="eval")

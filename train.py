@@ -2,7 +2,8 @@
 import hydra
 from omegaconf import DictConfig
 
-from inbetweening.training.jobs import run_cli, train
+from inbetweening.training.job import run_cli
+from inbetweening.training.train import train
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="train")

@@ -47,11 +47,12 @@ def draw(ib, root: np.ndarray, q: np.ndarray, every: int, title: str, fps: float
     over the generated frames where the ground truth's feet are planted."""
     from inbetweening.data.contacts import foot_contacts, planted_frames
     from inbetweening.evaluation import keyframes as KF
-    from inbetweening.runtime.foot_lock import THRESHOLD
+    from inbetweening.data.contacts import CONTACT_THRESHOLD as THRESHOLD
+    from inbetweening.evaluation.schedules import keyframe_indices
     from inbetweening.tools.skeleton_plot import draw_sequences
 
     fps = float(fps or ib.fps)
-    keys = KF.keyframe_indices(len(root), every)
+    keys = keyframe_indices(len(root), every)
     if not keys:
         raise SystemExit(f"the clip has {len(root)} frames: too short for keys every {every} frames")
     n = keys[-1] + 1

@@ -33,8 +33,9 @@ def main(argv=None) -> None:
     from inbetweening.data.contacts import planted_frames
     from inbetweening.data.datasets import load_dataset
     from inbetweening.evaluation import keyframes as KF
+    from inbetweening.evaluation.schedules import keyframe_indices
     from inbetweening.geometry.interp import interpolate_keyframes
-    from inbetweening.runtime.foot_lock import THRESHOLD
+    from inbetweening.data.contacts import CONTACT_THRESHOLD as THRESHOLD
     from inbetweening.tools.inbetweener import Inbetweener
     from inbetweening.tools.render import render_gif, render_png
 
@@ -43,7 +44,7 @@ def main(argv=None) -> None:
     if clip is None:
         raise SystemExit(f"--clip: no test clip {a.clip!r} in the content split (e.g. {data.test[0].name})")
     n = min(a.frames, len(clip.root_pos))
-    keys = KF.keyframe_indices(n, a.every)
+    keys = keyframe_indices(n, a.every)
     n = keys[-1] + 1
     root, q = np.asarray(clip.root_pos[:n], np.float64), np.asarray(clip.local_q[:n], np.float64)
     gen = KF.generated_frames(n, keys)

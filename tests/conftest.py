@@ -34,11 +34,12 @@ def tiny_adjacency(parents=TINY_PARENTS) -> list[list[float]]:
 
 
 def tiny_model(name: str, **kw):
-    """``MODELS[name]`` with its TINY sizes on the 6-joint test skeleton, ``max_frames=16``, no dropout; ``kw`` wins."""
+    """``MODELS[name]`` with its TINY sizes on the 6-joint test skeleton, ``max_frames=16``, no dropout, predicting
+    frames (not a correction to the interpolation: the output head keeps its random start); ``kw`` wins."""
     from inbetweening.models import MODELS
 
     args = {"num_joints": len(TINY_PARENTS), "adjacency": tiny_adjacency(), "max_frames": TINY_MAX_FRAMES,
-            "dropout": 0.0, **MODELS[name].TINY}
+            "dropout": 0.0, "residual_to_interpolation": False, **MODELS[name].TINY}
     return MODELS[name](**{**args, **kw})
 
 
@@ -95,7 +96,7 @@ def tiny_contact_checkpoint(tmp_path_factory, cache_dir) -> Path:
 
 
 def _tiny_checkpoint(out: Path, cache_dir: Path, overrides: list[str]) -> Path:
-    from inbetweening.training.jobs import train
+    from inbetweening.training.train import train
 
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):

@@ -69,7 +69,7 @@ def test_checkpointed_layers_give_the_same_output_and_gradients(dropout):
     for ck in (False, True):
         torch.manual_seed(0)
         m = GraphTransformer(5, SK.adjacency().tolist(), d_model=8, depth=2, heads=2, dropout=dropout,
-                             checkpoint_layers=ck).train()
+                             checkpoint_layers=ck, residual_to_interpolation=False).train()
         torch.manual_seed(1)
         x = torch.randn(3, 6, 5, 7)
         known = torch.zeros(3, 6, 5, dtype=torch.bool)

@@ -200,7 +200,8 @@ def test_bvh_keys_are_refused_by_the_named_datasets(tmp_path):
 
 
 def test_cli_error_is_one_line_with_exit_2(tmp_path, cache_dir, capsys):
-    from inbetweening.training.jobs import run_cli, train
+    from inbetweening.training.job import run_cli
+    from inbetweening.training.train import train
 
     (tmp_path / "empty").mkdir()
     cfg = compose_cfg("train", ["data=bvh", f"data.path={tmp_path / 'empty'}", "logger=none", "callbacks=none"],
@@ -256,7 +257,8 @@ def test_another_rig_end_to_end(rig, tmp_path, cache_dir):
 
 def test_init_from_another_skeleton_is_one_line(rig, tmp_path, cache_dir, tiny_checkpoint, capsys):
     """Fine-tuning the synthetic 22-joint model on the other rig (20 joints): one line naming both skeletons."""
-    from inbetweening.training.jobs import run_cli, train
+    from inbetweening.training.job import run_cli
+    from inbetweening.training.train import train
 
     cfg = compose_cfg("train", ["experiment=finetune", "data=bvh", f"data.path={rig}", f"init_from='{tiny_checkpoint}'",
                                 "logger=none", "callbacks=none"], tmp_path / "run", cache_dir)

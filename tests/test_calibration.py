@@ -16,7 +16,7 @@ from inbetweening.data import windows as W
 from inbetweening.data.datasets import load_dataset
 from inbetweening.predictor.calibration import calibrated_checkpoint, fit_blend, gap_range
 from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint
-from inbetweening.training.jobs import calibrate
+from inbetweening.training.calibrate import calibrate
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = [o for o in TINY if o.startswith("data.")]
@@ -102,7 +102,8 @@ def test_calibrate_cli_refuses_to_overwrite_its_input_and_needs_a_checkpoint(tin
 
 
 def test_train_calibrates_the_best_checkpoint_tests_it_and_eval_reproduces_it(tmp_path, cache_dir):
-    from inbetweening.training.jobs import evaluate, train
+    from inbetweening.training.evaluate import evaluate
+    from inbetweening.training.train import train
 
     over = [o for o in TINY if "max_steps" not in o] + [
         "callbacks=default", "callbacks.progress_bar=null", "callbacks.skeleton_figure=null", "logger=none",

@@ -325,7 +325,7 @@ def test_eval_and_the_data_module_on_the_content_split(tmp_path, capsys):
     from conftest import compose_cfg
     from inbetweening.training.builders import make_datamodule
     from inbetweening.training.datamodule import split_train_val
-    from inbetweening.training.jobs import evaluate
+    from inbetweening.training.evaluate import evaluate
 
     zpath = write_bn_zip(tmp_path / "bn.zip", takes=(9, 10, 11, 20), frames=110, contents=BN_CONTENTS)
     over = ["data=bandai_namco", f"data.path={zpath}", "data.split=content", "model=interpolation",

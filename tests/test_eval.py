@@ -21,8 +21,9 @@ from inbetweening.data.synthetic import generate_dataset
 from inbetweening.evaluation import benchmark as B
 from inbetweening.predictor.checkpoint import CheckpointError
 from inbetweening.predictor.predictor import Predictor
-from inbetweening.training.jobs import evaluate, train
+from inbetweening.training.evaluate import evaluate
 from inbetweening.training.module import load_module
+from inbetweening.training.train import train
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = [o for o in TINY if o.startswith("data.")]

@@ -11,7 +11,8 @@ import torch
 
 from conftest import TINY, compose_cfg
 from inbetweening.training.callbacks import NonFiniteError
-from inbetweening.training.jobs import train, write_benchmark
+from inbetweening.training.job import write_benchmark
+from inbetweening.training.train import train
 
 ROOT = Path(__file__).resolve().parents[1]
 DIVERGE = [o for o in TINY if "max_steps" not in o] + [

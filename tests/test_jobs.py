@@ -1,5 +1,6 @@
-"""The jobs behind train.py / eval.py (``inbetweening.training.jobs``): faults that must be one line and exit 2, and
-configurations that must compose, as a table run through the real command line."""
+"""The jobs behind train.py / eval.py (``inbetweening.training.train``, ``.evaluate``, ``.calibrate``, ``.job``):
+faults that must be one line and exit 2, and configurations that must compose, as a table run through the real
+command line."""
 from __future__ import annotations
 
 import subprocess
@@ -63,7 +64,8 @@ def test_init_from_starts_from_the_checkpoints_network_and_weights(tiny_checkpoi
     """With no step trained, a run started from a checkpoint scores exactly what eval.py scores for that checkpoint,
     whatever the config's model group says (the checkpoint's network is built, its weights loaded)."""
     from conftest import compose_cfg
-    from inbetweening.training.jobs import evaluate, train
+    from inbetweening.training.evaluate import evaluate
+    from inbetweening.training.train import train
 
     data = [o for o in TINY_CKPT_OVERRIDES if o.startswith("data.")]
     cfg = compose_cfg("train", ["experiment=finetune", "model=unet1d", *data, f"init_from='{tiny_checkpoint}'",
@@ -83,7 +85,7 @@ def test_init_stats_picks_the_datas_statistics_by_default_or_the_checkpoints(ini
 
     from conftest import compose_cfg
     from inbetweening.training.builders import make_datamodule, make_module
-    from inbetweening.training.jobs import start_from
+    from inbetweening.training.train import start_from
 
     ckpt = torch.load(tiny_checkpoint, map_location="cpu", weights_only=False)
     ckpt["hyper_parameters"]["pos_mean"] = [v + 7.0 for v in ckpt["hyper_parameters"]["pos_mean"]]
@@ -106,7 +108,7 @@ def test_init_from_of_another_skeleton_names_both(tmp_path, cache_dir):
     from conftest import compose_cfg
     from inbetweening.predictor.checkpoint import CheckpointError
     from inbetweening.training.builders import make_datamodule
-    from inbetweening.training.jobs import start_from
+    from inbetweening.training.train import start_from
 
     other = tmp_path / "other.ckpt"
     torch.save({"hyper_parameters": {"model": {"name": "interpolation"}, "skeleton": {
@@ -137,7 +139,7 @@ def test_every_job_takes_threads(config, tmp_path):
 
     from conftest import compose_cfg
     from inbetweening.training.config import ConfigError, validate
-    from inbetweening.training.jobs import use_threads
+    from inbetweening.training.job import use_threads
 
     cfg = compose_cfg(config, ["threads=1"], tmp_path, tmp_path)
     validate(cfg)

@@ -14,11 +14,13 @@ from inbetweening.data.datasets import spec_contact
 from inbetweening.data.errors import DatasetError
 from inbetweening.data.specs import DATASETS, DatasetSpec, lafan_split
 from inbetweening.evaluation import keyframes as KF
+from inbetweening.evaluation import schedules as SCH
 from inbetweening.evaluation.collect import collect, to_markdown
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.training.callbacks import NonFiniteError
 from inbetweening.training.config import ConfigError, validate
-from inbetweening.training.jobs import evaluate, write_benchmark
+from inbetweening.training.evaluate import evaluate
+from inbetweening.training.job import write_benchmark
 
 FPS = 30.0
 H, S = 5.0, 60.0  # contact height (cm) and speed (cm/s) of the hand-made cases
@@ -33,10 +35,10 @@ def _yaw(deg) -> np.ndarray:
 
 # ------------------------------------------------------------------ pure functions
 def test_keyframe_indices_truncate_to_the_last_key():
-    assert KF.keyframe_indices(10, 3) == [0, 3, 6, 9]
-    assert KF.keyframe_indices(12, 3) == [0, 3, 6, 9]  # frames 10, 11 are cut: the last frame is a key
-    assert KF.keyframe_indices(46, 45) == [0, 45]
-    assert KF.keyframe_indices(45, 45) == []  # too short for two keys
+    assert SCH.keyframe_indices(10, 3) == [0, 3, 6, 9]
+    assert SCH.keyframe_indices(12, 3) == [0, 3, 6, 9]  # frames 10, 11 are cut: the last frame is a key
+    assert SCH.keyframe_indices(46, 45) == [0, 45]
+    assert SCH.keyframe_indices(45, 45) == []  # too short for two keys
     np.testing.assert_array_equal(KF.generated_frames(7, [0, 3, 6]), [0, 1, 1, 0, 1, 1, 0])
     np.testing.assert_array_equal(KF.scored_pairs(np.array([0, 1, 0, 0, 1, 0], bool)), [1, 1, 0, 1, 1])
 
@@ -245,14 +247,14 @@ def test_eval_keyframes_protocol_end_to_end(tiny_checkpoint, tmp_path, cache_dir
 
 # ------------------------------------------------------------------ keypose schedules
 def test_random_schedule_draws_gaps_in_range_and_is_seeded():
-    keys = KF.random_keyframes(400, np.random.default_rng(1))
+    keys = SCH.random_keyframes(400, np.random.default_rng(1))
     gaps = np.diff(keys)
     assert keys[0] == 0 and keys[-1] <= 399 and 399 - keys[-1] < 45  # cut after the last key that fits
     assert gaps.min() >= 3 and gaps.max() <= 45 and len(set(gaps.tolist())) > 3
-    assert keys == KF.random_keyframes(400, np.random.default_rng(1))
-    assert keys != KF.random_keyframes(400, np.random.default_rng(2))
-    assert KF.random_keyframes(3, np.random.default_rng(0), gaps=(3, 3)) == []  # no second key fits in 3 frames
-    assert KF.random_keyframes(4, np.random.default_rng(0), gaps=(3, 3)) == [0, 3]
+    assert keys == SCH.random_keyframes(400, np.random.default_rng(1))
+    assert keys != SCH.random_keyframes(400, np.random.default_rng(2))
+    assert SCH.random_keyframes(3, np.random.default_rng(0), gaps=(3, 3)) == []  # no second key fits in 3 frames
+    assert SCH.random_keyframes(4, np.random.default_rng(0), gaps=(3, 3)) == [0, 3]
 
 
 def test_extremes_are_the_speed_minima_at_least_8_apart_and_long_gaps_split():
@@ -260,20 +262,20 @@ def test_extremes_are_the_speed_minima_at_least_8_apart_and_long_gaps_split():
     t = np.arange(101)
     x = np.sin(2 * np.pi * t / 20)
     pos = np.stack([x, 0 * x, 0 * x], -1)[:, None, :]
-    keys = KF.extreme_keyframes(pos)
+    keys = SCH.extreme_keyframes(pos)
     assert keys[0] == 0 and keys[-1] == 100
     turning = [5 + 10 * i for i in range(10)]
     assert set(keys[1:-1]) <= set(turning) and len(keys) >= 10  # at the turns (>= 8 apart: all of them fit)
     assert np.diff(keys).min() >= 5  # only the end frames may sit closer than 8 to a turn
     # a motion that never slows: no minimum, so only the ends, then the 45-frame split (equal parts)
     still = np.stack([t * 1.0, 0 * t, 0 * t], -1)[:, None, :]
-    assert KF.extreme_keyframes(still) == [0, 33, 67, 100]
-    assert KF.extreme_keyframes(still[:40]) == [0, 39]
+    assert SCH.extreme_keyframes(still) == [0, 33, 67, 100]
+    assert SCH.extreme_keyframes(still[:40]) == [0, 39]
     # minima closer than 8 frames: the slower one wins
     speed_dips = np.ones(60)
     speed_dips[[20, 24]] = [0.2, 0.1]
     pos = np.cumsum(speed_dips)[:, None, None] * np.array([1.0, 0, 0])
-    assert KF.extreme_keyframes(pos, max_gap=100) == [0, 24, 59]
+    assert SCH.extreme_keyframes(pos, max_gap=100) == [0, 24, 59]
 
 
 def test_schedules_run_through_the_protocol_and_are_named_rows():
@@ -290,7 +292,7 @@ def test_schedules_run_through_the_protocol_and_are_named_rows():
     other = KF.evaluate_clips(clips, SKEL, None, ["random"], FPS, FEET, seed=4)
     assert other["random"]["n_frames"] != res["random"]["n_frames"]
     with pytest.raises(ValueError, match="unknown keyframe schedule 'grid'"):
-        KF.schedule_keyframes("grid", 100, np.random.default_rng(0))
+        SCH.schedule_keyframes("grid", 100, np.random.default_rng(0))
 
 
 @pytest.mark.parametrize("value, ok", [("[5,random,extremes]", True), ("[random]", True), ("[bogus]", False),

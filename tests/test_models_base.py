@@ -2,6 +2,7 @@
 declares: a new model is one module + one conf/model yaml + one registry line, and these tests find it."""
 from __future__ import annotations
 
+import inspect
 import warnings
 from pathlib import Path
 
@@ -42,6 +43,31 @@ def test_registry_and_model_configs_match():
     """Every registry entry has a conf/model/<name>.yaml naming it, and every yaml a registry entry."""
     yamls = {p.stem for p in (Path(CONF_DIR) / "model").glob("*.yaml")}
     assert yamls == set(MODELS)
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_model_yaml_restates_the_code_defaults(name):
+    """conf/model/<name>.yaml and the code never disagree: every value the yaml gives (the common arguments of
+    :class:`InbetweenModel` and the model's own) is the constructor's default; the common arguments and their
+    defaults are written once, in ``InbetweenModel.__init__`` (a model states only a default of its own)."""
+    from omegaconf import OmegaConf
+
+    yaml = OmegaConf.to_container(OmegaConf.load(Path(CONF_DIR) / "model" / f"{name}.yaml"))
+    yaml.pop("name")
+    defaults = MODELS[name].settings()
+    plain = {k: list(v) if isinstance(v, tuple) else v for k, v in defaults.items()}
+    assert {k: plain[k] for k in yaml} == yaml
+    common = InbetweenModel.common_settings()
+    if MODELS[name].trainable:
+        assert set(common) - {"layout"} <= set(defaults)
+    restated = set(inspect.signature(MODELS[name].__init__).parameters) & set(common)
+    assert restated <= {"dropout"}, f"{name} restates common arguments {sorted(restated)} (only dropout's default differs)"
+
+
+@pytest.mark.parametrize("name", [n for n in ALL if MODELS[n].trainable])
+def test_unknown_constructor_arguments_are_a_type_error(name):
+    with pytest.raises(TypeError, match="unexpected keyword argument 'depht'"):
+        tiny_model(name, depht=3)
 
 
 @pytest.mark.parametrize("name", ALL)

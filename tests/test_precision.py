@@ -12,8 +12,8 @@ from inbetweening.models import MODELS
 from inbetweening.predictor.masks import apply_mask
 from inbetweening.representation import GlobalPosLocalQuat
 from inbetweening.training.config import ConfigError, validate
-from inbetweening.training.jobs import train
 from inbetweening.training.module import InbetweenModule
+from inbetweening.training.train import train
 
 BASE = [*TINY, "callbacks=none", "logger=none", "threads=1"]
 

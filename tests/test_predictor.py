@@ -31,7 +31,7 @@ SK = Skeleton(("root", "spine", "head", "leg"), (-1, 0, 1, 0),
 MEAN = np.linspace(-1, 1, 12)
 STD = np.array([2.0, 1.0, 3.0, 0.5, 1.5, 4.0, 1.0, 2.5, 0.25, 3.0, 1.0, 0.75])
 MODEL = {"name": "frame_transformer", "d_model": 16, "depth": 1, "heads": 2, "ffn_dim": 16, "dropout": 0.0,
-         "max_frames": 64}
+         "max_frames": 64, "residual_to_interpolation": False}
 
 
 def hparams(**kw) -> dict:

@@ -20,8 +20,8 @@ import torch
 from conftest import TINY, compose_cfg
 from inbetweening.training.builders import make_datamodule, make_module
 from inbetweening.training.figures import frames_to_draw, per_joint_figure, transition_figure
-from inbetweening.training.jobs import train
 from inbetweening.training.tb_logging import curated_hparams, hparams_metrics, resumed_version, run_label, tb_scalars
+from inbetweening.training.train import train
 
 ROOT = Path(__file__).resolve().parents[1]
 FIT = [o for o in TINY if "max_steps" not in o and "max_epochs" not in o] + [

@@ -22,8 +22,8 @@ from inbetweening.predictor.predictor import Predictor
 from inbetweening.representation import GlobalPosLocalQuat
 from inbetweening.training.builders import make_datamodule, make_module
 from inbetweening.training.config import ConfigError, validate
-from inbetweening.training.jobs import train
 from inbetweening.training.module import InbetweenModule, load_module
+from inbetweening.training.train import train
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL_TINY = {name: model_overrides(name) for name in MODELS}  # every registered model, its declared TINY sizes
@@ -93,7 +93,7 @@ def test_reported_test_metrics_equal_the_checkpoint_scored_by_the_numpy_benchmar
 def test_interpolation_model_matches_numpy_baseline(tmp_path, cache_dir):
     """The torch Interpolation model through the Lightning test loop scores like the numpy reference baseline."""
     torch_metrics, cfg = run_train(tmp_path, cache_dir, BASE + ["model=interpolation"])
-    from inbetweening.training.jobs import evaluate
+    from inbetweening.training.evaluate import evaluate
 
     ecfg = compose_cfg("eval", ["model=interpolation", "data.synthetic.num_clips=10", "data.synthetic.min_frames=120",
                                 "data.synthetic.max_frames=160"], tmp_path / "eval", cache_dir)
@@ -351,7 +351,8 @@ def test_the_canonical_frame_removes_the_window_centring_leak(centre):
     torch.manual_seed(0)
     sk = Skeleton(NAMES, PARENTS, OFFSETS)
     mean, std = np.zeros(66), np.full(66, 50.0)
-    module = InbetweenModule(model={"name": "graph_transformer", "d_model": 16, "depth": 1, "heads": 2, "dropout": 0.0},
+    module = InbetweenModule(model={"name": "graph_transformer", "d_model": 16, "depth": 1, "heads": 2, "dropout": 0.0,
+                                    "residual_to_interpolation": False},
                              skeleton=sk.to_dict(), pos_mean=mean.tolist(), pos_std=std.tolist(), centre=centre).eval()
     with torch.no_grad():  # a non-trivial head so the prediction depends on the input
         module.net.out_weight.normal_(0, 0.3)
@@ -401,7 +402,7 @@ def test_recipe_levers_train_end_to_end_and_report_keyframes_and_ratios(tmp_path
     """Clip sampling every 2 frames, mirroring, 1-10 context frames, intermediate keyframes, centre=last: the run
     trains, and benchmark.json holds the interpolation reference and the keyframes-only figures."""
     over = BASE + MODEL_TINY["graph_transformer"] + [
-        "data.sampling=clips", "data.train_offset=2", "data.mirror=true", "data.context_min=1",
+        "data.train_offset=2", "data.mirror=true", "data.context_min=1",
         "data.keyframes_max=2", "data.keyframe_prob=0.5", "centre=last", "test_keyframes=[5]", "threads=1",
         "model.inputs=[rot6d,velocity]", "loss.keyframe=0.5"]
     threads = torch.get_num_threads()

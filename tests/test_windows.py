@@ -87,9 +87,9 @@ def test_bandai_namco_mirror_is_exact_to_a_tenth_of_a_millimetre(cache_dir):
 
 
 def test_clip_sampling_data_module_mirrors_about_half_the_windows(tmp_path, cache_dir):
-    dm = _dm(tmp_path, cache_dir, "data.sampling=clips", "data.train_offset=5", "data.mirror=true",
+    dm = _dm(tmp_path, cache_dir, "data.train_offset=5", "data.mirror=true",
              "data.context_min=1", "data.keyframes_max=3", "data.keyframe_prob=0.5")
-    plain = _dm(tmp_path, cache_dir, "data.sampling=clips", "data.train_offset=5")
+    plain = _dm(tmp_path, cache_dir, "data.train_offset=5")
     assert len(dm.clip_windows) == len(plain.clip_windows) > 0
     loader = dm.train_dataloader()
     batch = next(iter(loader))
@@ -139,8 +139,8 @@ def test_time_warp_plays_the_clip_faster_and_stays_inside_it(cache_dir):
 
 
 def test_data_module_time_warp_is_seeded_and_changes_the_windows(tmp_path, cache_dir):
-    warp = _dm(tmp_path, cache_dir, "data.sampling=clips", "data.speed=[1.0,2.0]")
-    plain = _dm(tmp_path, cache_dir, "data.sampling=clips")
+    warp = _dm(tmp_path, cache_dir, "data.speed=[1.0,2.0]")
+    plain = _dm(tmp_path, cache_dir)
     batch, again = (next(iter(warp.train_dataloader())) for _ in range(2))
     assert all(torch.equal(batch[k], again[k]) for k in batch)  # a pure function of seed, epoch, batch
     idx = [i for *_, i in next(iter(warp.train_dataloader().batch_sampler))]
@@ -155,11 +155,8 @@ def test_config_rejects_bad_task_options(tmp_path, cache_dir):
     for extra, match in [(["data.context_min=0"], "data.context_min/max"),
                          (["data.context_min=5", "data.context_max=11"], "data.context_min/max"),
                          (["data.keyframe_prob=1.5"], "data.keyframe_prob"),
-                         (["data.mirror=true"], "data.mirror"),
-                         (["data.speed=[1.0,2.0]"], "data.speed: the time warp needs data.sampling=clips"),
-                         (["data.sampling=clips", "data.speed=[0.5,1.0]"], "data.speed: need 1 <= lo"),
-                         (["data.sampling=clips", "data.speed=fast"], "data.speed: must be null or"),
-                         (["data.sampling=random"], "data.sampling"),
+                         (["data.speed=[0.5,1.0]"], "data.speed: need 1 <= lo"),
+                         (["data.speed=fast"], "data.speed: must be null or"),
                          (["centre=middle"], "centre")]:
         cfg = compose_cfg("train", [*DATA, *extra], tmp_path, cache_dir)
         with pytest.raises(ConfigError, match=match):

@@ -19,7 +19,7 @@ import numpy as np
 from inbetweening.data.errors import DatasetError
 from inbetweening.data.mirror import side_of
 
-__all__ = ["CONTACT_HEIGHT_CM", "CONTACT_SPEED_CM_S", "FOOT_WORDS", "FootContact", "REFERENCE_HEIGHT_CM",
+__all__ = ["CONTACT_HEIGHT_CM", "CONTACT_SPEED_CM_S", "CONTACT_THRESHOLD", "FOOT_WORDS", "FootContact", "REFERENCE_HEIGHT_CM",
            "body_height", "find_feet", "foot_contacts", "planted_frames", "scaled_contact"]
 
 UP = 1  # Y up (the project's frame)
@@ -30,6 +30,9 @@ UP = 1  # Y up (the project's frame)
 CONTACT_HEIGHT_CM, CONTACT_SPEED_CM_S = 15.0, 30.0
 REFERENCE_HEIGHT_CM = 133.9
 FOOT_WORDS = ("foot", "toe", "ankle", "ball", "heel")
+CONTACT_THRESHOLD = 0.5
+"""Predicted contact above which a foot counts as planted (a model's contact channel is in [0, 1]; the foot
+lock of the tools and the training figures read it the same way)."""
 
 
 @dataclass(frozen=True)

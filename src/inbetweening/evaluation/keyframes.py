@@ -1,15 +1,8 @@
-"""The keyframes-only protocol: whole test clips, a keyframe every ``K`` frames and nothing else.
+"""The keyframes-only protocol: whole test clips, keys placed by a schedule and nothing else.
 
-What an animator gives the tool.  For each interval ``K`` (default 5, 15, 30, 45) and each test clip of at least
-``K + 1`` frames, the keyframes are frames ``0, K, 2K, ..., mK`` (the clip is truncated to the last keyframe, so
-its last frame is a key).  Animators do not key on a grid, so two keypose schedules are scored the same way
-(:func:`schedule_keyframes`):
-
-* ``random``: gaps drawn uniformly in ``3..45`` frames from frame 0 (seeded per clip by the run's seed and the
-  clip's position), the clip truncated to the last key;
-* ``extremes``: keys at the motion's extremes - frame 0, the last frame, and the local minima of the mean joint
-  speed (the poses where the motion turns), taken lowest speed first at least 8 frames from every key already
-  chosen; a gap longer than 45 frames is then split into equal parts (breakdown keys).
+What an animator gives the tool.  For each schedule (:mod:`inbetweening.evaluation.schedules`: an interval ``K``,
+a key every ``K`` frames - default 5, 15, 30, 45 - or a keypose schedule, ``random`` or ``extremes``) and each test
+clip long enough for two of its keys, the clip is truncated to its last key (so its last frame is a key).
 
 Every other frame is generated from the keyframes alone (no context frames), by the
 animator path (:meth:`inbetweening.tools.inbetweener.Inbetweener.fill_arrays`) for a model, and by root lerp +
@@ -42,13 +35,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from inbetweening.data.contacts import FootContact, foot_contacts
+from inbetweening.evaluation.schedules import needs_positions, schedule_keyframes
 from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.skeleton import Skeleton
 
-KEYFRAME_INTERVALS = (5, 15, 30, 45)
-SCHEDULES = ("random", "extremes")  # keypose schedules scored besides "a key every K" (module docstring)
-RANDOM_GAPS = (3, 45)  # random: gaps drawn uniformly in this range (frames)
-EXTREME_MIN_GAP, EXTREME_MAX_GAP = 8, 45  # extremes: minima at least this far apart; longer gaps split
 UP = 1  # Y up
 HORIZONTAL = (0, 2)  # X and Z
 
@@ -62,79 +52,6 @@ COLUMNS = ("model_cm", "interp_cm", "ratio", "skate_model", "skate_interp", "ska
 # ------------------------------------------------------------------------------------------
 # Pure scoring functions
 # ------------------------------------------------------------------------------------------
-def keyframe_indices(num_frames: int, interval: int) -> list[int]:
-    """Keyframes ``0, K, 2K, ..., mK`` with ``mK <= num_frames - 1`` (the clip is cut after ``mK``); ``[]`` when the
-    clip is too short for two keyframes (``num_frames < K + 1``)."""
-    if interval < 1:
-        raise ValueError(f"keyframe interval must be >= 1, got {interval}")
-    if num_frames < interval + 1:
-        return []
-    return list(range(0, num_frames, interval))
-
-
-def random_keyframes(num_frames: int, rng: np.random.Generator, gaps: tuple[int, int] = RANDOM_GAPS) -> list[int]:
-    """Keys from frame 0 with gaps drawn uniformly in ``gaps`` (inclusive), the last one ``<= num_frames - 1`` (the
-    clip is cut after it); ``[]`` when not even two keys fit."""
-    lo, hi = int(gaps[0]), int(gaps[1])
-    if not 1 <= lo <= hi:
-        raise ValueError(f"random keyframe gaps must satisfy 1 <= lo <= hi, got {gaps}")
-    keys = [0]
-    while True:
-        nxt = keys[-1] + int(rng.integers(lo, hi + 1))
-        if nxt > num_frames - 1:
-            break
-        keys.append(nxt)
-    return keys if len(keys) >= 2 else []
-
-
-def mean_joint_speed(positions: np.ndarray) -> np.ndarray:
-    """``(F, J, 3)`` global positions -> ``(F,)`` mean over joints of the central-difference speed (length units per
-    frame; the first and last frame use one-sided differences)."""
-    v = np.gradient(np.asarray(positions, np.float64), axis=0)
-    return np.linalg.norm(v, axis=-1).mean(axis=1)
-
-
-def extreme_keyframes(positions: np.ndarray, min_gap: int = EXTREME_MIN_GAP, max_gap: int = EXTREME_MAX_GAP) -> list[int]:
-    """Keys at the motion's extremes (module docstring) of a clip with global positions ``(F, J, 3)``: frame 0, the
-    last frame, the local minima of :func:`mean_joint_speed` lowest first at least ``min_gap`` frames from every
-    chosen key, then every gap longer than ``max_gap`` split into ``ceil(gap / max_gap)`` equal parts.  ``[]``
-    for a clip of fewer than 2 frames."""
-    f = len(positions)
-    if f < 2:
-        return []
-    speed = mean_joint_speed(positions)
-    t = np.arange(1, f - 1)
-    eps = 1e-9 * float(speed.max())  # a plateau's rounding noise is no turning point
-    minima = t[(speed[t] <= speed[t - 1]) & (speed[t] + eps < speed[t + 1])]
-    keys = [0, f - 1]
-    for m in minima[np.argsort(speed[minima], kind="stable")]:
-        if min(abs(int(m) - k) for k in keys) >= min_gap:
-            keys.append(int(m))
-    keys.sort()
-    out = [keys[0]]
-    for b in keys[1:]:
-        a = out[-1]
-        parts = -(-(b - a) // max_gap)
-        out += [a + round(i * (b - a) / parts) for i in range(1, parts)] + [b]
-    return out
-
-
-def schedule_keyframes(schedule, num_frames: int, rng: np.random.Generator,
-                       positions: np.ndarray | None = None) -> list[int]:
-    """The keys of one clip of ``num_frames`` frames under ``schedule``: an int ``K`` (:func:`keyframe_indices`),
-    ``"random"`` (:func:`random_keyframes`) or ``"extremes"`` (:func:`extreme_keyframes` of the clip's global
-    ``positions (F, J, 3)``).  ``[]``: the clip is too short for the schedule."""
-    if schedule == "random":
-        return random_keyframes(num_frames, rng)
-    if schedule == "extremes":
-        if positions is None or len(positions) != num_frames:
-            raise ValueError("the extremes schedule needs the clip's global positions (F, J, 3)")
-        return extreme_keyframes(positions)
-    if isinstance(schedule, str):
-        raise ValueError(f"unknown keyframe schedule {schedule!r}; choose an interval K >= 2 or one of {list(SCHEDULES)}")
-    return keyframe_indices(num_frames, int(schedule))
-
-
 def generated_frames(num_frames: int, keys: Sequence[int]) -> np.ndarray:
     """``(F,)`` bool: True for the frames that are not keyframes."""
     gen = np.ones(num_frames, dtype=bool)
@@ -254,18 +171,19 @@ def evaluate_clips(clips: Sequence, skeleton: Skeleton, fill: Fill | None, inter
                    seed: int = 0) -> dict[str, dict]:
     """Run the protocol (module docstring) over ``clips`` (objects with ``root_pos (F, 3)``, ``local_q (F, J, 4)``).
 
-    ``intervals``: schedules, each an interval ``K`` or one of :data:`SCHEDULES` (:func:`schedule_keyframes`;
-    ``random`` draws from a generator seeded by ``seed`` and the clip's position).  ``fill`` generates the unknown
-    frames (:data:`Fill`; ``None``: the model is the interpolation itself).  Returns ``{str(K): {"model_cm",
-    "interp_cm", "ratio", "skate_model", "skate_interp", "skate_gt", "n_clips", "n_frames", "mean_gap"}}`` (no
-    ``skate_*`` when ``feet`` is ``None``); schedules no clip is long enough for are left out.
+    ``intervals``: schedules, each an interval ``K`` or a name of :data:`~inbetweening.evaluation.schedules.
+    SCHEDULES` (:func:`~inbetweening.evaluation.schedules.schedule_keyframes`; ``random`` draws from a generator
+    seeded by ``seed`` and the clip's position).  ``fill`` generates the unknown frames (:data:`Fill`; ``None``: the
+    model is the interpolation itself).  Returns ``{str(K): {"model_cm", "interp_cm", "ratio", "skate_model",
+    "skate_interp", "skate_gt", "n_clips", "n_frames", "mean_gap"}}`` (no ``skate_*`` when ``feet`` is ``None``);
+    schedules no clip is long enough for are left out.
     """
     out: dict[str, dict] = {}
     for k in intervals:
         totals = _Totals.empty()
         for i, clip in enumerate(clips):
             positions = None
-            if k == "extremes":  # the ground truth's own motion decides where its extremes are
+            if needs_positions(k):  # the ground truth's own motion decides where the keys go (extremes)
                 positions = skeleton.pose(np.asarray(clip.root_pos, np.float64), np.asarray(clip.local_q, np.float64))[1]
             keys = schedule_keyframes(k, len(clip.root_pos), np.random.default_rng([int(seed), i]), positions)
             if not keys:

@@ -8,9 +8,11 @@ A model subclasses :class:`InbetweenModel` and implements only its network:
   interpolation);
 * ``TINY``: small sizes for tests (every contract test builds every registered model with them).
 
-Everything else is here: the common constructor arguments and their checks, running the checks of every setting
-before anything is built (the same checks validate a config: :meth:`InbetweenModel.check_config`), the output head's
-zero initialisation, and ``forward`` = input checks -> ``network`` -> ``interp + raw`` (residual) -> :meth:`finalize`.
+Everything else is here: the common constructor arguments and their defaults (:meth:`InbetweenModel.__init__`, the
+one place they are written: a subclass takes them as ``**common`` and passes them on, stating only a default of its
+own, e.g. ``dropout: float = 0.1``) and their checks, running the checks of every setting before anything is built
+(the same checks validate a config: :meth:`InbetweenModel.check_config`), the output head's zero initialisation, and
+``forward`` = input checks -> ``network`` -> ``interp + raw`` (residual) -> :meth:`finalize`.
 """
 from __future__ import annotations
 
@@ -121,6 +123,14 @@ def adjacency_tensor(adjacency: Any, num_joints: int) -> Tensor:
     return adj
 
 
+def _named_parameters(init) -> dict[str, Any]:
+    """A constructor's named arguments (name -> default, ``inspect.Parameter.empty`` when required), ``self`` left
+    out."""
+    params = inspect.signature(init).parameters
+    return {k: p.default for k, p in params.items() if k != "self"
+            and p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)}
+
+
 class _Contract(type):
     """Metaclass of the zoo: ``Model(...)`` checks every setting before the constructor runs (ValueError
     ``"Model: key: ..."``), then zeroes the output head when ``residual_to_interpolation``."""
@@ -129,8 +139,16 @@ class _Contract(type):
         signature = inspect.signature(cls.__init__)
         bound = signature.bind(None, *args, **kwargs)  # TypeError for unknown arguments, as a plain constructor
         bound.apply_defaults()
-        values = {k: v for k, v in list(bound.arguments.items())[1:]
-                  if signature.parameters[k].kind is not inspect.Parameter.VAR_KEYWORD}
+        known = {*cls.settings(), *SKELETON_ARGS}
+        values = {}
+        for k, v in list(bound.arguments.items())[1:]:
+            if signature.parameters[k].kind is not inspect.Parameter.VAR_KEYWORD:
+                values[k] = v
+                continue
+            unknown = sorted(set(v) - known)  # the common arguments arrive as **common
+            if unknown and not cls.accepts_any_setting():
+                raise TypeError(f"{cls.__name__}.__init__() got an unexpected keyword argument {unknown[0]!r}")
+            values.update({n: x for n, x in v.items() if n in known})
         try:
             Checks({"num_joints": values["num_joints"]}).integer("num_joints")
             if values.get("adjacency") is not None:  # models that do not use it still check it (skeleton mismatch)
@@ -152,17 +170,22 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
 
     Known values pass through bit-identically and predicted quaternions have unit norm (:meth:`finalize`).
 
-    Common constructor arguments (every subclass passes them to ``super().__init__``): ``num_joints`` (``J``),
-    ``adjacency`` (``J x J`` joint relation matrix, checked even by models that do not use it), ``feature_dim``
-    (``F >= 7``: pos xyz + quaternion wxyz), ``max_frames`` (longest window ``T``), ``residual_to_interpolation``
-    (predict ``interp + network(...)`` when ``interp`` is given; output head initialised to 0), ``dropout``,
-    ``layout`` (the representation's feature layout, :meth:`inbetweening.representation.base.Representation.layout`:
-    which channels are positions and rotations; given by the predictor, default the default representation's),
-    ``inputs`` (extra input channels derived from ``x``, names of :data:`INPUTS`: the network reads
-    ``input_dim = F + extras`` channels per joint and still writes ``F``).
+    Common constructor arguments (every subclass takes them as ``**common`` and passes them to ``super().__init__``;
+    their defaults are written here only, and ``conf/model/*.yaml`` restates them with the same values, which
+    tests/test_models_base.py checks): ``num_joints`` (``J``), ``adjacency`` (``J x J`` joint relation matrix, checked
+    even by models that do not use it), ``feature_dim`` (``F >= 7``: pos xyz + quaternion wxyz), ``max_frames``
+    (longest window ``T``), ``residual_to_interpolation`` (predict ``interp + network(...)`` when ``interp`` is
+    given; output head initialised to 0), ``dropout``, ``layout`` (the representation's feature layout,
+    :meth:`inbetweening.representation.base.Representation.layout`: which channels are positions and rotations;
+    given by the predictor, default the default representation's), ``inputs`` (extra input channels derived from
+    ``x``, names of :data:`INPUTS`: the network reads ``input_dim = F + extras`` channels per joint and still writes
+    ``F``), ``gate`` (a learned weight in [0, 1] per joint and frame on the correction; needs
+    ``residual_to_interpolation``).
     """
 
     trainable: ClassVar[bool] = True  # baselines without parameters: False
+    ignores_unknown_settings: ClassVar[bool] = False  # baselines: True (a sweep's architecture settings are ignored)
+    COMMON_SETTINGS: ClassVar[tuple[str, ...] | None] = None  # the common arguments it takes (None: all of them)
     length_limited: ClassVar[bool] = True  # forward raises ValueError when T > max_frames
     quat_eps: ClassVar[float] = 1e-8
     OUTPUT_HEAD: ClassVar[tuple[str, ...]] = ()  # names of parameters / submodules zeroed when residual
@@ -172,9 +195,10 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
         self,
         num_joints: int,
         adjacency: list[list[float]] | None,
+        *,
         feature_dim: int = FEATURE_DIM,
         max_frames: int = 128,
-        residual_to_interpolation: bool = False,
+        residual_to_interpolation: bool = True,
         dropout: float = 0.0,
         inputs: Iterable[str] = (),
         layout: Mapping[str, Any] | None = None,
@@ -186,6 +210,7 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
             raise ValueError(f"feature_dim: {feature_dim} differs from the representation's {layout['features']} channels")
         self.pos, self.quat = slice(*layout["position"]), slice(*layout["rotation"])
         self.num_joints, self.feature_dim, self.max_frames = num_joints, feature_dim, max_frames
+        self.dropout = dropout
         self.residual_to_interpolation = bool(residual_to_interpolation)
         self.gate = bool(gate)
         self.output_dim = feature_dim + (1 if self.gate else 0)  # the network writes F channels, and the gate's
@@ -194,17 +219,25 @@ class InbetweenModel(nn.Module, metaclass=_Contract):
 
     # ------------------------------------------------------------------ settings
     @classmethod
+    def common_settings(cls) -> dict[str, Any]:
+        """The common constructor arguments and their defaults (:meth:`__init__`'s keyword arguments)."""
+        return {k: v for k, v in _named_parameters(InbetweenModel.__init__).items()
+                if k not in ("num_joints", "adjacency")}
+
+    @classmethod
     def settings(cls) -> dict[str, Any]:
-        """Constructor settings a config may give (name -> default), i.e. all but ``num_joints`` / ``adjacency``."""
-        params = inspect.signature(cls.__init__).parameters
-        return {k: p.default for k, p in params.items() if k != "self" and k not in SKELETON_ARGS
-                and p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)}
+        """Constructor settings a config may give (name -> default), i.e. all but ``num_joints`` / ``adjacency`` /
+        ``layout``: the common ones it takes (:attr:`COMMON_SETTINGS`), then its own (a default of its own wins)."""
+        common = {k: v for k, v in cls.common_settings().items()
+                  if cls.COMMON_SETTINGS is None or k in cls.COMMON_SETTINGS}
+        own = _named_parameters(cls.__init__) if cls.__init__ is not InbetweenModel.__init__ else {}
+        return {k: v for k, v in {**common, **own}.items() if k not in SKELETON_ARGS}
 
     @classmethod
     def accepts_any_setting(cls) -> bool:
-        """True if the constructor takes ``**kwargs`` (baselines ignore a sweep's architecture settings)."""
-        params = inspect.signature(cls.__init__).parameters.values()
-        return any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params)
+        """True if the constructor ignores settings it does not know (baselines ignore a sweep's architecture
+        settings)."""
+        return cls.ignores_unknown_settings
 
     @classmethod
     def check_config(cls, settings: Mapping[str, Any], prefix: str = "") -> None:

@@ -11,30 +11,22 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from .base import FEATURE_DIM, InbetweenModel
+from .base import InbetweenModel
 
 
 class _Baseline(InbetweenModel):
-    """Shared constructor: plain values, same leading signature as the trainable models, no parameters."""
+    """Shared constructor: plain values, the same common arguments as the trainable models, no parameters."""
 
     trainable = False
     length_limited = False  # any T works
+    ignores_unknown_settings = True
+    COMMON_SETTINGS = ("feature_dim", "max_frames", "residual_to_interpolation", "dropout", "layout")
 
-    def __init__(
-        self,
-        num_joints: int,
-        adjacency: list[list[float]] | None = None,
-        feature_dim: int = FEATURE_DIM,
-        max_frames: int = 128,
-        residual_to_interpolation: bool = False,
-        dropout: float = 0.0,
-        layout: dict | None = None,
-        **architecture: object,
-    ):
+    def __init__(self, num_joints: int, adjacency: list[list[float]] | None = None, **settings: object):
         # architecture settings shared by a sweep (depth, ...) mean nothing to a baseline: ignored; and a baseline has
         # nothing to add to the interpolation: residual_to_interpolation is accepted for config uniformity only
-        del residual_to_interpolation
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, False, dropout, layout=layout)
+        common = {k: settings[k] for k in self.COMMON_SETTINGS if k in settings and k != "residual_to_interpolation"}
+        super().__init__(num_joints, adjacency, residual_to_interpolation=False, **common)
 
 
 class ZeroVelocity(_Baseline):

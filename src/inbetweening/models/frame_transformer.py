@@ -7,23 +7,23 @@ output head back to ``J*F``.  The graph matrix of the graph transformer is not u
 """
 from __future__ import annotations
 
+from typing import Any
+
 from torch import Tensor, nn
 
-from .base import FEATURE_DIM, Checks, InbetweenModel
+from .base import Checks, InbetweenModel
 from .blocks import NORMS, PositionEmbedding, TransformerEncoder, frame_features
 
 
 class FrameTransformer(InbetweenModel):
     """Frame-token post-norm transformer.
 
-    Args (plain values only; common ones in :class:`InbetweenModel`):
+    Args (plain values only; common ones, with their defaults, in :class:`InbetweenModel`):
         num_joints: ``J``.  adjacency: ``J x J`` joint relation matrix (checked, otherwise unused).
-        feature_dim: features per joint ``F`` (>= 7).
         d_model, depth, heads, ffn_dim: transformer width, layers, heads (``d_model % heads == 0``), MLP width.
         dropout: attention / residual / MLP dropout and dropout on the input embedding.
         norm: ``"layer"`` or ``"batch"``.  activation: feed-forward activation.
         max_frames: longest window ``T`` (size of the learned position table).
-        residual_to_interpolation: predict ``interp + head(h)`` when ``interp`` is given (head initialised to 0).
     """
 
     OUTPUT_HEAD = ("head",)
@@ -33,7 +33,6 @@ class FrameTransformer(InbetweenModel):
         self,
         num_joints: int,
         adjacency: list[list[float]],
-        feature_dim: int = FEATURE_DIM,
         d_model: int = 256,
         depth: int = 8,
         heads: int = 8,
@@ -41,18 +40,13 @@ class FrameTransformer(InbetweenModel):
         dropout: float = 0.1,
         norm: str = "layer",
         activation: str = "gelu",
-        max_frames: int = 128,
-        residual_to_interpolation: bool = False,
-        inputs: tuple[str, ...] = (),
-        layout: dict | None = None,
-        gate: bool = False,
+        **common: Any,
     ):
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs, layout, gate=gate)
+        super().__init__(num_joints, adjacency, dropout=dropout, **common)
         self.d_model = d_model
         in_ch = num_joints * self.input_dim + num_joints
         self.stem = nn.Conv1d(in_ch, d_model, kernel_size=3, padding=1)
-        self.pos_embed = PositionEmbedding(max_frames, d_model)
+        self.pos_embed = PositionEmbedding(self.max_frames, d_model)
         self.segment_embed = nn.Embedding(2, d_model)  # 0 = frame with missing joints, 1 = fully known frame
         nn.init.normal_(self.segment_embed.weight, std=0.02)
         self.embed_dropout = nn.Dropout(dropout)

@@ -7,11 +7,13 @@ residual + norm; (c) feed-forward; residual + norm (post-norm throughout).
 """
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 from torch import Tensor, nn
 from torch.utils.checkpoint import checkpoint
 
-from .base import FEATURE_DIM, Checks, InbetweenModel
+from .base import Checks, InbetweenModel
 from .blocks import (
     NORMS,
     AddNorm,
@@ -60,17 +62,16 @@ class GraphTransformerLayer(nn.Module):
 class GraphTransformer(InbetweenModel):
     """Graph-attention in-betweening transformer.
 
-    Args (plain values only, so it can be built from a Hydra config; common ones in :class:`InbetweenModel`):
+    Args (plain values only, so it can be built from a Hydra config; common ones, with their defaults, in
+    :class:`InbetweenModel`):
         num_joints, adjacency: ``J`` and the joint relation matrix ``M`` (1 for parent/child and the diagonal; it
             may already encode k-hop neighbourhoods, see ``hops``).
-        feature_dim: features per joint ``F`` (>= 7: pos xyz + quaternion wxyz).
         d_model, depth, heads: transformer width, number of layers, attention heads (``d_model % heads == 0``).
         ffn_dim: feed-forward hidden width (default ``2 * d_model``).
         dropout: dropout of attention probabilities, residual branches and the feed-forward hidden layer.
         norm: ``"layer"`` or ``"batch"``.
         graph: ``"multiply"`` (the method: M ⊙ softmax over the M-neighbourhood), ``"multiply_full"`` (softmax over
             all joints then ⊙ M, the formula read literally) or ``"none"`` (plain attention); see ``GRAPH_MODES``.
-        residual_to_interpolation: predict ``interp + head(h)`` when ``interp`` is given (head initialised to 0).
         max_frames: longest supported window ``T``.
         hops: documentation only (the adjacency passed in already encodes it).
         pos_encoding: temporal position encoding, ``"sinusoidal"`` or ``"learned"``.
@@ -86,26 +87,19 @@ class GraphTransformer(InbetweenModel):
         self,
         num_joints: int,
         adjacency: list[list[float]],
-        feature_dim: int = FEATURE_DIM,
         d_model: int = 64,
         depth: int = 6,
         heads: int = 4,
         ffn_dim: int | None = None,
-        dropout: float = 0.0,
         norm: str = "layer",
         graph: str = "multiply",
-        residual_to_interpolation: bool = False,
-        max_frames: int = 128,
         hops: int = 1,
         pos_encoding: str = "sinusoidal",
         activation: str = "gelu",
         checkpoint_layers: bool = True,
-        inputs: tuple[str, ...] = (),
-        layout: dict | None = None,
-        gate: bool = False,
+        **common: Any,
     ):
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs, layout, gate=gate)
+        super().__init__(num_joints, adjacency, **common)
         self.checkpoint_layers = bool(checkpoint_layers)
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
         adj = torch.as_tensor(adjacency, dtype=torch.float32)
@@ -125,11 +119,11 @@ class GraphTransformer(InbetweenModel):
         self.flag_embed = nn.Embedding(2, d_model)
         nn.init.normal_(self.flag_embed.weight, std=0.02)
         if pos_encoding == "learned":
-            self.time_embed: nn.Module = PositionEmbedding(max_frames, d_model)
+            self.time_embed: nn.Module = PositionEmbedding(self.max_frames, d_model)
         else:
-            self.time_embed = SinusoidalPositionalEncoding(d_model, max_frames)
+            self.time_embed = SinusoidalPositionalEncoding(d_model, self.max_frames)
         self.layers = nn.ModuleList(
-            GraphTransformerLayer(d_model, heads, ffn_dim, dropout, norm, activation) for _ in range(depth)
+            GraphTransformerLayer(d_model, heads, ffn_dim, self.dropout, norm, activation) for _ in range(depth)
         )
         # per-joint output head
         self.out_weight = nn.Parameter(torch.empty(num_joints, d_model, self.output_dim))

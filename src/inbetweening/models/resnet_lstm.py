@@ -6,25 +6,25 @@ seen) runs over time, and fully connected output layers map back to ``J*F``.
 """
 from __future__ import annotations
 
+from typing import Any
+
 from torch import Tensor, nn
 
-from .base import FEATURE_DIM, Checks, InbetweenModel
+from .base import Checks, InbetweenModel
 from .blocks import ResidualMLPBlock, frame_features, make_activation
 
 
 class ResNetLSTM(InbetweenModel):
     """Per-frame residual MLP encoder + LSTM over time + MLP decoder.
 
-    Args (plain values only; common ones in :class:`InbetweenModel`):
+    Args (plain values only; common ones, with their defaults, in :class:`InbetweenModel`):
         num_joints: ``J``.  adjacency: ``J x J`` joint relation matrix (checked, otherwise unused).
-        feature_dim: features per joint ``F`` (>= 7).
         hidden_dim: width of the fully connected input / residual / output layers.
         res_blocks: number of residual MLP blocks after the input layer (>= 0).
         lstm_hidden, lstm_layers, bidirectional: LSTM size (the output is ``2 * lstm_hidden`` when bidirectional).
         dropout: dropout in the residual blocks, between LSTM layers and before the output layers.
         activation: activation of the fully connected layers.
         max_frames: longest window ``T`` (no position table; checked for consistency with the other models).
-        residual_to_interpolation: predict ``interp + head(h)`` when ``interp`` is given (last layer initialised to 0).
     """
 
     OUTPUT_HEAD = ("output_layers.3",)  # the last Linear of output_layers
@@ -34,7 +34,6 @@ class ResNetLSTM(InbetweenModel):
         self,
         num_joints: int,
         adjacency: list[list[float]],
-        feature_dim: int = FEATURE_DIM,
         hidden_dim: int = 512,
         res_blocks: int = 2,
         lstm_hidden: int = 512,
@@ -42,14 +41,9 @@ class ResNetLSTM(InbetweenModel):
         bidirectional: bool = True,
         dropout: float = 0.1,
         activation: str = "relu",
-        max_frames: int = 128,
-        residual_to_interpolation: bool = False,
-        inputs: tuple[str, ...] = (),
-        layout: dict | None = None,
-        gate: bool = False,
+        **common: Any,
     ):
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs, layout, gate=gate)
+        super().__init__(num_joints, adjacency, dropout=dropout, **common)
         in_dim = num_joints * self.input_dim + num_joints
         self.input_layers = nn.Sequential(nn.Linear(in_dim, hidden_dim), make_activation(activation))
         self.res_blocks = nn.Sequential(

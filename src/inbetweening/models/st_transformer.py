@@ -8,26 +8,26 @@ added and a temporal pre-norm transformer mixes the frames; a regression head (L
 """
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 from torch import Tensor, nn
 
-from .base import FEATURE_DIM, Checks, InbetweenModel
+from .base import Checks, InbetweenModel
 from .blocks import PositionEmbedding, TransformerEncoder
 
 
 class STTransformer(InbetweenModel):
     """Spatial (joints) then temporal (frames) pre-norm transformer.
 
-    Args (plain values only; common ones in :class:`InbetweenModel`):
+    Args (plain values only; common ones, with their defaults, in :class:`InbetweenModel`):
         num_joints: ``J``.  adjacency: ``J x J`` joint relation matrix (checked, otherwise unused).
-        feature_dim: features per joint ``F`` (>= 7).
         spatial_dim, spatial_depth, spatial_heads: per-joint width ``C``, spatial layers, spatial heads (divide ``C``).
         spatial_ffn_dim: spatial MLP width (default ``2 * spatial_dim``).
         d_model, temporal_depth, heads: temporal width, layers and heads (``d_model % heads == 0``).
         ffn_dim: temporal MLP width (default ``2 * d_model``).
         dropout: attention / residual / MLP dropout.  activation: MLP activation.
         max_frames: longest window ``T``.
-        residual_to_interpolation: predict ``interp + head(h)`` when ``interp`` is given (head initialised to 0).
     """
 
     OUTPUT_HEAD = ("head",)
@@ -37,7 +37,6 @@ class STTransformer(InbetweenModel):
         self,
         num_joints: int,
         adjacency: list[list[float]],
-        feature_dim: int = FEATURE_DIM,
         spatial_dim: int = 32,
         spatial_depth: int = 4,
         spatial_heads: int = 4,
@@ -48,14 +47,9 @@ class STTransformer(InbetweenModel):
         ffn_dim: int | None = None,
         dropout: float = 0.1,
         activation: str = "gelu",
-        max_frames: int = 128,
-        residual_to_interpolation: bool = False,
-        inputs: tuple[str, ...] = (),
-        layout: dict | None = None,
-        gate: bool = False,
+        **common: Any,
     ):
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs, layout, gate=gate)
+        super().__init__(num_joints, adjacency, dropout=dropout, **common)
         spatial_ffn_dim = 2 * spatial_dim if spatial_ffn_dim is None else spatial_ffn_dim
         ffn_dim = 2 * d_model if ffn_dim is None else ffn_dim
         self.spatial_dim, self.d_model = spatial_dim, d_model
@@ -67,7 +61,7 @@ class STTransformer(InbetweenModel):
         self.spatial = TransformerEncoder(spatial_dim, spatial_depth, spatial_heads, spatial_ffn_dim, dropout,
                                           activation=activation, norm_first=True, final_norm=True)
         self.frame_proj = nn.Linear(num_joints * spatial_dim, d_model)
-        self.time_embed = PositionEmbedding(max_frames, d_model)
+        self.time_embed = PositionEmbedding(self.max_frames, d_model)
         self.temporal = TransformerEncoder(d_model, temporal_depth, heads, ffn_dim, dropout,
                                            activation=activation, norm_first=True, final_norm=False)
         self.head_norm = nn.LayerNorm(d_model)

@@ -8,11 +8,13 @@ bottleneck; decoder: ConvTranspose1d (x2) upsample, concatenation with the skip,
 """
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from .base import FEATURE_DIM, Checks, InbetweenModel
+from .base import Checks, InbetweenModel
 from .blocks import frame_features, make_activation
 
 
@@ -39,15 +41,13 @@ class ConvBlock1d(nn.Module):
 class UNet1D(InbetweenModel):
     """Temporal 1D U-Net.
 
-    Args (plain values only; common ones in :class:`InbetweenModel`):
+    Args (plain values only; common ones, with their defaults, in :class:`InbetweenModel`):
         num_joints: ``J``.  adjacency: ``J x J`` joint relation matrix (checked, otherwise unused).
-        feature_dim: features per joint ``F`` (>= 7).
         base_channels: channels of the first stage; stage ``i`` has ``base_channels * 2**i`` (bottleneck ``i=levels``).
         levels: number of down/up-sampling stages (>= 1); ``T`` is padded to a multiple of ``2**levels``.
         norm_groups: GroupNorm groups (must divide ``base_channels``).
         dropout: dropout inside the conv blocks.  activation: conv activation.
         max_frames: longest window ``T`` (no position table; checked for consistency with the other models).
-        residual_to_interpolation: predict ``interp + head(h)`` when ``interp`` is given (output conv initialised to 0).
     """
 
     OUTPUT_HEAD = ("head",)
@@ -57,20 +57,13 @@ class UNet1D(InbetweenModel):
         self,
         num_joints: int,
         adjacency: list[list[float]],
-        feature_dim: int = FEATURE_DIM,
         base_channels: int = 64,
         levels: int = 3,
         norm_groups: int = 8,
-        dropout: float = 0.0,
         activation: str = "silu",
-        max_frames: int = 128,
-        residual_to_interpolation: bool = False,
-        inputs: tuple[str, ...] = (),
-        layout: dict | None = None,
-        gate: bool = False,
+        **common: Any,
     ):
-        super().__init__(num_joints, adjacency, feature_dim, max_frames, residual_to_interpolation, dropout,
-                         inputs, layout, gate=gate)
+        super().__init__(num_joints, adjacency, **common)
         self.levels, self.multiple = levels, 2**levels
         chans = [base_channels * 2**i for i in range(levels + 1)]
         in_ch = num_joints * self.input_dim + num_joints
@@ -78,14 +71,14 @@ class UNet1D(InbetweenModel):
         self.downsample = nn.ModuleList()
         for i in range(levels):
             self.down_blocks.append(ConvBlock1d(in_ch if i == 0 else chans[i - 1], chans[i], norm_groups, activation,
-                                                dropout))
+                                                self.dropout))
             self.downsample.append(nn.Conv1d(chans[i], chans[i], kernel_size=3, stride=2, padding=1))
-        self.bottleneck = ConvBlock1d(chans[levels - 1], chans[levels], norm_groups, activation, dropout)
+        self.bottleneck = ConvBlock1d(chans[levels - 1], chans[levels], norm_groups, activation, self.dropout)
         self.upsample = nn.ModuleList()
         self.up_blocks = nn.ModuleList()
         for i in reversed(range(levels)):
             self.upsample.append(nn.ConvTranspose1d(chans[i + 1], chans[i], kernel_size=2, stride=2))
-            self.up_blocks.append(ConvBlock1d(2 * chans[i], chans[i], norm_groups, activation, dropout))
+            self.up_blocks.append(ConvBlock1d(2 * chans[i], chans[i], norm_groups, activation, self.dropout))
         self.head = nn.Conv1d(chans[0], num_joints * self.output_dim, kernel_size=1)
 
     @classmethod

@@ -12,7 +12,6 @@ Shapes: windows ``root (B, T, 3)``, ``local_q (B, T, J, 4)``; features ``(B, T, 
 from __future__ import annotations
 
 import functools
-import json
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -22,20 +21,17 @@ from torch import nn
 
 from inbetweening.data.contacts import FootContact
 from inbetweening.data.convention import FileConvention
-from inbetweening.data.windows import N_PAST
 from inbetweening.geometry import canonical
 from inbetweening.geometry.interp import lerp, slerp
 from inbetweening.geometry.quaternion import qrot
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor.masks import MASK_NAMES, apply_mask, gap_lengths, transition_known
+from inbetweening.predictor.settings import PredictorSettings
 from inbetweening.representation import DEFAULT_REPRESENTATION, build_representation, representation_class
 
 CENTRES = ("known", "last", "window")
 LEGACY_CENTRE = "window"  # what checkpoints made before the ``centre`` option record (see Predictor.canonical_frame)
-
-# the predictor's hyper-parameters, as InbetweenModule records them
-HPARAMS = ("model", "skeleton", "pos_mean", "pos_std", "mask", "centre", "n_past", "forward_axis", "representation",
-           "fps", "train_window", "dataset", "contact", "convention", "blend")
+_DEFAULT = PredictorSettings.defaults()  # the constructor's defaults are the persisted settings' (one owner)
 
 
 def check_centre(centre: str) -> str:
@@ -108,10 +104,11 @@ class Predictor(nn.Module):
     """
 
     def __init__(self, net: nn.Module, skeleton: Skeleton, pos_mean, pos_std, *, mask: str, centre: str,
-                 n_past: int = N_PAST, forward_axis: Sequence[float] = (0.0, 1.0, 0.0),
-                 representation: str = DEFAULT_REPRESENTATION, model: dict | None = None, fps: float = 30.0,
-                 train_window: int = 50, dataset: str = "", contact: dict | None = None,
-                 convention: dict | None = None, blend: Sequence[float] | None = None):
+                 n_past: int = _DEFAULT["n_past"], forward_axis: Sequence[float] = _DEFAULT["forward_axis"],
+                 representation: str = _DEFAULT["representation"], model: dict | None = None,
+                 fps: float = _DEFAULT["fps"], train_window: int = _DEFAULT["train_window"],
+                 dataset: str = _DEFAULT["dataset"], contact: dict | None = None, convention: dict | None = None,
+                 blend: Sequence[float] | None = None):
         super().__init__()
         if mask not in MASK_NAMES:
             raise ValueError(f"mask must be one of {list(MASK_NAMES)}, got {mask!r}")
@@ -134,27 +131,35 @@ class Predictor(nn.Module):
     # ------------------------------------------------------------------ plain values
     @classmethod
     def from_hparams(cls, hp: dict) -> Predictor:
-        """Build the predictor (and a freshly initialised network) from plain values (:data:`HPARAMS`; ``model``,
-        ``skeleton``, ``pos_mean``, ``pos_std``, ``centre`` required)."""
-        from inbetweening.models import build_network
-
+        """Build the predictor (and a freshly initialised network) from plain values (the
+        :class:`~inbetweening.predictor.settings.PredictorSettings` among ``hp``; ``model``, ``skeleton``,
+        ``pos_mean``, ``pos_std``, ``centre`` required)."""
         if "centre" not in hp:
             raise ValueError(f"centre: required, one of {list(CENTRES)} (older checkpoints: see upgrade_hparams)")
-        skeleton = Skeleton.from_dict(hp["skeleton"])
-        kw = {k: hp[k] for k in HPARAMS[4:] if k in hp and hp[k] is not None}
-        kw.setdefault("mask", "lerp")
-        layout = representation_class(kw.get("representation", DEFAULT_REPRESENTATION)).layout()
-        return cls(build_network(hp["model"], skeleton, layout), skeleton, hp["pos_mean"], hp["pos_std"],
-                   model=dict(hp["model"]), **kw)
+        return cls.from_settings(PredictorSettings.from_hparams(hp))
+
+    @classmethod
+    def from_settings(cls, settings: PredictorSettings) -> Predictor:
+        """The predictor of ``settings``, with a freshly initialised network."""
+        from inbetweening.models import build_network
+
+        skeleton = Skeleton.from_dict(settings.skeleton)
+        layout = representation_class(settings.representation).layout()
+        return cls(build_network(settings.model, skeleton, layout), skeleton, settings.pos_mean, settings.pos_std,
+                   **settings.predictor_kwargs())
+
+    def settings(self) -> PredictorSettings:
+        """This predictor's persisted settings, as plain values."""
+        return PredictorSettings(
+            model=dict(self.model_cfg), skeleton=self.skeleton.to_dict(), pos_mean=self.mean.tolist(),
+            pos_std=self.std.tolist(), mask=self.mask_name, centre=self.centre, n_past=self.n_past,
+            forward_axis=list(self.forward_axis), representation=self.representation.name, fps=self.fps,
+            train_window=self.train_window, dataset=self.dataset, contact=self.contact.to_dict(),
+            convention=self.convention.to_dict(), blend=None if self.blend is None else list(self.blend))
 
     def hparams(self) -> dict:
         """Plain values that rebuild this predictor with :meth:`from_hparams` (weights: ``state_dict()``)."""
-        return {"model": dict(self.model_cfg), "skeleton": self.skeleton.to_dict(), "pos_mean": self.mean.tolist(),
-                "pos_std": self.std.tolist(), "mask": self.mask_name, "centre": self.centre, "n_past": self.n_past,
-                "forward_axis": list(self.forward_axis), "representation": self.representation.name,
-                "fps": self.fps, "train_window": self.train_window, "dataset": self.dataset,
-                "contact": self.contact.to_dict(), "convention": self.convention.to_dict(),
-                "blend": None if self.blend is None else list(self.blend)}
+        return self.settings().hparams()
 
     @property
     def device(self) -> torch.device:
@@ -331,26 +336,6 @@ class Predictor(nn.Module):
         return x, known, interp
 
     def metadata(self, inputs: Sequence[str] = ("x", "known", "interp")) -> dict[str, str]:
-        """What a consumer of the bare network needs to prepare its inputs, one JSON string per key."""
-        sk = self.skeleton
-        meta = {
-            "format": "inbetweening-onnx/1",
-            "model": dict(self.model_cfg),
-            "skeleton_names": list(sk.names),
-            "skeleton_parents": list(sk.parents),
-            "skeleton_offsets": sk.offsets.tolist(),
-            "pos_mean": self.mean.tolist(),
-            "pos_std": self.std.tolist(),
-            "mask": self.mask_name,
-            "centre": self.centre,
-            "forward_axis": list(self.forward_axis),
-            "n_past": self.n_past,
-            "fps": self.fps,
-            "train_window": self.train_window,
-            "max_frames": self.max_frames or 0,
-            "dataset": self.dataset,
-            **self.representation.metadata(),
-            "blend": None if self.blend is None else list(self.blend),
-            "inputs": list(inputs),
-        }
-        return {k: json.dumps(v) for k, v in meta.items()}
+        """What a consumer of the bare network needs to prepare its inputs, one JSON string per key
+        (:meth:`~inbetweening.predictor.settings.PredictorSettings.metadata`)."""
+        return self.settings().metadata(self.max_frames, self.representation.metadata(), inputs)

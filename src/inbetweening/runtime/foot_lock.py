@@ -16,14 +16,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from inbetweening.data.contacts import FootContact, planted_frames
+from inbetweening.data.contacts import CONTACT_THRESHOLD, FootContact, planted_frames
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["BLEND_FRAMES", "THRESHOLD", "key_contacts", "legs", "lock_feet"]
+__all__ = ["BLEND_FRAMES", "key_contacts", "legs", "lock_feet"]
 
 BLEND_FRAMES = 4  # frames over which a lock is blended in and out
-THRESHOLD = 0.5  # predicted contact above which a foot is planted
 
 
 def legs(skeleton: Skeleton, feet: Sequence[int]) -> list[tuple[int, int, int]]:
@@ -67,7 +66,7 @@ def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_f
     generated[list(known_frames)] = False
     keys = np.flatnonzero(~generated)
     for hip, knee, ankle in legs(skeleton, feet):
-        planted = np.nan_to_num(contact[:, ankle], nan=0.0) > THRESHOLD
+        planted = np.nan_to_num(contact[:, ankle], nan=0.0) > CONTACT_THRESHOLD
         gq, gp = skeleton.pose(root, q)
         target = np.full((n, 3), np.nan)
         weight = np.zeros(n)

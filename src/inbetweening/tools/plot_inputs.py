@@ -119,7 +119,7 @@ def check_contacts(contacts, seqs: Mapping[str, np.ndarray], feet: Sequence[int]
         if arr.dtype != bool:
             if not np.isin(arr, (0, 1)).all():
                 raise ValueError(f"contacts of {label!r} must be planted flags (bool or 0/1); threshold a predicted "
-                                 f"contact first (inbetweening.runtime.foot_lock.THRESHOLD)")
+                                 f"contact first (inbetweening.data.contacts.CONTACT_THRESHOLD)")
             arr = arr.astype(bool)
         out[label] = arr
     return out

@@ -92,7 +92,7 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80, conta
     rule on the drawn motion (``fps`` frames per second); interpolation: the rule."""
     from inbetweening.data.contacts import body_height, find_feet, planted_frames, scaled_contact
     from inbetweening.data.errors import DatasetError
-    from inbetweening.runtime.foot_lock import THRESHOLD
+    from inbetweening.data.contacts import CONTACT_THRESHOLD as THRESHOLD
     from inbetweening.tools.render import render_gif, render_png
 
     suffix = Path(path).suffix.lower()

@@ -1,7 +1,9 @@
 """Configuration checks that run before any data is loaded: one clear line per problem."""
 from __future__ import annotations
 
+import importlib
 import inspect
+import types
 
 from omegaconf import DictConfig
 
@@ -55,15 +57,41 @@ def _check_model(cfg, name: str) -> None:
         raise ConfigError(str(e)) from None
 
 
-def _resolve(cfg, key: str):
-    """The object ``<key>._target_`` names, found as ``hydra.utils.instantiate`` finds it (without its error log)."""
-    from hydra._internal.utils import _locate
+def locate(path: str):
+    """The object a dotted ``path`` names (``torch.optim.AdamW``, ``package.module.function``), found the way
+    ``hydra.utils.instantiate`` finds a ``_target_``: import the first name, then take each further name as an
+    attribute, or, of a module that has no such attribute, import it as a submodule; ImportError when that fails
+    (ValueError for a path with an empty name, ``a..b``).
+    (``hydra.utils.get_object`` does the same but logs an error first; here a failure is the caller's one line.)"""
+    parts = str(path).split(".")
+    if not path:
+        raise ImportError("empty path")
+    if not all(parts):
+        raise ValueError(f"{path!r} is not a dotted path (relative imports are not supported)")
+    try:
+        obj = importlib.import_module(parts[0])
+    except Exception as e:  # noqa: BLE001 - whatever the import raised
+        raise ImportError(f"cannot import {parts[0]!r}: {e!r}") from e
+    for i, name in enumerate(parts[1:], start=2):
+        try:
+            obj = getattr(obj, name)
+        except AttributeError as e:
+            if not isinstance(obj, types.ModuleType):
+                raise ImportError(f"{'.'.join(parts[:i - 1])!r} has no attribute {name!r}") from e
+            try:
+                obj = importlib.import_module(".".join(parts[:i]))
+            except Exception as e2:  # noqa: BLE001 - whatever the import raised
+                raise ImportError(f"cannot import {'.'.join(parts[:i])!r}: {e2!r}") from e2
+    return obj
 
+
+def _resolve(cfg, key: str):
+    """The object ``<key>._target_`` names (:func:`locate`)."""
     target = _get(cfg, f"{key}._target_")
     if target is None:
         raise ConfigError(f"{key}._target_: missing")
     try:
-        return _locate(str(target))
+        return locate(str(target))
     except Exception as e:  # noqa: BLE001 - whatever the import raised, the key is the message
         raise ConfigError(f"{key}._target_: cannot import {target!r} ({type(e).__name__})") from None
 
@@ -176,19 +204,18 @@ def _check_protocol(cfg) -> None:
 
 
 def check_schedules(key: str, ks, allow_empty: bool) -> None:
-    """Keyframes-protocol schedules: distinct entries, each an interval ``K >= 2`` (a key every ``K`` frames) or a
-    keypose schedule name (:data:`inbetweening.evaluation.keyframes.SCHEDULES`)."""
-    from inbetweening.evaluation.keyframes import SCHEDULES
+    """Keyframes-protocol schedules: distinct entries, each one :func:`inbetweening.evaluation.schedules.
+    check_schedule` accepts (an interval ``K >= 2``, a key every ``K`` frames, or a keypose schedule's name)."""
+    from inbetweening.evaluation.schedules import MIN_INTERVAL, SCHEDULES, check_schedule
 
     if isinstance(ks, (str, bytes)) or not hasattr(ks, "__len__") or (len(ks) == 0 and not allow_empty):
-        raise ConfigError(f"{key}: must be a non-empty list of intervals >= 2 and schedules {list(SCHEDULES)} "
-                          f"(e.g. [5, 15, 30, 45, random, extremes]), got {ks!r}")
+        raise ConfigError(f"{key}: must be a non-empty list of intervals >= {MIN_INTERVAL} and schedules "
+                          f"{list(SCHEDULES)} (e.g. [5, 15, 30, 45, random, extremes]), got {ks!r}")
     for k in ks:
-        if isinstance(k, str) and k in SCHEDULES:
-            continue
-        if isinstance(k, bool) or not isinstance(k, int) or k < 2:
-            raise ConfigError(f"{key}: intervals must be integers >= 2 (a keyframe every K frames) or one of "
-                              f"{list(SCHEDULES)}, got {k!r}")
+        try:
+            check_schedule(k)
+        except ValueError as e:
+            raise ConfigError(f"{key}: {e}") from None
     if len(set(ks)) != len(ks):
         raise ConfigError(f"{key}: an interval is listed twice in {list(ks)}")
 
@@ -269,10 +296,7 @@ def validate(cfg: DictConfig) -> None:
 
 
 def _check_task(cfg: DictConfig) -> None:
-    """The training task's options: sampling, context range, intermediate keyframes, mirroring."""
-    sampling = _get(cfg, "data.sampling", "windows")
-    if sampling not in ("windows", "clips"):
-        raise ConfigError(f"data.sampling: must be 'windows' or 'clips', got {sampling!r}")
+    """The training task's options: context range, intermediate keyframes, time warp."""
     cmin, cmax = int(_get(cfg, "data.context_min", N_PAST)), int(_get(cfg, "data.context_max", N_PAST))
     if not 1 <= cmin <= cmax <= N_PAST:
         raise ConfigError(f"data.context_min/max: need 1 <= min <= max <= {N_PAST}, got {cmin}..{cmax}")
@@ -281,8 +305,6 @@ def _check_task(cfg: DictConfig) -> None:
     prob = float(_get(cfg, "data.keyframe_prob", 0.0))
     if not 0.0 <= prob <= 1.0:
         raise ConfigError(f"data.keyframe_prob: must be in [0, 1], got {prob}")
-    if _get(cfg, "data.mirror", False) and sampling != "clips":
-        raise ConfigError("data.mirror: mirroring needs data.sampling=clips (windows are mirrored before normalising)")
     speed = _get(cfg, "data.speed", None)
     if speed is not None:
         try:
@@ -291,5 +313,3 @@ def _check_task(cfg: DictConfig) -> None:
             raise ConfigError(f"data.speed: must be null or [lo, hi] with 1 <= lo <= hi, got {speed!r}") from None
         if not 1.0 <= lo <= hi or hi > 4.0:
             raise ConfigError(f"data.speed: need 1 <= lo <= hi <= 4 (play-back faster than recorded), got {[lo, hi]}")
-        if sampling != "clips":
-            raise ConfigError("data.speed: the time warp needs data.sampling=clips (windows are cut from the clips)")

@@ -21,6 +21,7 @@ from inbetweening.data import windows as W
 from inbetweening.data.bvh_folder import FolderOptions
 from inbetweening.data.datasets import MotionData, load_dataset
 from inbetweening.predictor.masks import JointGaps
+from inbetweening.predictor.settings import PredictorSettings
 from inbetweening.training.sampling import (
     EpochPermutation,
     IndexDataset,
@@ -78,17 +79,13 @@ class InbetweenDataModule(L.LightningDataModule):
         transition_min, transition_max, transition_per: transition lengths drawn for training batches
             (per ``batch`` or per ``sample``).
         train_window, train_offset: training windows (frames, stride).
-        sampling: ``windows`` or ``clips``: both cut the windows from the clips per batch (the names of the two
-            former modes, kept so configs and recorded commands still compose; ``mirror`` and ``speed`` need
-            ``clips``).
         context_min, context_max: context frames per training sample (``10, 10``: the benchmark's; ``1, 10``
             trains for keyframes alone too).
         keyframes_max, keyframe_prob: with probability ``keyframe_prob`` a sample gets ``1..keyframes_max`` extra
             known frames inside its transition.
-        mirror: mirror each training window left/right with probability 0.5 (the dataset's mirror map; ``sampling:
-            clips``).
+        mirror: mirror each training window left/right with probability 0.5 (the dataset's mirror map).
         speed: ``[lo, hi]`` play each training window at a speed drawn uniformly in that range (time warp: faster
-            versions of the training motions; ``sampling: clips``; capped where the clip ends); ``None``: off.
+            versions of the training motions; capped where the clip ends); ``None``: off.
         val_lengths, test_lengths: transition lengths the validation and test benchmarks score (passed on to
             the LightningModule by :meth:`model_kwargs`).
         max_train_windows, max_eval_windows, max_val_windows: caps for quick runs (``None``: all windows;
@@ -126,7 +123,6 @@ class InbetweenDataModule(L.LightningDataModule):
         transition_per: str,
         train_window: int,
         train_offset: int,
-        sampling: str,
         context_min: int,
         context_max: int,
         keyframes_max: int,
@@ -213,13 +209,11 @@ class InbetweenDataModule(L.LightningDataModule):
         return self.data.skeleton
 
     def model_kwargs(self) -> dict:
-        """Plain values the LightningModule needs from the data (skeleton, statistics, name)."""
-        d = self.data
-        return {"skeleton": d.skeleton.to_dict(), "pos_mean": d.pos_mean.tolist(), "pos_std": d.pos_std.tolist(),
-                "dataset": d.name, "forward_axis": list(d.forward_axis), "fps": float(d.fps),
-                "contact": d.contact.to_dict(), "convention": d.convention.to_dict(),
-                "train_window": int(self.hparams.train_window), "val_lengths": list(self.hparams.val_lengths),
-                "test_lengths": list(self.hparams.test_lengths)}
+        """Plain values the LightningModule needs from the data: the predictor's settings the data decides
+        (:meth:`~inbetweening.predictor.settings.PredictorSettings.from_data`: skeleton, statistics, name, conventions,
+        training window) and the benchmark lengths."""
+        return {**PredictorSettings.from_data(self.data, self.hparams.train_window),
+                "val_lengths": list(self.hparams.val_lengths), "test_lengths": list(self.hparams.test_lengths)}
 
     # ------------------------------------------------------------------ batches
     def collate_train(self, items: list) -> dict:

@@ -15,6 +15,7 @@ import torch
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from inbetweening.data.contacts import CONTACT_THRESHOLD
 from inbetweening.tools.skeleton_plot import CONTACT_COLOR, PALETTE
 
 #: Drawing colours: ground truth grey, the model in colour, interpolation dashed.
@@ -206,9 +207,7 @@ class SkeletonFigure(L.Callback):
     def window_motion(self, pl_module, root: torch.Tensor, q: torch.Tensor, n: int):
         """``(positions, contacts)`` of one window: :meth:`sequences`' positions, and for a representation with
         contact channels ``{"prediction", "ground truth"}`` -> ``(T, J)`` bool planted feet (the prediction above
-        :data:`~inbetweening.runtime.foot_lock.THRESHOLD`, the ground truth labelled by the data's rule), else None."""
-        from inbetweening.runtime.foot_lock import THRESHOLD
-
+        :data:`~inbetweening.data.contacts.CONTACT_THRESHOLD`, the ground truth labelled by the data's rule), else None."""
         pr = pl_module.predictor
         t = pr.n_past + n + 1
         known = pr.transition_known(1, t, n, device=pl_module.device)
@@ -225,7 +224,7 @@ class SkeletonFigure(L.Callback):
         predicted, truth = rep.contacts(out.pred), rep.contacts(out.feats)
         if predicted is None:
             return positions, None
-        return positions, {"prediction": (predicted[0] > THRESHOLD).cpu().numpy(),
+        return positions, {"prediction": (predicted[0] > CONTACT_THRESHOLD).cpu().numpy(),
                            "ground truth": (truth[0] > 0.5).cpu().numpy()}
 
     def draw(self, trainer: L.Trainer, pl_module, why: str) -> None:

@@ -14,7 +14,6 @@ import lightning as L
 import numpy as np
 import torch
 
-from inbetweening.data.windows import N_PAST
 from inbetweening.evaluation.metrics import BenchmarkMetric, PerJointError
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor.checkpoint import (
@@ -26,10 +25,12 @@ from inbetweening.predictor.checkpoint import (
 )
 from inbetweening.predictor.masks import JointGaps
 from inbetweening.predictor.predictor import LEGACY_CENTRE, Predictor
-from inbetweening.representation import DEFAULT_REPRESENTATION
+from inbetweening.predictor.settings import PredictorSettings
 from inbetweening.training.losses import total_loss
 from inbetweening.training.schedules import build_optimizers, upgrade_optim
 from inbetweening.training.tb_logging import tb_scalars
+
+_DEFAULT = PredictorSettings.defaults()  # the predictor's settings take the defaults they persist with
 
 
 class InbetweenModule(L.LightningModule):
@@ -69,20 +70,20 @@ class InbetweenModule(L.LightningModule):
         skeleton: dict,
         pos_mean: Sequence[float],
         pos_std: Sequence[float],
-        mask: str | Mapping = "lerp",
+        mask: str | Mapping = _DEFAULT["mask"],
         loss: dict | None = None,
         optim: dict | None = None,
         val_lengths: Sequence[int] = (5, 15, 30),
         test_lengths: Sequence[int] = (5, 15, 30, 45),
-        dataset: str = "",
-        n_past: int = N_PAST,
-        forward_axis: Sequence[float] = (0.0, 1.0, 0.0),
-        fps: float = 30.0,
-        train_window: int = 50,
+        dataset: str = _DEFAULT["dataset"],
+        n_past: int = _DEFAULT["n_past"],
+        forward_axis: Sequence[float] = _DEFAULT["forward_axis"],
+        fps: float = _DEFAULT["fps"],
+        train_window: int = _DEFAULT["train_window"],
         joint_mask: dict | None = None,
         *,
         centre: str,
-        representation: str = DEFAULT_REPRESENTATION,
+        representation: str = _DEFAULT["representation"],
         score_stats: dict | None = None,
         contact: dict | None = None,
         convention: dict | None = None,
@@ -178,9 +179,17 @@ class InbetweenModule(L.LightningModule):
     def forward_axis(self) -> tuple[float, ...]:
         return self.predictor.forward_axis
 
+    def _attached_trainer(self) -> L.Trainer | None:
+        """The trainer running this module, ``None`` outside a fit or test (where Lightning's ``trainer`` raises)."""
+        try:
+            return self.trainer
+        except RuntimeError:
+            return None
+
     @property
     def _distributed(self) -> bool:
-        return self._trainer is not None and self.trainer.world_size > 1
+        trainer = self._attached_trainer()
+        return trainer is not None and trainer.world_size > 1
 
     @property
     def trainable(self) -> bool:
@@ -335,9 +344,9 @@ class InbetweenModule(L.LightningModule):
         """Optimiser steps of the whole run, as ``Trainer.estimated_stepping_batches`` counts them, but without
         building the training loader early: that would happen before a resumed run restores the loader's
         position, and the resumed epoch would restart from its first batch."""
-        if self._trainer is None:
+        t = self._attached_trainer()
+        if t is None:
             return 1
-        t = self.trainer
         dm = t.datamodule
         per_epoch = getattr(dm, "steps_per_epoch", None)
         if per_epoch is None or t.limit_train_batches != 1.0:

@@ -192,15 +192,31 @@ class RunLogger(TensorBoardLogger):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self._session_started = False
+        self._reopened = None  # the event file written after Lightning closed the SummaryWriter (see _write)
 
     def log_metrics(self, metrics: Mapping[str, float], step: int | None = None) -> None:
         renamed = {self.RENAME.get(k, "train/lr" if k.startswith("lr-") else k): v for k, v in metrics.items()}
         super().log_metrics(renamed, step)
 
     def _write(self, summary) -> None:
-        writer = self.experiment._get_file_writer()
+        """Write a summary (the HParams plugin's) into this run's event file: the SummaryWriter's own (its
+        ``file_writer``); once Lightning has closed the writer (``finalize`` at the end of a fit) and no scalar has
+        reopened it, a new event file in the same folder, as the SummaryWriter itself would open."""
+        writer = self.experiment.file_writer
+        if writer is None:
+            if self._reopened is None:
+                from torch.utils.tensorboard.writer import FileWriter
+
+                self._reopened = FileWriter(self.experiment.get_logdir())
+            writer = self._reopened
         writer.add_summary(summary)
         writer.flush()
+
+    def finalize(self, status: str) -> None:
+        super().finalize(status)
+        if self._reopened is not None:
+            self._reopened.close()
+            self._reopened = None
 
     def start_session(self, hparams: Mapping, shown: Sequence[str], metrics: Sequence[str], layout: dict | None = None,
                       experiment: bool = True) -> None:
