@@ -5,7 +5,7 @@ a key every ``K`` frames - default 5, 15, 30, 45 - or a keypose schedule, ``rand
 clip long enough for two of its keys, the clip is truncated to its last key (so its last frame is a key).
 
 Every other frame is generated from the keyframes alone (no context frames), by the
-animator path (:meth:`inbetweening.tools.inbetweener.Inbetweener.fill_arrays`) for a model, and by root lerp +
+fill runtime (:class:`inbetweening.runtime.FillRuntime`, what every front end fills with) for a model, and by root lerp +
 per-joint slerp (:func:`inbetweening.geometry.interp.interpolate_keyframes`) for the interpolation baseline.
 Unknown frames are NaN when handed to a fill function, so nothing can read the ground truth.
 

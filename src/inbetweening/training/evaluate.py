@@ -71,16 +71,20 @@ def with_baselines(name: str, metrics: dict, dm: InbetweenDataModule, lengths) -
 
 # ------------------------------------------------------------------------------------------ keyframes protocol
 def animator_fill(model, foot_lock: bool = True):
-    """The animator path's fill function (``Inbetweener.fill_arrays``) of ``model``, a checkpoint path or a
-    predictor (feet locked unless ``foot_lock=False``): ``(fill, predictor)``.  The one place the jobs call the
-    animator tool."""
-    from inbetweening.tools.inbetweener import Inbetweener
+    """The animator's fill (the fill runtime, :class:`~inbetweening.runtime.FillRuntime`, with the torch backend) of
+    ``model``, a checkpoint path or a predictor (feet locked unless ``foot_lock=False``): ``(fill, predictor)``,
+    ``fill(root, local_q, keys) -> (root, local_q)``: what ``predict``, the Python API and Blender fill with."""
+    from inbetweening.runtime import FillRuntime
+    from inbetweening.runtime.torch_backend import TorchBackend
 
-    if isinstance(model, torch.nn.Module):
-        ib = Inbetweener(model, foot_lock=foot_lock)
-    else:
-        ib = Inbetweener.from_checkpoint(model, foot_lock=foot_lock)
-    return ib.fill_arrays, ib.predictor
+    backend = TorchBackend(model) if isinstance(model, torch.nn.Module) else TorchBackend.from_checkpoint(model)
+    runtime = FillRuntime(backend, foot_lock=foot_lock)
+
+    def fill(root, local_q, keys):
+        out = runtime.fill(root, local_q, keys)
+        return out.root, out.local_q
+
+    return fill, backend.predictor
 
 
 def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
