@@ -20,7 +20,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from inbetweening.tools.render import render_png
+from inbetweening.rendering.render import render_png
 
 ROOT = Path(__file__).resolve().parents[1]
 CLIP = "Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk-turn-left_normal_030.bvh"

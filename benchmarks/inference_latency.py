@@ -31,9 +31,9 @@ import _report  # noqa: E402  (benchmarks/ helper)
 import numpy as np
 import torch
 
+from inbetweening.api.export import export_onnx, random_window
+from inbetweening.api.inbetweener import Inbetweener
 from inbetweening.predictor.checkpoint import load_predictor
-from inbetweening.tools.export import export_onnx, random_window
-from inbetweening.tools.inbetweener import Inbetweener
 
 ROOT = Path(__file__).resolve().parents[1]
 SECTION = "## Inference latency"

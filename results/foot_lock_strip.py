@@ -45,11 +45,11 @@ def draw(ib, root: np.ndarray, q: np.ndarray, every: int, title: str, fps: float
     """``(figure, skate)``: the three panels of a clip ``root (F, 3), local_q (F, J, 4)`` (cut after its last key)
     filled from keys every ``every`` frames, ``shown`` poses of each drawn; ``skate``: label -> foot skating (cm/s)
     over the generated frames where the ground truth's feet are planted."""
+    from inbetweening.data.contacts import CONTACT_THRESHOLD as THRESHOLD
     from inbetweening.data.contacts import foot_contacts, planted_frames
     from inbetweening.evaluation import keyframes as KF
-    from inbetweening.data.contacts import CONTACT_THRESHOLD as THRESHOLD
     from inbetweening.evaluation.schedules import keyframe_indices
-    from inbetweening.tools.skeleton_plot import draw_sequences
+    from inbetweening.rendering.skeleton_plot import draw_sequences
 
     fps = float(fps or ib.fps)
     keys = keyframe_indices(len(root), every)
@@ -91,8 +91,8 @@ def main(argv=None) -> None:
                     help="Bandai-Namco-2 zip or folder (default: $BANDAI_NAMCO_PATH, else ../shared/datasets)")
     a = ap.parse_args(argv)
 
+    from inbetweening.api.inbetweener import Inbetweener
     from inbetweening.data.datasets import load_dataset
-    from inbetweening.tools.inbetweener import Inbetweener
 
     data = load_dataset("bandai_namco", path=a.data)
     clip = next((c for c in data.test if Path(str(c.name)).stem == a.clip), None)

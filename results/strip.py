@@ -30,14 +30,14 @@ def main(argv=None) -> None:
                     help="Bandai-Namco-2 zip or folder (default: $BANDAI_NAMCO_PATH, else ../shared/datasets)")
     a = ap.parse_args(argv)
 
+    from inbetweening.api.inbetweener import Inbetweener
+    from inbetweening.data.contacts import CONTACT_THRESHOLD as THRESHOLD
     from inbetweening.data.contacts import planted_frames
     from inbetweening.data.datasets import load_dataset
     from inbetweening.evaluation import keyframes as KF
     from inbetweening.evaluation.schedules import keyframe_indices
     from inbetweening.geometry.interp import interpolate_keyframes
-    from inbetweening.data.contacts import CONTACT_THRESHOLD as THRESHOLD
-    from inbetweening.tools.inbetweener import Inbetweener
-    from inbetweening.tools.render import render_gif, render_png
+    from inbetweening.rendering.render import render_gif, render_png
 
     data = load_dataset("bandai_namco", a.data, split="content")
     clip = next((c for c in data.test if Path(str(c.name)).stem == a.clip), None)

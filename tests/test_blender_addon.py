@@ -30,7 +30,7 @@ SCRIPT = REPO / "tests" / "blender" / "bpy_fill_check.py"
 def model_skeleton_bvh(path: Path, frames: int = 121, seed: int = 0) -> BVH:
     """A BVH of the model's own skeleton (names, parents, offsets from the checkpoint): ZXY Euler channels, a
     root walking forward and turning, limbs swinging."""
-    from inbetweening.tools.inbetweener import Inbetweener
+    from inbetweening.api.inbetweener import Inbetweener
 
     sk = Inbetweener.from_checkpoint(CKPT).skeleton
     j = sk.num_joints
@@ -103,7 +103,7 @@ def fitted_error(ours: np.ndarray, theirs: np.ndarray, key_idx) -> float:
 
 
 def inbetweener_positions(bvh_path, keys_blender, ckpt=CKPT, foot_lock=True):
-    from inbetweening.tools.inbetweener import Inbetweener
+    from inbetweening.api.inbetweener import Inbetweener
 
     ib = Inbetweener.from_checkpoint(ckpt, foot_lock=foot_lock)
     res = ib.fill_detailed(read_bvh(bvh_path), keyframes=[k - 1 for k in keys_blender])

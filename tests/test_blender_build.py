@@ -6,13 +6,11 @@ from __future__ import annotations
 import ast
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
-import numpy as np
 import pytest
 import torch
-
-import zipfile
 
 from inbetweening.predictor import masks
 

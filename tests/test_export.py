@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening.tools import export
+from inbetweening.api import export
+from inbetweening.cli.export import run as export_cli
 from inbetweening.training.module import load_module
 
 ort = pytest.importorskip("onnxruntime")
@@ -18,7 +19,7 @@ onnx = pytest.importorskip("onnx")
 @pytest.fixture(scope="module")
 def exported(tiny_checkpoint, tmp_path_factory):
     path = tmp_path_factory.mktemp("onnx") / "model.onnx"
-    assert export.run([f"ckpt_path={tiny_checkpoint}", "format=onnx", f"output={path}", "opset=17"]) == 0
+    assert export_cli([f"ckpt_path={tiny_checkpoint}", "format=onnx", f"output={path}", "opset=17"]) == 0
     return path, load_module(str(tiny_checkpoint))
 
 
@@ -73,7 +74,7 @@ def _ort_vs_torch(path, module, batch: int, gap: int, seed: int) -> tuple[np.nda
 
 
 def test_export_prints_check(tiny_checkpoint, tmp_path, capsys):
-    assert export.run(["--ckpt_path", str(tiny_checkpoint), "--output", str(tmp_path / "m.onnx")]) == 0
+    assert export_cli(["--ckpt_path", str(tiny_checkpoint), "--output", str(tmp_path / "m.onnx")]) == 0
     out = capsys.readouterr().out
     diff = float(out.rsplit("max abs diff", 1)[1])
     assert diff <= 1e-4
@@ -111,7 +112,7 @@ def test_check_onnx_reports_a_real_difference(exported, tiny_checkpoint):
 def test_export_errors(argv, msg, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(SystemExit) as exc:
-        export.run(argv)
+        export_cli(argv)
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and msg in err and len(err.strip().splitlines()) == 1
@@ -139,8 +140,8 @@ def test_inference_only_checkpoint_loads_alone(tiny_checkpoint, tmp_path):
 def test_window_graph_of_a_contact_model_with_the_gate(tiny_contact_checkpoint, tmp_path):
     """The Blender extension's window graph exports for a model with foot contact channels and the gate."""
     pytest.importorskip("onnxruntime")
+    from inbetweening.api.export import export_window_onnx
     from inbetweening.predictor.checkpoint import load_predictor
-    from inbetweening.tools.export import export_window_onnx
 
     info = export_window_onnx(load_predictor(str(tiny_contact_checkpoint)), tmp_path / "w.onnx")
     assert info["max_abs_diff"] < 1e-4 and info["metadata"]["contact_slice"] == "[7, 8]"
@@ -150,8 +151,8 @@ def test_window_graph_carries_the_do_no_harm_blend(tiny_contact_checkpoint, tmp_
     """A calibrated predictor's blend is part of the window graph the Blender extension runs, its weights an input
     (the runtime's): ONNX Runtime with weight 1 is the unblended graph, with the blend's weights it differs."""
     ort = pytest.importorskip("onnxruntime")
+    from inbetweening.api.export import export_window_onnx, window_example
     from inbetweening.predictor.checkpoint import load_predictor
-    from inbetweening.tools.export import export_window_onnx, window_example
 
     plain = load_predictor(str(tiny_contact_checkpoint))
     torch.manual_seed(0)

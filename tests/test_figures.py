@@ -6,8 +6,8 @@ import torch
 from matplotlib.colors import to_rgb
 
 from inbetweening.data.synthetic import NAMES, PARENTS, generate_clip, make_bvh
-from inbetweening.tools.render import figure_to_array
-from inbetweening.tools.skeleton_plot import CONTACT_COLOR
+from inbetweening.rendering.render import figure_to_array
+from inbetweening.rendering.skeleton_plot import CONTACT_COLOR
 from inbetweening.training.figures import (
     INTERP_COLOR,
     MODEL_COLOR,

@@ -110,7 +110,7 @@ def test_a_run_between_two_keys_moves_from_one_key_to_the_other():
 def test_inbetweener_locks_feet_with_a_contact_model(tiny_contact_checkpoint, lock):
     """A model with contact channels: the Inbetweener locks by default (keys exact either way); foot_lock=False is
     the network's output."""
-    from inbetweening.tools.inbetweener import Inbetweener
+    from inbetweening.api.inbetweener import Inbetweener
 
     ib = Inbetweener.from_checkpoint(tiny_contact_checkpoint)
     assert ib.foot_lock
@@ -130,7 +130,7 @@ def test_fill_arrays_returns_the_contacts_it_locks_on(tiny_contact_checkpoint, t
     """``with_contacts``: the same motion plus the contact the lock read, the prediction on generated frames and the
     keys' own (an isolated key: its height under the contact height) on the keys; None for a model without
     contact channels."""
-    from inbetweening.tools.inbetweener import Inbetweener
+    from inbetweening.api.inbetweener import Inbetweener
 
     ib = Inbetweener.from_checkpoint(tiny_contact_checkpoint)
     root, q = _clip(80, seed=4)
@@ -170,8 +170,8 @@ def _foot_lock_strip():
 def test_foot_lock_strip_draws_locked_unlocked_and_truth(tiny_contact_checkpoint, tiny_checkpoint, tmp_path):
     """results/foot_lock_strip.py's picture on a synthetic clip: three panels in its order, each titled with its foot
     skating, the ground truth's by the evaluation's own numbers; a model without contact channels is refused."""
+    from inbetweening.api.inbetweener import Inbetweener
     from inbetweening.evaluation import keyframes as KF
-    from inbetweening.tools.inbetweener import Inbetweener
 
     strip = _foot_lock_strip()
     ib = Inbetweener.from_checkpoint(tiny_contact_checkpoint)

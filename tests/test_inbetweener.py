@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 import torch
 
+from inbetweening.api.inbetweener import Inbetweener, InbetweenError
 from inbetweening.geometry import canonical
 from inbetweening.predictor.checkpoint import load_predictor
 from inbetweening.predictor.masks import apply_mask
 from inbetweening.runtime import FillRuntime
 from inbetweening.runtime.torch_backend import TorchBackend
-from inbetweening.tools.inbetweener import Inbetweener, InbetweenError
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "bn2_reference" / "model.ckpt"
 

@@ -255,9 +255,9 @@ def test_state_dict_round_trip_reproduces_the_output(name):
         assert torch.equal(a(x, known, interp), b(x, known, interp))
 
 
-@pytest.mark.parametrize("name", TRAINABLE)  # checkpoints (what tools/export.py exports) exist for trained models only
+@pytest.mark.parametrize("name", TRAINABLE)  # checkpoints (what api/export.py exports) exist for trained models only
 def test_onnx_export_matches_onnxruntime(name, tmp_path):
-    """``net(x, known, interp)`` exported as tools/export.py does (dynamic B and T), run by ONNX Runtime on other
+    """``net(x, known, interp)`` exported as api/export.py does (dynamic B and T), run by ONNX Runtime on other
     B and T.  The output head is re-drawn so the residual network contributes on top of ``interp``."""
     ort = pytest.importorskip("onnxruntime")
     pytest.importorskip("onnx")
@@ -269,7 +269,7 @@ def test_onnx_export_matches_onnxruntime(name, tmp_path):
 
 
 def onnx_round_trip(ort, model, path) -> None:
-    """Export ``model`` as tools/export.py does (dynamic B and T) and check ONNX Runtime against PyTorch on other
+    """Export ``model`` as api/export.py does (dynamic B and T) and check ONNX Runtime against PyTorch on other
     B and T."""
     axes = {k: {0: "B", 1: "T"} for k in ("x", "known", "interp", "out")}
     with warnings.catch_warnings(), torch.no_grad():

@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 
 from inbetweening import Inbetweener
+from inbetweening.api.inbetweener import InbetweenError
+from inbetweening.cli import predict
 from inbetweening.data.bvh import BVH, parse_bvh, read_bvh
 from inbetweening.data.bvh_writer import format_bvh, write_bvh
 from inbetweening.data.datasets import fold_static_root
@@ -18,8 +20,6 @@ from inbetweening.data.synthetic import generate_clip, make_bvh
 from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.quaternion import qinv, qmul, qrot
 from inbetweening.predictor.checkpoint import CheckpointError
-from inbetweening.tools import predict
-from inbetweening.tools.inbetweener import InbetweenError
 from inbetweening.training.module import InbetweenModule
 
 
@@ -254,7 +254,7 @@ def test_render_comparison_marks_the_planted_feet(ib, tmp_path):
     from PIL import Image
 
     from inbetweening.data.contacts import FootContact
-    from inbetweening.tools.skeleton_plot import CONTACT_COLOR
+    from inbetweening.rendering.skeleton_plot import CONTACT_COLOR
 
     res = ib.fill_detailed(_clip(40), keyframes=[0, 12, 24])
     shape = (res.num_frames, res.skeleton.num_joints)

@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from inbetweening.cli import export, predict
 from inbetweening.data.bvh import read_bvh
 from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.synthetic import generate_clip, make_bvh
-from inbetweening.tools import export, predict
 
 
 @pytest.fixture

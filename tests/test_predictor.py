@@ -14,8 +14,7 @@ from inbetweening import representation as R
 from inbetweening.data import windows as W
 from inbetweening.evaluation import benchmark as B
 from inbetweening.geometry import canonical
-from inbetweening.geometry.interp import interpolate_keyframes
-from inbetweening.geometry.quaternion import qmul, qrot
+from inbetweening.geometry.quaternion import qrot
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.models import build_network
 from inbetweening.models.base import DEFAULT_LAYOUT, FEATURE_DIM
@@ -378,7 +377,7 @@ def test_reference_checkpoint_predictor_equals_the_module_and_loads_without_ligh
     a, b = pred.predict_transitions(root, q, 15), module.predictor.predict_transitions(root, q, 15)
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
     code = ("import sys; from inbetweening.predictor.checkpoint import load_predictor; "
-            "from inbetweening.tools.inbetweener import Inbetweener; "
+            "from inbetweening.api.inbetweener import Inbetweener; "
             f"ib = Inbetweener(load_predictor({str(REFERENCE)!r})); "
             "bad = [m for m in sys.modules if m.startswith(('lightning', 'inbetweening.training'))]; "
             "assert not bad, bad; print('ok')")

@@ -1,4 +1,4 @@
-"""Tests for the headless skeleton renderer (:mod:`inbetweening.tools.render`)."""
+"""Tests for the headless skeleton renderer (:mod:`inbetweening.rendering.render`)."""
 from __future__ import annotations
 
 import subprocess
@@ -10,8 +10,8 @@ import pytest
 from matplotlib.colors import to_rgb
 from PIL import Image
 
-from inbetweening.tools.render import draw_sequences, figure_to_array, render_gif, render_png
-from inbetweening.tools.skeleton_plot import CONTACT_COLOR, FLOOR_COLOR, PALETTE
+from inbetweening.rendering.render import draw_sequences, figure_to_array, render_gif, render_png
+from inbetweening.rendering.skeleton_plot import CONTACT_COLOR, FLOOR_COLOR, PALETTE
 
 PARENTS = [-1, 0, 1, 2, 0, 4, 0, 6]  # root, a 3-bone chain, two 2-bone limbs
 OFFSETS = np.array(
@@ -115,7 +115,7 @@ def test_does_not_import_pyplot(tmp_path):
     code = textwrap.dedent(f"""
         import sys
         import numpy as np
-        from inbetweening.tools.render import draw_sequences, figure_to_array, render_gif, render_png
+        from inbetweening.rendering.render import draw_sequences, figure_to_array, render_gif, render_png
         assert "matplotlib.pyplot" not in sys.modules, "imported by the module"
         seq = np.cumsum(np.ones((3, 8, 3)), axis=0)
         parents = {PARENTS!r}

@@ -162,7 +162,7 @@ def test_a_second_representation_is_one_class(monkeypatch, tmp_path):
     assert p.representation.metadata()["features_per_joint"] == 8
     ort = pytest.importorskip("onnxruntime")
     assert ort is not None
-    from inbetweening.tools.export import export_onnx
+    from inbetweening.api.export import export_onnx
 
     info = export_onnx(p, tmp_path / "m.onnx")
     assert info["max_abs_diff"] <= 1e-4

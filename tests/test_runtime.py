@@ -175,7 +175,8 @@ def test_a_zero_blend_gives_the_interpolation_back_through_a_real_network():
     linearly, joints by slerp), whatever the network; with weight 1 it is the network's own output."""
     root, q = motion(50, seed=6)
     keys = [0, 17, 40, 49]
-    net = {"name": "frame_transformer", "d_model": 16, "depth": 1, "heads": 2, "ffn_dim": 16, "dropout": 0.0}
+    net = {"name": "frame_transformer", "d_model": 16, "depth": 1, "heads": 2, "ffn_dim": 16, "dropout": 0.0,
+           "residual_to_interpolation": False}  # (a residual network starts at the interpolation)
     state, fills = None, {}
     for name, blend in (("zero", [0.0]), ("one", [1.0]), ("none", None)):
         pr = Predictor.from_hparams(hparams(model=net, blend=blend)).eval()

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 import torch
 
+from inbetweening.api.export import export_onnx, export_window_onnx, window_example
 from inbetweening.runtime import FillRuntime, ModelError
 from inbetweening.runtime.onnx_backend import OnnxBackend
 from inbetweening.runtime.torch_backend import TorchBackend, WindowPath
-from inbetweening.tools.export import export_onnx, export_window_onnx, window_example
 
 REPO = Path(__file__).resolve().parents[1]
 MODELS = {name: REPO / "models" / name / "model.ckpt" for name in ("bn2_reference", "bn2_v2")}

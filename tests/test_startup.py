@@ -47,7 +47,7 @@ def test_predict_without_render_imports_no_heavy_stack(tiny_checkpoint, tmp_path
                               "output=out.bvh"], tmp_path)
     assert code == 0, out
     assert (tmp_path / "out.bvh").is_file() and "61 frames (5 keyframes, 56 generated" in out
-    assert "torch" in mods and "inbetweening.tools.inbetweener" in mods  # it really ran the model
+    assert "torch" in mods and "inbetweening.api.inbetweener" in mods  # it really ran the model
     assert [m for m in HEAVY if m in mods] == []
 
 

@@ -1,5 +1,5 @@
-"""``python -m inbetweening.export``: the command-line contract; the tool lives in :mod:`inbetweening.tools.export`."""
-from inbetweening.tools.export import main
+"""``python -m inbetweening.export``: the command-line contract; the command lives in :mod:`inbetweening.cli.export`."""
+from inbetweening.cli.export import main
 
 if __name__ == "__main__":
     main()

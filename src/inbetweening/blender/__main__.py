@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 
-from inbetweening.tools._cli import UsageError, fail, parse_args
+from inbetweening.cli.args import UsageError, fail, parse_args
 
 USAGE = """\
 usage: python -m inbetweening.blender build OUT_DIR [ckpt_path=models/bn2_reference/model.ckpt]

@@ -73,8 +73,8 @@ def download_wheels(platform: str, version: str = ONNXRUNTIME, cache: Path | Non
 
 def export_model(ckpt_path: str | Path, out_dir: Path) -> tuple[Path, Path, dict]:
     """Export the checkpoint's window graph to ``out_dir/model.onnx`` and its metadata to ``model.json``."""
-    from inbetweening.tools.export import export_window_onnx
-    from inbetweening.tools.inbetweener import Inbetweener
+    from inbetweening.api.export import export_window_onnx
+    from inbetweening.api.inbetweener import Inbetweener
 
     ckpt_path = Path(ckpt_path)
     if not ckpt_path.is_file():

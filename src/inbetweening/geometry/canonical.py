@@ -15,7 +15,6 @@ import numpy as np
 from inbetweening.geometry.arrays import Array, is_tensor, torch
 from inbetweening.geometry.quaternion import qbetween, qinv, qmul, qnormalize, qrot
 
-
 _is_torch = is_tensor
 
 

@@ -2,7 +2,7 @@
 
 :class:`WindowPath` is the computation both backends run on canonical windows — features (FK), mask, network, the
 do-no-harm blend with the runtime's weights, decode, predicted contact — in PyTorch here, and exported as one ONNX graph
-for the other backend (:func:`inbetweening.tools.export.export_window_onnx`), so the two cannot drift apart.
+for the other backend (:func:`inbetweening.api.export.export_window_onnx`), so the two cannot drift apart.
 :func:`window_metadata` describes the model for both (:class:`~inbetweening.runtime.model.ModelInfo`).
 
 This is the one module of the runtime that imports PyTorch (it is not bundled into the Blender extension).
@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from .model import WINDOW_FORMAT, ModelInfo

@@ -16,7 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from inbetweening.data.contacts import CONTACT_THRESHOLD
-from inbetweening.tools.skeleton_plot import CONTACT_COLOR, PALETTE
+from inbetweening.rendering.skeleton_plot import CONTACT_COLOR, PALETTE
 
 #: Drawing colours: ground truth grey, the model in colour, interpolation dashed.
 GT_COLOR, MODEL_COLOR, INTERP_COLOR = "0.6", "tab:blue", "tab:orange"

@@ -1,5 +1,5 @@
 """Drawing skeleton sequences on matplotlib figures (no files): the floor, foot trails, poses (:class:`Panel`), the
-figure's layout and :func:`draw_sequences`, the filmstrip figure that :mod:`inbetweening.tools.render` saves (its
+figure's layout and :func:`draw_sequences`, the filmstrip figure that :mod:`inbetweening.rendering.render` saves (its
 GIF is drawn with :class:`Panel` too).  Input checks: :mod:`.plot_inputs`; camera and framing: :mod:`.plot_camera`.
 
 Everything draws on a :class:`matplotlib.figure.Figure` with its own Agg canvas; ``pyplot`` is never imported.
@@ -27,7 +27,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon
 
-from inbetweening.tools.plot_camera import (
+from inbetweening.rendering.plot_camera import (
     MAX_ASPECT,
     MAX_HEIGHT_RATIO,
     MIN_ASPECT,
@@ -45,7 +45,7 @@ from inbetweening.tools.plot_camera import (
     shift_floor,
     to_plot,
 )
-from inbetweening.tools.plot_inputs import (
+from inbetweening.rendering.plot_inputs import (
     check_contacts,
     check_feet,
     check_frames,

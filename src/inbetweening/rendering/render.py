@@ -1,5 +1,5 @@
 """Headless rendering of skeleton sequences to files and arrays (PNG filmstrips, animated GIFs, arrays for
-TensorBoard); the drawing itself is :mod:`inbetweening.tools.skeleton_plot`'s.
+TensorBoard); the drawing itself is :mod:`inbetweening.rendering.skeleton_plot`'s.
 
 Everything here draws on a :class:`matplotlib.figure.Figure` with its own Agg canvas; ``pyplot`` is never
 imported, so the global matplotlib backend is left alone (safe in notebooks, on servers without a display and
@@ -13,7 +13,7 @@ skeleton (same ``J == len(parents)``); their lengths ``T`` may differ (a shorter
 The data axis ``up_axis`` is shown vertically.  The three data axes are shown in cyclic order
 ``(up + 1, up + 2, up) % 3`` on the plot's ``(x, y, z)``, which keeps right-handed data right-handed (not mirrored).
 The pictures are framed on the body over a floor (``floor``, default height 0) with the feet's trails and planted
-feet (``feet``, ``contacts``): see :mod:`inbetweening.tools.skeleton_plot`.
+feet (``feet``, ``contacts``): see :mod:`inbetweening.rendering.skeleton_plot`.
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from inbetweening.tools.plot_camera import (
+from inbetweening.rendering.plot_camera import (
     Camera,
     auto_view,
     body_height,
@@ -35,7 +35,7 @@ from inbetweening.tools.plot_camera import (
     shift_floor,
     to_plot,
 )
-from inbetweening.tools.plot_inputs import (
+from inbetweening.rendering.plot_inputs import (
     check_contacts,
     check_feet,
     check_highlight,
@@ -43,7 +43,7 @@ from inbetweening.tools.plot_inputs import (
     check_sequences,
     check_up_axis,
 )
-from inbetweening.tools.skeleton_plot import (
+from inbetweening.rendering.skeleton_plot import (
     KEY_COLOR,
     PALETTE,
     Panel,
@@ -109,7 +109,7 @@ def render_gif(
         panel_size: width of one panel in inches.
         title: optional prefix of the per-frame title (which always shows ``frame t/T``).
         feet, contacts, floor: the feet's trails, where they are planted, and the floor height, as in
-            :func:`~inbetweening.tools.skeleton_plot.draw_sequences`.
+            :func:`~inbetweening.rendering.skeleton_plot.draw_sequences`.
 
     Returns:
         The path written.

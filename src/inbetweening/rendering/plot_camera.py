@@ -1,6 +1,6 @@
 """The geometry of a skeleton picture: plot space, the orthographic :class:`Camera`, the automatic view, the
 floor's grid and rectangle, and the framing of panels (shared or following the root).  No drawing: see
-:mod:`inbetweening.tools.skeleton_plot`."""
+:mod:`inbetweening.rendering.skeleton_plot`."""
 from __future__ import annotations
 
 import math

@@ -1,6 +1,6 @@
-"""Export a trained network for deployment (command line and :func:`export_onnx`).
-
-    python -m inbetweening.export ckpt_path=run/checkpoints/last.ckpt format=onnx output=model.onnx [opset=17]
+"""Export a trained network for deployment: :func:`export_onnx` (the network alone), :func:`export_window_onnx` (the
+fill runtime's window computation, what the ONNX backend and the Blender extension run), :func:`export_checkpoint`
+(an inference-only checkpoint).  The command line: :mod:`inbetweening.cli.export`.
 
 The exported graph is the network alone, ``net(x, known, interp) -> out``:
 
@@ -13,7 +13,7 @@ The exported graph is the network alone, ``net(x, known, interp) -> out``:
 * ``out``    float32 ``(B, T, J, 7)``: known values copied from ``x``, the others predicted.
 
 ``B`` and ``T`` are dynamic (``T = n_past + gap + 1``, at most the network's ``max_frames``).  Windows must be
-normalised like the training windows (see :mod:`inbetweening.tools.inbetweener`).  Everything needed to prepare
+normalised like the training windows (see :mod:`inbetweening.runtime.fill`).  Everything needed to prepare
 them is stored in the model's ``metadata_props``, one JSON value per key: ``skeleton_names``,
 ``skeleton_parents``, ``skeleton_offsets``, ``pos_mean``, ``pos_std``, ``mask``, ``forward_axis``, ``n_past``,
 ``fps``, ``train_window``, ``max_frames``, ``model``, ``dataset``, ``centre``, the feature layout
@@ -27,36 +27,12 @@ taken back (as :meth:`Predictor.predict_windows <inbetweening.predictor.predicto
 from __future__ import annotations
 
 import json
-import sys
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import torch
-
-from inbetweening.tools._cli import UsageError, fail, parse_args, parse_bool
-
-FORMATS = ("onnx", "ckpt")
-
-USAGE = """\
-usage: python -m inbetweening.export ckpt_path=<model.ckpt> format=onnx|ckpt output=<file> [opset=17] [check=true]
-
-Export the network of a training checkpoint.  Options may be given as key=value or --key value.
-
-  ckpt_path=PATH   training checkpoint (.ckpt)                                       (required)
-  format=onnx      ONNX graph of the network                                         (default onnx)
-  format=ckpt      inference-only Lightning checkpoint: weights + hyper-parameters, no optimiser
-                   state (loads with InbetweenModule.load_from_checkpoint / Inbetweener)
-  output=PATH      file to write                                                     (required)
-  opset=N          ONNX opset version                                                (default 17)
-  check=BOOL       run the exported model with ONNX Runtime on a random window and
-                   print the largest difference to PyTorch                           (default true)
-  --force          allow output to be the input checkpoint itself (refused otherwise)
-
-The ONNX graph computes net(x, known, interp) with dynamic batch and frame axes; the skeleton, the
-normalisation statistics, the mask, the forward axis and n_past are stored as JSON in metadata_props.
-"""
 
 
 class ExportError(ValueError):
@@ -173,52 +149,6 @@ def export_checkpoint(src: str | Path, dst: str | Path) -> dict:
     with atomic_path(dst) as tmp:
         torch.save(slim, tmp)
     return {"path": str(dst), "bytes": dst.stat().st_size}
-
-
-def run(argv: Sequence[str]) -> int:
-    try:
-        args = parse_args(argv, {"ckpt_path": str, "format": str, "output": str, "opset": int, "check": parse_bool,
-                                 "force": parse_bool},
-                          {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "out": "output", "o": "output"})
-    except UsageError as e:
-        fail(e)
-    if args is None:
-        print(USAGE)
-        return 0
-    missing = [k for k in ("ckpt_path", "output") if k not in args]
-    if missing:
-        fail(f"missing {', '.join(f'{k}=...' for k in missing)} (see --help)")
-    fmt = str(args.get("format", "onnx")).lower()
-    if fmt not in FORMATS:
-        fail(f"format: unknown export format {args['format']!r}; supported: {', '.join(FORMATS)}")
-    from inbetweening.atomic import same_file
-    from inbetweening.predictor.checkpoint import CheckpointError, load_predictor
-
-    if same_file(args["ckpt_path"], args["output"]) and not args.get("force", False):
-        fail(f"output: {args['output']} is the checkpoint being exported; writing it would destroy the input "
-             "(choose another output, or --force to overwrite)")
-
-    try:
-        if fmt == "ckpt":
-            info = export_checkpoint(args["ckpt_path"], args["output"])
-            print(f"wrote {info['path']} ({info['bytes'] / 1e6:.2f} MB, weights and hyper-parameters only)")
-            return 0
-        predictor = load_predictor(args["ckpt_path"])
-        info = export_onnx(predictor, args["output"], opset=args.get("opset", 17), check=args.get("check", True))
-    except (CheckpointError, ExportError, OSError) as e:
-        fail(e)
-    print(f"wrote {info['path']} (inputs: {', '.join(info['inputs'])}; dynamic axes: batch, frames)")
-    if info["max_abs_diff"] is not None:
-        print(f"onnxruntime vs PyTorch on a random window: max abs diff {info['max_abs_diff']:.3g}")
-    return 0
-
-
-def main() -> None:
-    sys.exit(run(sys.argv[1:]))
-
-
-if __name__ == "__main__":
-    main()
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from inbetweening.tools._cli import UsageError, fail, parse_args, parse_bool, parse_int_list
+from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool, parse_int_list
 
 USAGE = """\
 usage: python -m inbetweening.predict [ckpt_path=<model.ckpt>] input=<clip.bvh> output=<out.bvh>
@@ -82,7 +82,7 @@ RENDER_FORMATS = (".gif", ".png")  # render=PATH: an animation, or a filmstrip o
 
 
 def render_comparison(result, path: str | Path, fps: float, dpi: int = 80, contact=None) -> Path:
-    """A picture of a :class:`~inbetweening.tools.inbetweener.FillResult`, prediction | linear interpolation, keys in
+    """A picture of a :class:`~inbetweening.api.inbetweener.FillResult`, prediction | linear interpolation, keys in
     red, in the format the file name says: ``.gif`` an animation, ``.png`` a filmstrip (ValueError otherwise).
 
     ``contact``: the model's feet and contact rule (:class:`~inbetweening.data.contacts.FootContact`, the
@@ -90,10 +90,10 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80, conta
     scaled to its height): the feet's trails are drawn on the floor, thick where a foot is planted, so a sliding
     foot draws a streak.  Planted: the model's predicted contact where it has one (``result.contact``), else the
     rule on the drawn motion (``fps`` frames per second); interpolation: the rule."""
+    from inbetweening.data.contacts import CONTACT_THRESHOLD as THRESHOLD
     from inbetweening.data.contacts import body_height, find_feet, planted_frames, scaled_contact
     from inbetweening.data.errors import DatasetError
-    from inbetweening.data.contacts import CONTACT_THRESHOLD as THRESHOLD
-    from inbetweening.tools.render import render_gif, render_png
+    from inbetweening.rendering.render import render_gif, render_png
 
     suffix = Path(path).suffix.lower()
     if suffix not in RENDER_FORMATS:
@@ -171,10 +171,10 @@ def run(argv: Sequence[str]) -> int:
     device = args.get("device", "cpu")
     import torch
 
+    from inbetweening.api.inbetweener import Inbetweener, InbetweenError
     from inbetweening.data.bvh import BVHError, read_bvh
     from inbetweening.data.bvh_writer import write_bvh
     from inbetweening.predictor.checkpoint import CheckpointError
-    from inbetweening.tools.inbetweener import Inbetweener, InbetweenError
 
     if str(device).startswith("cuda") and not torch.cuda.is_available():
         fail(f"device: {device} requested but CUDA is not available (use device=cpu)")

@@ -1,4 +1,4 @@
-"""Checks of the inputs of a skeleton picture (:mod:`inbetweening.tools.skeleton_plot`): sequences, parents,
+"""Checks of the inputs of a skeleton picture (:mod:`inbetweening.rendering.skeleton_plot`): sequences, parents,
 up axis, keyframe highlight, feet, contacts, frames and view; each returns the checked value or raises ValueError
 naming the argument."""
 from __future__ import annotations

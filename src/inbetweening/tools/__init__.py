@@ -1,1 +1,0 @@
-"""Animator tools: the Inbetweener API, predict, export, render."""
