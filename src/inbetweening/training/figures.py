@@ -1,9 +1,11 @@
 """TensorBoard figures drawn during validation: the per-joint errors (:func:`per_joint_figure`) and one transition
 of a fixed validation window (:func:`transition_figure`), and the callback that logs both (:class:`SkeletonFigure`).
 
-Both are plain matplotlib figures on their own Agg canvas (no pyplot state), sized to stay readable at
-TensorBoard's thumbnail width (the image dashboard shows them about 500 px wide).  Positions are in the dataset's
-length unit (cm for every built-in dataset), rotations in degrees.
+Both are plain matplotlib figures on their own Agg canvas (no pyplot state) designed for TensorBoard's image card,
+which draws an image about 320-340 px wide whatever its size: :data:`WIDTH_PX` wide, every text at least
+:data:`FONT_SMALL` points (about 9 px in the card), panels stacked rather than side by side, and every legend outside the
+data area (above the panels).  Positions are in the dataset's length unit (cm for every built-in dataset),
+rotations in degrees.
 """
 from __future__ import annotations
 
@@ -14,6 +16,8 @@ import numpy as np
 import torch
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.ticker import MaxNLocator
 
 from inbetweening.tools.skeleton_plot import CONTACT_COLOR, PALETTE
 
@@ -21,10 +25,14 @@ from inbetweening.tools.skeleton_plot import CONTACT_COLOR, PALETTE
 GT_COLOR, MODEL_COLOR, INTERP_COLOR = "0.6", "tab:blue", "tab:orange"
 #: Planted feet: the prediction's a filled dot in the contact colour, the ground truth's a dark ring.
 GT_CONTACT_COLOR = "0.2"
+#: Figure width in pixels (at :data:`DPI`), the titles' and labels' font size and the smallest one (ticks, legends) in
+#: points: in a 320 px card, 12 pt at 100 dpi on a 600 px figure is about 9 px.
+WIDTH_PX, FONT, FONT_SMALL = 600, 13, 12
+DPI = 100
 
 
 def _figure(width: float, height: float) -> Figure:
-    fig = Figure(figsize=(width, height), dpi=100)
+    fig = Figure(figsize=(width, height), dpi=DPI)
     FigureCanvasAgg(fig)
     return fig
 
@@ -32,32 +40,41 @@ def _figure(width: float, height: float) -> Figure:
 def per_joint_figure(names: Sequence[str], model: Mapping[int, Mapping[str, np.ndarray]],
                      interp: Mapping[int, Mapping[str, np.ndarray]] | None = None, title: str = "",
                      unit: str = "cm") -> Figure:
-    """Mean position error (``unit``) and rotation error (degrees) per joint, joints in skeleton order on the x
-    axis, one colour per transition length; the model solid, interpolation (when given) dashed.
+    """Mean position error (``unit``) and rotation error (degrees) per joint: the joints are the rows (skeleton
+    order, top to bottom, their names readable horizontally), position on the left, rotation on the right, one colour
+    per transition length; the model solid with dots, interpolation (when given) dashed.  The legend is above the
+    panels, outside the data.
 
     ``model[n]``/``interp[n]``: ``{"pos": (J,), "rot": (J,)}`` for transition length ``n``."""
-    fig = _figure(7.0, 4.6)
-    axes = fig.subplots(2, 1, sharex=True)
-    x = np.arange(len(names))
-    for ax, key, label in ((axes[0], "pos", f"position error ({unit})"), (axes[1], "rot", "rotation error (deg)")):
+    rows = len(names)
+    fig = _figure(WIDTH_PX / DPI, 1.9 + 0.24 * rows)
+    axes = fig.subplots(1, 2, sharey=True)
+    y = np.arange(rows)
+    for ax, key, label in ((axes[0], "pos", f"position ({unit})"), (axes[1], "rot", "rotation (deg)")):
         for i, n in enumerate(sorted(model)):
             c = PALETTE[i % len(PALETTE)]
-            ax.plot(x, np.asarray(model[n][key]), "-o", color=c, ms=3, lw=1.5, label=f"{n} frames")
+            ax.plot(np.asarray(model[n][key]), y, "-o", color=c, ms=4, lw=1.6, label=f"{n}")
             if interp and n in interp:
-                ax.plot(x, np.asarray(interp[n][key]), "--", color=c, lw=1.0, alpha=0.8)
-        ax.set_ylabel(label, fontsize=8)
+                ax.plot(np.asarray(interp[n][key]), y, "--", color=c, lw=1.2, alpha=0.8)
+        ax.set_xlabel(label, fontsize=FONT)
         ax.grid(alpha=0.3)
-        ax.tick_params(labelsize=7)
-        ax.set_ylim(bottom=0)
-    axes[1].set_xticks(x, list(names), rotation=90, fontsize=6)
+        ax.tick_params(labelsize=FONT_SMALL)
+        ax.set_xlim(left=0)
+        ax.xaxis.set_major_locator(MaxNLocator(4))
+    axes[0].set_yticks(y, list(names), fontsize=FONT_SMALL)
+    axes[0].set_ylim(rows - 0.5, -0.5)
     handles, labels = axes[0].get_legend_handles_labels()
+    labels = [f"{lb} frames" if i == len(labels) - 1 else lb for i, lb in enumerate(labels)]
     if interp:
-        handles.append(axes[0].plot([], [], "--", color="k", lw=1.0)[0])
-        labels.append("interpolation (dashed)")
-    axes[0].legend(handles, labels, fontsize=7, ncol=3, loc="upper left")
+        handles.append(axes[0].plot([], [], "--", color="k", lw=1.2)[0])
+        labels.append("interp.")
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.6, 1.0 - 0.42 / fig.get_figheight()),
+               fontsize=FONT_SMALL, ncol=len(labels), frameon=False, handlelength=1.5, columnspacing=0.8,
+               handletextpad=0.4)
     if title:
-        fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
+        fig.suptitle(title, fontsize=FONT, x=0.01, ha="left", y=1.0 - 0.08 / fig.get_figheight(), va="top")
+    top = 1.0 - 0.85 / fig.get_figheight()
+    fig.subplots_adjust(left=0.27, right=0.97, top=top, bottom=0.75 / fig.get_figheight(), wspace=0.08)
     return fig
 
 
@@ -85,66 +102,86 @@ def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, pare
     fwd = 0 if up_axis != 0 else 2
     feet = [int(j) for j in feet]
     contacts = {k: np.asarray(v, dtype=bool) for k, v in (contacts or {}).items()} if feet else {}
-    fig = _figure(1.6 * len(frames), 3.9)
-    ratios = [1.7, 1.0, 0.22 + 0.1 * len(feet)] if contacts else [1.7, 1.0]
-    grid = fig.add_gridspec(len(ratios), len(frames), height_ratios=ratios, hspace=0.2, wspace=0.05)
+    # the layout in inches, top to bottom: title, legend, the side views (3 a row), the error curve, the contact rows
+    cols = len(frames) if len(frames) <= 4 else -(-len(frames) // 2)
+    grid_rows = -(-len(frames) // cols)
+    width = WIDTH_PX / DPI
+    left, right = (1.05 if feet and contacts else 0.6), 0.1
+    panel = (width - 2 * right) / cols
+    labels = ["ground truth", "prediction", "interpolation"] + (["planted (prediction)", "planted (truth)"] if contacts
+                                                                 else [])
+    legend_rows = -(-len(labels) // 3)
+    heights = [0.42 if title else 0.1, 0.3 * legend_rows + 0.05] + [0.3, panel] * grid_rows + [0.45, 1.7]
+    if contacts:
+        heights += [0.1, 0.28 * len(feet) + 0.1]
+    heights += [0.6]
+    fig = _figure(width, sum(heights))
+    H = sum(heights)
+    tops = np.cumsum([0.0, *heights])
+
+    def rect(row: int, x0: float, w: float) -> list[float]:  # [left, bottom, width, height] of layout row `row`
+        return [x0 / width, 1.0 - tops[row + 1] / H, w / width, heights[row] / H]
+
     height = float(np.ptp(gt[..., up_axis])) or 1.0
-    half = 0.65 * height
+    half = 0.62 * height
     bones = _bones(parents)
     target = n_past + n
     for i, t in enumerate(frames):
-        ax = fig.add_subplot(grid[0, i])
+        r, c = divmod(i, cols)
+        ax = fig.add_axes(rect(3 + 2 * r, right + c * panel + 0.04, panel - 0.08))
         cx, cy = gt[t, 0, fwd], gt[t, :, up_axis].min() + height / 2
         # the interpolation last, dashed, above the prediction: where the two agree (a model that learned little, or
         # close to the keys) both stay visible, the prediction through the dashes' gaps
-        for pose, style in ((gt[t], dict(color=GT_COLOR, lw=3.0, zorder=1)), (pred[t], dict(color=MODEL_COLOR, lw=1.6, zorder=2)),
-                            (interp[t], dict(color=INTERP_COLOR, lw=1.3, ls=(0, (3, 3)), zorder=3))):
+        for pose, style in ((gt[t], dict(color=GT_COLOR, lw=3.0, zorder=1)), (pred[t], dict(color=MODEL_COLOR, lw=1.8, zorder=2)),
+                            (interp[t], dict(color=INTERP_COLOR, lw=1.5, ls=(0, (3, 3)), zorder=3))):
             for j, p in bones:
                 ax.plot(pose[[j, p], fwd], pose[[j, p], up_axis], **style)
         ax.axhline(0.0, color="0.8", lw=0.8, zorder=0)  # the floor
         if contacts:
             on = [j for j in feet if contacts["ground truth"][t, j]]
-            ax.plot(gt[t, on, fwd], gt[t, on, up_axis], "o", ms=7, mfc="none", mec=GT_CONTACT_COLOR, mew=1.2, zorder=4)
+            ax.plot(gt[t, on, fwd], gt[t, on, up_axis], "o", ms=8, mfc="none", mec=GT_CONTACT_COLOR, mew=1.3, zorder=4)
             on = [j for j in feet if contacts["prediction"][t, j]]
-            ax.plot(pred[t, on, fwd], pred[t, on, up_axis], "o", ms=4.5, color=CONTACT_COLOR, mew=0, zorder=5)
+            ax.plot(pred[t, on, fwd], pred[t, on, up_axis], "o", ms=5, color=CONTACT_COLOR, mew=0, zorder=5)
         ax.set_xlim(cx - half, cx + half)
         ax.set_ylim(cy - half, cy + half)
-        ax.set_aspect("equal")
+        ax.set_aspect("equal", adjustable="box")
         ax.set_xticks([])
         ax.set_yticks([])
         known = t < n_past or t == target
-        ax.set_title(f"frame {t}" + (" (key)" if known else f" ({t - n_past + 1}/{n})"), fontsize=8,
-                     color="tab:red" if known else "k")
-    err = fig.add_subplot(grid[1, :])
+        ax.set_title(f"frame {t}" + (" key" if known else f" ({t - n_past + 1}/{n})"), fontsize=FONT,
+                     color="tab:red" if known else "k", pad=3)
+    err_row = 3 + 2 * grid_rows
+    err = fig.add_axes(rect(err_row, left, width - left - 0.25))  # room for the last tick label
     span = np.arange(n_past, target)
     model_err = np.linalg.norm(pred[span] - gt[span], axis=-1).mean(axis=-1)
     interp_err = np.linalg.norm(interp[span] - gt[span], axis=-1).mean(axis=-1)
-    err.plot(span, model_err, "-o", color=MODEL_COLOR, ms=2.5, label=f"model (mean {model_err.mean():.2f})")
-    err.plot(span, interp_err, "--", color=INTERP_COLOR, label=f"interpolation (mean {interp_err.mean():.2f})")
+    err.plot(span, model_err, "-o", color=MODEL_COLOR, ms=3, label="prediction")
+    err.plot(span, interp_err, "--", color=INTERP_COLOR, lw=1.5, label="interpolation")
     for t in frames:
         err.axvline(t, color="0.85", lw=0.8, zorder=0)
     err.set_xlim(n_past - 1, target)
     err.set_ylim(bottom=0)
+    err.yaxis.set_major_locator(MaxNLocator(4))
+    # the means as the curve's title, above the data: no legend box over the curve
+    err.set_title(f"error ({unit}), mean: prediction {model_err.mean():.2f}, interp. {interp_err.mean():.2f}",
+                  fontsize=FONT, loc="left", pad=4)
     if contacts:
-        _contact_rows(fig.add_subplot(grid[2, :], sharex=err), contacts, feet, foot_names, frames)
+        _contact_rows(fig.add_axes(rect(err_row + 2, left, width - left - 0.25), sharex=err), contacts, feet,
+                      foot_names, frames)
         err.tick_params(labelbottom=False)
     else:
-        err.set_xlabel("frame", fontsize=8)
-    err.set_ylabel(f"position error ({unit})", fontsize=8)
-    err.tick_params(labelsize=7)
-    err.legend(fontsize=7, loc="upper left")
+        err.set_xlabel("frame", fontsize=FONT)
+    err.tick_params(labelsize=FONT_SMALL)
     err.grid(alpha=0.3)
-    handles = [fig.axes[0].plot([], [], color=c, lw=w, ls=s)[0] for c, w, s in
-               ((GT_COLOR, 3.0, "-"), (MODEL_COLOR, 1.6, "-"), (INTERP_COLOR, 1.2, "--"))]
-    labels = ["ground truth", "prediction", "interpolation"]
+    handles = [Line2D([], [], color=c, lw=w, ls=s) for c, w, s in
+               ((GT_COLOR, 3.0, "-"), (MODEL_COLOR, 1.8, "-"), (INTERP_COLOR, 1.5, "--"))]
     if contacts:
-        handles += [fig.axes[0].plot([], [], "o", ms=4.5, color=CONTACT_COLOR, mew=0)[0],
-                    fig.axes[0].plot([], [], "o", ms=7, mfc="none", mec=GT_CONTACT_COLOR, mew=1.2)[0]]
-        labels += ["planted (predicted)", "planted (truth)"]
-    fig.legend(handles, labels, loc="upper right", fontsize=7, ncol=len(labels), frameon=False)
+        handles += [Line2D([], [], ls="", marker="o", ms=5, color=CONTACT_COLOR, mew=0),
+                    Line2D([], [], ls="", marker="o", ms=8, mfc="none", mec=GT_CONTACT_COLOR, mew=1.3)]
+    fig.legend(handles, labels, loc="upper left", bbox_to_anchor=(0.01, 1.0 - tops[1] / H), fontsize=FONT_SMALL,
+               ncol=3, frameon=False, handlelength=1.8, columnspacing=1.0, borderaxespad=0.0)
     if title:
-        fig.suptitle(title, fontsize=9, x=0.01, ha="left")
-    fig.subplots_adjust(left=0.07, right=0.99, top=0.88, bottom=0.11)
+        fig.suptitle(title, fontsize=FONT, x=0.01, ha="left", y=1.0 - 0.08 / H, va="top")
     return fig
 
 
@@ -159,10 +196,10 @@ def _contact_rows(ax, contacts: Mapping[str, np.ndarray], feet: Sequence[int], n
             ax.hlines(np.full(on.sum(), row), t[on] - 0.5, t[on] + 0.5, color=color, lw=width)
     for f in frames:
         ax.axvline(f, color="0.85", lw=0.8, zorder=0)
-    ax.set_yticks(range(len(feet)), list(names) if names else [str(j) for j in feet], fontsize=6)
+    ax.set_yticks(range(len(feet)), list(names) if names else [str(j) for j in feet], fontsize=FONT_SMALL)
     ax.set_ylim(len(feet) - 0.5, -0.5)
-    ax.tick_params(labelsize=7, length=2)
-    ax.set_xlabel("frame (planted: truth grey, prediction in the contact colour)", fontsize=8)
+    ax.tick_params(labelsize=FONT_SMALL, length=2)
+    ax.set_xlabel("frame (planted: truth grey, prediction magenta)", fontsize=FONT)
 
 
 def frames_to_draw(n_past: int, n: int, count: int) -> list[int]:
