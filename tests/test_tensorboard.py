@@ -19,12 +19,12 @@ import torch
 
 from conftest import TINY, compose_cfg
 from inbetweening.training.builders import make_datamodule, make_module
-from inbetweening.training.figures import WIDTH_PX, frames_to_draw, per_joint_figure, transition_figure
+from inbetweening.training.figures import HEIGHT_PX, WIDTH_PX, frames_to_draw, per_joint_figure, transition_figure
 from inbetweening.training.jobs import train
 from inbetweening.training.tb_logging import (
     BASELINE,
-    custom_scalars_layout,
     curated_hparams,
+    custom_scalars_layout,
     hparams_metrics,
     resumed_run,
     run_label,
@@ -90,10 +90,12 @@ def test_figures_are_thumbnail_sized_and_draw_what_they_say():
     names = ["Hips", "Spine", "Head"]
     model = {5: {"pos": np.array([1.0, 2.0, 3.0]), "rot": np.array([4.0, 5.0, 6.0])}}
     fig = per_joint_figure(names, model, {5: {"pos": np.ones(3), "rot": np.ones(3)}})
-    left, right = fig.axes[:2]
-    assert [t.get_text() for t in left.get_yticklabels()] == names  # skeleton order (top to bottom), not alphabetical
-    assert "cm" in left.get_xlabel() and "deg" in right.get_xlabel()
-    assert len(left.get_lines()) == 3  # model, interpolation and the legend's dashed sample
+    (ax,) = fig.axes
+    assert [t.get_text() for t in ax.get_xticklabels()] == names  # skeleton order, not alphabetical
+    assert "cm" in ax.get_ylabel() and len(ax.get_lines()) == 2  # model and interpolation
+    assert np.allclose(ax.get_lines()[0].get_ydata(), [1.0, 2.0, 3.0])
+    rot = per_joint_figure(names, model, key="rot").axes[0]
+    assert "deg" in rot.get_ylabel() and np.allclose(rot.get_lines()[0].get_ydata(), [4.0, 5.0, 6.0])
     t, j = 26, 3
     gt = np.zeros((t, j, 3))
     gt[:, 1, 1], gt[:, 2, 1] = 50.0, 100.0
@@ -102,12 +104,12 @@ def test_figures_are_thumbnail_sized_and_draw_what_they_say():
     assert frames[0] == 9 and frames[-1] == 25 and len(frames) == 6
     fig = transition_figure(gt, pred, gt, [-1, 0, 1], 10, 15, frames, title="x")
     w, h = fig.get_size_inches() * fig.dpi
-    assert w <= 640 and h <= 1000  # drawn for a ~320 px card: tests/test_figures.py checks the text and legends
+    assert (w, h) == (WIDTH_PX, HEIGHT_PX)  # drawn for the card: tests/test_figures.py checks the text and legends
     err = fig.axes[len(frames)]
     model_line, interp_line = err.get_lines()[:2]
     assert np.allclose(model_line.get_ydata(), np.linspace(0, 1, t)[10:25] * np.sqrt(3))
     assert np.allclose(interp_line.get_ydata(), 0.0)
-    assert [a.get_title() for a in fig.axes[:len(frames)]][0] == "frame 9 key"
+    assert [a.get_title() for a in fig.axes[:len(frames)]][0] == "9 key"
 
 
 def test_validation_skips_lengths_its_windows_are_too_short_for(tmp_path, cache_dir):
@@ -164,11 +166,11 @@ def test_figures_are_logged_at_the_validation_steps(fitted):
     out, _ = fitted
     _, ea = _events(out / "tensorboard")
     val_steps = [e.step for e in ea.Scalars("val/l2p@15")]
-    assert [e.step for e in ea.Images("val/per_joint")] == val_steps
+    assert [e.step for e in ea.Images("val/per_joint")] == val_steps == [e.step for e in ea.Images("val/per_joint_rotation")]
     skel = [e.step for e in ea.Images("val/skeleton")]
     assert skel == val_steps  # epoch 0 (every 5) and the last (also the best) epoch, nothing off by one
     img = ea.Images("val/skeleton")[-1]
-    assert img.width == WIDTH_PX and img.height <= 1000 and img.encoded_image_string[:4] == b"\x89PNG"
+    assert (img.width, img.height) == (WIDTH_PX, HEIGHT_PX) and img.encoded_image_string[:4] == b"\x89PNG"
 
 
 def test_hparams_session_starts_with_the_fit(fitted):
@@ -386,8 +388,8 @@ def test_custom_scalars_keep_model_and_baseline_apart():
             "val/pos_rmse_cm",
             *[f"{p}val/{m}@{n}" for p in ("", f"{BASELINE}/") for m in ("l2p", "l2q", "npss") for n in (5, 15, 30, 45)],
             *[f"val/{m}_ratio@{n}" for m in ("l2p", "l2q", "npss") for n in (5, 15, 30, 45)]]
-    for category, charts in layout.items():
-        for title, (kind, patterns) in charts.items():
+    for charts in layout.values():
+        for title, (_, patterns) in charts.items():
             matched = {t for t in tags for pat in patterns if re.search(pat, t)}
             assert len(matched) == 1, (title, matched)  # one quantity per chart: its lines are the runs
     assert list(layout)[0].startswith("1 val: model / interpolation")  # the ratios first: below 1 beats the baseline

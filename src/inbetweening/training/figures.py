@@ -2,10 +2,10 @@
 of a fixed validation window (:func:`transition_figure`), and the callback that logs both (:class:`SkeletonFigure`).
 
 Both are plain matplotlib figures on their own Agg canvas (no pyplot state) designed for TensorBoard's image card,
-which draws an image about 320-340 px wide whatever its size: :data:`WIDTH_PX` wide, every text at least
-:data:`FONT_SMALL` points (about 9 px in the card), panels stacked rather than side by side, and every legend outside the
-data area (above the panels).  Positions are in the dataset's length unit (cm for every built-in dataset),
-rotations in degrees.
+which fits an image, whatever its size, into a box about 320-430 px wide and 230 px high (:data:`CARD_PX`; Time
+Series, seen in Chromium): landscape, :data:`WIDTH_PX` x at most :data:`HEIGHT_PX`, every text at least
+:data:`FONT_SMALL` points (8-11 px in the card), few panels, and every legend outside the data areas.  Positions are
+in the dataset's length unit (cm for every built-in dataset), rotations in degrees.
 """
 from __future__ import annotations
 
@@ -27,7 +27,9 @@ GT_COLOR, MODEL_COLOR, INTERP_COLOR = "0.6", "tab:blue", "tab:orange"
 GT_CONTACT_COLOR = "0.2"
 #: Figure width in pixels (at :data:`DPI`), the titles' and labels' font size and the smallest one (ticks, legends) in
 #: points: in a 320 px card, 12 pt at 100 dpi on a 600 px figure is about 9 px.
-WIDTH_PX, FONT, FONT_SMALL = 600, 13, 12
+WIDTH_PX, HEIGHT_PX, FONT, FONT_SMALL = 640, 380, 13, 12
+#: The box TensorBoard's Time Series image card fits an image into at its narrowest (width, height in px).
+CARD_PX = (320, 230)
 DPI = 100
 
 
@@ -39,42 +41,36 @@ def _figure(width: float, height: float) -> Figure:
 
 def per_joint_figure(names: Sequence[str], model: Mapping[int, Mapping[str, np.ndarray]],
                      interp: Mapping[int, Mapping[str, np.ndarray]] | None = None, title: str = "",
-                     unit: str = "cm") -> Figure:
-    """Mean position error (``unit``) and rotation error (degrees) per joint: the joints are the rows (skeleton
-    order, top to bottom, their names readable horizontally), position on the left, rotation on the right, one colour
-    per transition length; the model solid with dots, interpolation (when given) dashed.  The legend is above the
-    panels, outside the data.
+                     unit: str = "cm", key: str = "pos") -> Figure:
+    """Mean position error (``key="pos"``, ``unit``) or rotation error (``key="rot"``, degrees) per joint, one
+    panel: joints in skeleton order on the x axis, one colour per transition length, the model solid with dots,
+    interpolation (when given) dashed; the legend above the panel, outside the data.
 
     ``model[n]``/``interp[n]``: ``{"pos": (J,), "rot": (J,)}`` for transition length ``n``."""
-    rows = len(names)
-    fig = _figure(WIDTH_PX / DPI, 1.9 + 0.24 * rows)
-    axes = fig.subplots(1, 2, sharey=True)
-    y = np.arange(rows)
-    for ax, key, label in ((axes[0], "pos", f"position ({unit})"), (axes[1], "rot", "rotation (deg)")):
-        for i, n in enumerate(sorted(model)):
-            c = PALETTE[i % len(PALETTE)]
-            ax.plot(np.asarray(model[n][key]), y, "-o", color=c, ms=4, lw=1.6, label=f"{n}")
-            if interp and n in interp:
-                ax.plot(np.asarray(interp[n][key]), y, "--", color=c, lw=1.2, alpha=0.8)
-        ax.set_xlabel(label, fontsize=FONT)
-        ax.grid(alpha=0.3)
-        ax.tick_params(labelsize=FONT_SMALL)
-        ax.set_xlim(left=0)
-        ax.xaxis.set_major_locator(MaxNLocator(4))
-    axes[0].set_yticks(y, list(names), fontsize=FONT_SMALL)
-    axes[0].set_ylim(rows - 0.5, -0.5)
-    handles, labels = axes[0].get_legend_handles_labels()
+    fig = _figure(WIDTH_PX / DPI, HEIGHT_PX / DPI)
+    ax = fig.add_axes([0.1, 0.36, 0.88, 0.45])
+    x = np.arange(len(names))
+    for i, n in enumerate(sorted(model)):
+        c = PALETTE[i % len(PALETTE)]
+        ax.plot(x, np.asarray(model[n][key]), "-o", color=c, ms=4, lw=1.6, label=f"{n}")
+        if interp and n in interp:
+            ax.plot(x, np.asarray(interp[n][key]), "--", color=c, lw=1.2, alpha=0.8)
+    ax.set_ylabel(f"{'position' if key == 'pos' else 'rotation'} ({unit if key == 'pos' else 'deg'})", fontsize=FONT)
+    ax.grid(alpha=0.3)
+    ax.tick_params(labelsize=FONT_SMALL)
+    ax.set_ylim(bottom=0)
+    ax.yaxis.set_major_locator(MaxNLocator(4))
+    ax.set_xticks(x, list(names), rotation=90, fontsize=FONT_SMALL)
+    ax.set_xlim(-0.5, len(names) - 0.5)
+    handles, labels = ax.get_legend_handles_labels()
     labels = [f"{lb} frames" if i == len(labels) - 1 else lb for i, lb in enumerate(labels)]
     if interp:
-        handles.append(axes[0].plot([], [], "--", color="k", lw=1.2)[0])
-        labels.append("interp.")
-    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.6, 1.0 - 0.42 / fig.get_figheight()),
-               fontsize=FONT_SMALL, ncol=len(labels), frameon=False, handlelength=1.5, columnspacing=0.8,
-               handletextpad=0.4)
+        handles.append(Line2D([], [], ls="--", color="k", lw=1.2))
+        labels.append("interpolation")
+    fig.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.09, 0.81), fontsize=FONT_SMALL, ncol=len(labels),
+               frameon=False, handlelength=1.5, columnspacing=0.8, handletextpad=0.4, borderaxespad=0.1)
     if title:
-        fig.suptitle(title, fontsize=FONT, x=0.01, ha="left", y=1.0 - 0.08 / fig.get_figheight(), va="top")
-    top = 1.0 - 0.85 / fig.get_figheight()
-    fig.subplots_adjust(left=0.27, right=0.97, top=top, bottom=0.75 / fig.get_figheight(), wspace=0.08)
+        fig.suptitle(title, fontsize=FONT, x=0.01, ha="left", y=0.99, va="top")
     return fig
 
 
@@ -86,102 +82,100 @@ def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, pare
                       n: int, frames: Sequence[int], title: str = "", up_axis: int = 1, unit: str = "cm",
                       feet: Sequence[int] = (), contacts: Mapping[str, np.ndarray] | None = None,
                       foot_names: Sequence[str] | None = None) -> Figure:
-    """One transition: a side view per frame in ``frames`` (ground truth grey, prediction in colour, interpolation
-    dashed on top of it, the floor at height 0), each zoomed on the ground-truth root of its frame at a common scale,
-    and below, the mean per-frame position error over the transition, model vs interpolation.
+    """One transition, landscape for TensorBoard's card: left, a side view per frame in ``frames`` (3 a row; ground
+    truth grey, prediction in colour, interpolation dashed on top of it, the floor at height 0), each zoomed on the
+    ground-truth root of its frame at a common scale; right, the mean per-frame position error over the transition,
+    model vs interpolation, the means in its title.  Title and legend on top, outside every data area.
 
     ``gt``, ``pred``, ``interp``: global positions ``(T, J, 3)``.  The windows are normalised so that the root faces
     +X at the last context frame, so the view plots data X (forward) against ``up_axis``.
 
     ``contacts`` (a model with contact channels): ``{"prediction": (T, J) bool, "ground truth": (T, J) bool}``, the
     planted feet of ``feet`` (joint indices): in the side views a filled dot in :data:`CONTACT_COLOR` on the
-    prediction's planted feet and a dark ring around the ground truth's; under the error curve one row per foot
-    (``foot_names``), the ground truth's planted frames grey, the prediction's in the contact colour over them."""
+    prediction's planted feet and a dark ring around the ground truth's; under the error curve one row per foot in
+    skeleton order, the ground truth's planted frames grey, the prediction's in the contact colour over them.
+    ``foot_names``: accepted for callers; the card has no room for the names beside the rows."""
     gt, pred, interp = (np.asarray(a, np.float64) for a in (gt, pred, interp))
     frames = [int(t) for t in frames]
     fwd = 0 if up_axis != 0 else 2
     feet = [int(j) for j in feet]
     contacts = {k: np.asarray(v, dtype=bool) for k, v in (contacts or {}).items()} if feet else {}
-    # the layout in inches, top to bottom: title, legend, the side views (3 a row), the error curve, the contact rows
-    cols = len(frames) if len(frames) <= 4 else -(-len(frames) // 2)
-    grid_rows = -(-len(frames) // cols)
-    width = WIDTH_PX / DPI
-    left, right = (1.05 if feet and contacts else 0.6), 0.1
-    panel = (width - 2 * right) / cols
-    labels = ["ground truth", "prediction", "interpolation"] + (["planted (prediction)", "planted (truth)"] if contacts
-                                                                 else [])
-    legend_rows = -(-len(labels) // 3)
-    heights = [0.42 if title else 0.1, 0.3 * legend_rows + 0.05] + [0.3, panel] * grid_rows + [0.45, 1.7]
-    if contacts:
-        heights += [0.1, 0.28 * len(feet) + 0.1]
-    heights += [0.6]
-    fig = _figure(width, sum(heights))
-    H = sum(heights)
-    tops = np.cumsum([0.0, *heights])
-
-    def rect(row: int, x0: float, w: float) -> list[float]:  # [left, bottom, width, height] of layout row `row`
-        return [x0 / width, 1.0 - tops[row + 1] / H, w / width, heights[row] / H]
-
+    # landscape, in inches: title and legend on top; left, the side views (3 a row); right, the error curve and,
+    # under it, the contact rows
+    W, H = WIDTH_PX / DPI, HEIGHT_PX / DPI
+    fig = _figure(W, H)
+    cols = 3 if len(frames) > 4 else 2 if len(frames) > 2 else len(frames)
+    rows = -(-len(frames) // cols)
+    top = 0.78 if title else 0.45  # title, legend
+    side_w = 3.3
+    panel = min(side_w / cols, (H - top - 0.05) / rows - 0.27)
     height = float(np.ptp(gt[..., up_axis])) or 1.0
     half = 0.62 * height
     bones = _bones(parents)
     target = n_past + n
     for i, t in enumerate(frames):
         r, c = divmod(i, cols)
-        ax = fig.add_axes(rect(3 + 2 * r, right + c * panel + 0.04, panel - 0.08))
+        x0, y0 = 0.05 + c * (side_w / cols), H - top - (r + 1) * (panel + 0.27)
+        ax = fig.add_axes([x0 / W, y0 / H, (panel - 0.06) / W, panel / H])
         cx, cy = gt[t, 0, fwd], gt[t, :, up_axis].min() + height / 2
         # the interpolation last, dashed, above the prediction: where the two agree (a model that learned little, or
         # close to the keys) both stay visible, the prediction through the dashes' gaps
-        for pose, style in ((gt[t], dict(color=GT_COLOR, lw=3.0, zorder=1)), (pred[t], dict(color=MODEL_COLOR, lw=1.8, zorder=2)),
-                            (interp[t], dict(color=INTERP_COLOR, lw=1.5, ls=(0, (3, 3)), zorder=3))):
+        for pose, style in ((gt[t], dict(color=GT_COLOR, lw=2.6, zorder=1)), (pred[t], dict(color=MODEL_COLOR, lw=1.5, zorder=2)),
+                            (interp[t], dict(color=INTERP_COLOR, lw=1.3, ls=(0, (2.5, 2.5)), zorder=3))):
             for j, p in bones:
                 ax.plot(pose[[j, p], fwd], pose[[j, p], up_axis], **style)
         ax.axhline(0.0, color="0.8", lw=0.8, zorder=0)  # the floor
         if contacts:
             on = [j for j in feet if contacts["ground truth"][t, j]]
-            ax.plot(gt[t, on, fwd], gt[t, on, up_axis], "o", ms=8, mfc="none", mec=GT_CONTACT_COLOR, mew=1.3, zorder=4)
+            ax.plot(gt[t, on, fwd], gt[t, on, up_axis], "o", ms=7, mfc="none", mec=GT_CONTACT_COLOR, mew=1.2, zorder=4)
             on = [j for j in feet if contacts["prediction"][t, j]]
-            ax.plot(pred[t, on, fwd], pred[t, on, up_axis], "o", ms=5, color=CONTACT_COLOR, mew=0, zorder=5)
+            ax.plot(pred[t, on, fwd], pred[t, on, up_axis], "o", ms=4.5, color=CONTACT_COLOR, mew=0, zorder=5)
         ax.set_xlim(cx - half, cx + half)
         ax.set_ylim(cy - half, cy + half)
         ax.set_aspect("equal", adjustable="box")
         ax.set_xticks([])
         ax.set_yticks([])
         known = t < n_past or t == target
-        ax.set_title(f"frame {t}" + (" key" if known else f" ({t - n_past + 1}/{n})"), fontsize=FONT,
-                     color="tab:red" if known else "k", pad=3)
-    err_row = 3 + 2 * grid_rows
-    err = fig.add_axes(rect(err_row, left, width - left - 0.25))  # room for the last tick label
+        ax.set_title(f"{t} key" if known else f"{t} ({t - n_past + 1}/{n})", fontsize=FONT_SMALL,
+                     color="tab:red" if known else "k", pad=2)
+    # the error curve, right; its means in the title above it (no legend box over the curve)
+    ex0, ew = side_w + 0.55, W - side_w - 0.55 - 0.2
+    foot_h = 0.2 * len(feet) + 0.1 if contacts else 0.0
+    eb = 0.55 + (foot_h + 0.1 if contacts else 0.0)
+    err = fig.add_axes([ex0 / W, eb / H, ew / W, (H - top - 0.3 - eb) / H])
     span = np.arange(n_past, target)
     model_err = np.linalg.norm(pred[span] - gt[span], axis=-1).mean(axis=-1)
     interp_err = np.linalg.norm(interp[span] - gt[span], axis=-1).mean(axis=-1)
-    err.plot(span, model_err, "-o", color=MODEL_COLOR, ms=3, label="prediction")
+    err.plot(span, model_err, "-o", color=MODEL_COLOR, ms=2.5, label="prediction")
     err.plot(span, interp_err, "--", color=INTERP_COLOR, lw=1.5, label="interpolation")
     for t in frames:
         err.axvline(t, color="0.85", lw=0.8, zorder=0)
     err.set_xlim(n_past - 1, target)
     err.set_ylim(bottom=0)
     err.yaxis.set_major_locator(MaxNLocator(4))
-    # the means as the curve's title, above the data: no legend box over the curve
-    err.set_title(f"error ({unit}), mean: prediction {model_err.mean():.2f}, interp. {interp_err.mean():.2f}",
-                  fontsize=FONT, loc="left", pad=4)
+    err.xaxis.set_major_locator(MaxNLocator(4, integer=True))
+    err.set_title(f"error ({unit}), mean {model_err.mean():.2f}\ninterpolation {interp_err.mean():.2f}",
+                  fontsize=FONT_SMALL, loc="left", pad=3)
     if contacts:
-        _contact_rows(fig.add_axes(rect(err_row + 2, left, width - left - 0.25), sharex=err), contacts, feet,
-                      foot_names, frames)
+        _contact_rows(fig.add_axes([ex0 / W, 0.55 / H, ew / W, foot_h / H], sharex=err), contacts, feet, foot_names,
+                      frames)
         err.tick_params(labelbottom=False)
     else:
-        err.set_xlabel("frame", fontsize=FONT)
+        err.set_xlabel("frame", fontsize=FONT_SMALL)
     err.tick_params(labelsize=FONT_SMALL)
     err.grid(alpha=0.3)
     handles = [Line2D([], [], color=c, lw=w, ls=s) for c, w, s in
-               ((GT_COLOR, 3.0, "-"), (MODEL_COLOR, 1.8, "-"), (INTERP_COLOR, 1.5, "--"))]
+               ((GT_COLOR, 2.6, "-"), (MODEL_COLOR, 1.5, "-"), (INTERP_COLOR, 1.3, "--"))]
+    labels = ["truth", "prediction", "interp." if contacts else "interpolation"]
     if contacts:
-        handles += [Line2D([], [], ls="", marker="o", ms=5, color=CONTACT_COLOR, mew=0),
-                    Line2D([], [], ls="", marker="o", ms=8, mfc="none", mec=GT_CONTACT_COLOR, mew=1.3)]
-    fig.legend(handles, labels, loc="upper left", bbox_to_anchor=(0.01, 1.0 - tops[1] / H), fontsize=FONT_SMALL,
-               ncol=3, frameon=False, handlelength=1.8, columnspacing=1.0, borderaxespad=0.0)
+        handles += [Line2D([], [], ls="", marker="o", ms=4.5, color=CONTACT_COLOR, mew=0),
+                    Line2D([], [], ls="", marker="o", ms=7, mfc="none", mec=GT_CONTACT_COLOR, mew=1.2)]
+        labels += ["planted", "truth planted"]
+    fig.legend(handles, labels, loc="upper left", bbox_to_anchor=(0.005, 1.0 - (top - 0.42) / H), fontsize=FONT_SMALL,
+               ncol=len(labels), frameon=False, handlelength=1.5, columnspacing=0.9, handletextpad=0.4,
+               borderaxespad=0.0)
     if title:
-        fig.suptitle(title, fontsize=FONT, x=0.01, ha="left", y=1.0 - 0.08 / H, va="top")
+        fig.suptitle(title, fontsize=FONT, x=0.01, ha="left", y=1.0 - 0.06 / H, va="top")
     return fig
 
 
@@ -196,10 +190,10 @@ def _contact_rows(ax, contacts: Mapping[str, np.ndarray], feet: Sequence[int], n
             ax.hlines(np.full(on.sum(), row), t[on] - 0.5, t[on] + 0.5, color=color, lw=width)
     for f in frames:
         ax.axvline(f, color="0.85", lw=0.8, zorder=0)
-    ax.set_yticks(range(len(feet)), list(names) if names else [str(j) for j in feet], fontsize=FONT_SMALL)
+    ax.set_yticks([])  # the feet in skeleton order, top to bottom (their names: too long for the card)
     ax.set_ylim(len(feet) - 0.5, -0.5)
     ax.tick_params(labelsize=FONT_SMALL, length=2)
-    ax.set_xlabel("frame (planted: truth grey, prediction magenta)", fontsize=FONT)
+    ax.set_xlabel("frame (feet planted)", fontsize=FONT_SMALL)
 
 
 def frames_to_draw(n_past: int, n: int, count: int) -> list[int]:
@@ -224,7 +218,8 @@ def _add_figure(trainer: L.Trainer, tag: str, fig: Figure, step: int) -> None:
 class SkeletonFigure(L.Callback):
     """After each validation of a fit (global rank 0), log to TensorBoard, at the validation scalars' step:
 
-    - ``val/per_joint``: :func:`per_joint_figure` of the module's per-joint errors (every validation);
+    - ``val/per_joint``, ``val/per_joint_rotation``: :func:`per_joint_figure` of the module's per-joint position and
+      rotation errors (every validation);
     - ``val/skeleton``: :func:`transition_figure` of one fixed validation window at transition length ``n``, every
       ``every_n_epochs`` epochs, at each new best ``val/l2p_mean`` and at the last validation.
 
@@ -291,10 +286,10 @@ class SkeletonFigure(L.Callback):
         self._val_global_step = trainer.global_step
         errors = getattr(pl_module, "joint_errors", {}).get("val")
         if errors:
-            fig = per_joint_figure(pl_module.skeleton.names, errors["model"], errors.get("interp"),
-                                   title=f"validation per-joint error, epoch {trainer.current_epoch} "
-                                         "(solid: model, dashed: interpolation)")
-            _add_figure(trainer, "val/per_joint", fig, _step(trainer))
+            for key, tag, what in (("pos", "val/per_joint", "position"), ("rot", "val/per_joint_rotation", "rotation")):
+                fig = per_joint_figure(pl_module.skeleton.names, errors["model"], errors.get("interp"), key=key,
+                                       title=f"validation per-joint {what} error, epoch {trainer.current_epoch}")
+                _add_figure(trainer, tag, fig, _step(trainer))
         tags = []
         if getattr(pl_module, "val_improved", False):
             tags.append("best")
