@@ -19,8 +19,17 @@ import torch
 
 from conftest import TINY, compose_cfg
 from inbetweening.training.builders import make_datamodule, make_module
-from inbetweening.training.figures import frames_to_draw, per_joint_figure, transition_figure
-from inbetweening.training.tb_logging import curated_hparams, hparams_metrics, resumed_version, run_label, tb_scalars
+from inbetweening.training.figures import HEIGHT_PX, WIDTH_PX, frames_to_draw, per_joint_figure, transition_figure
+from inbetweening.training.tb_logging import (
+    BASELINE,
+    curated_hparams,
+    custom_scalars_layout,
+    hparams_metrics,
+    resumed_run,
+    run_label,
+    run_version,
+    tb_scalars,
+)
 from inbetweening.training.train import train
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,9 +52,10 @@ def test_scalars_give_interpolation_reference_and_ratio():
     logs = tb_scalars("val", {"l2p@5": 1.0, "l2p@15": 3.0, "l2q@15": 0.5}, {"l2p@5": 2.0, "l2p@15": 2.0, "l2q@15": 0.0,
                                                                             "l2p@30": 9.0}, 12.5)
     assert logs["val/l2p_ratio@5"] == 0.5 and logs["val/l2p_ratio@15"] == 1.5
-    assert logs["val/interp_l2p@15"] == 2.0 and logs["val/l2p_mean"] == 2.0 and logs["val/pos_rmse_cm"] == 12.5
+    assert logs["~interpolation/val/l2p@15"] == 2.0 and logs["val/l2p_mean"] == 2.0 and logs["val/pos_rmse_cm"] == 12.5
     assert "val/l2q_ratio@15" not in logs  # interpolation scored 0: no ratio rather than inf
-    assert "val/interp_l2p@30" not in logs  # a length the model was not scored at
+    assert "~interpolation/val/l2p@30" not in logs  # a length the model was not scored at
+    assert not any("interp" in k.split("/")[0] for k in logs if k.startswith("val/"))  # no baseline in the model's group
 
 
 def test_curated_hparams_put_swept_keys_first_with_the_budget(tmp_path, cache_dir):
@@ -54,19 +64,24 @@ def test_curated_hparams_put_swept_keys_first_with_the_budget(tmp_path, cache_di
                                       "hydra.run.dir=/x", "ckpt_path=a.ckpt"])
     assert list(hp)[:4] == ["model/depth", "mask/name", "optim/optimizer/lr", "seed"]
     assert hp["model/depth"] == 2 and hp["mask/name"] == "zero" and hp["optim/optimizer/lr"] == 0.01
-    assert shown[:4] == ["model/depth", "mask/name", "optim/optimizer/lr", "seed"] and len(shown) == 5
+    assert shown == ["model/depth", "mask/name", "optim/optimizer/lr", "seed"]  # the keys set, nothing constant
     assert {"trainer/max_epochs", "trainer/max_steps", "trainer/max_time", "data/name", "model/name"} <= set(hp)
     assert hp["trainer/max_time"] == "none" and hp["optim/optimizer"] == "AdamW"
     assert not any(k.startswith(("hydra", "ckpt_path", "paths")) for k in hp)
     assert all(isinstance(v, (bool, int, float, str)) for v in hp.values())
-    assert run_label(cfg, ["model.depth=2", "hydra.run.dir=/x", "data.path=/a/b"]) == "graph_transformer model.depth=2"
+    # what distinguishes the run leads, keys shortened, the model last
+    assert run_label(cfg, ["model.depth=2", "hydra.run.dir=/x", "data.path=/a/b"]) == "depth=2 - graph_transformer"
+    assert run_label(cfg, []) == "graph_transformer"
+    assert run_label(cfg, ["model.dropout=0.1", "loss.dropout=0"]) == "loss.dropout=0 model.dropout=0.1 - graph_transformer"
+    long = run_label(cfg, [f"data.synthetic.key_{i}=value_{i}" for i in range(20)])
+    assert len(long) <= 100 and long.endswith("more - graph_transformer") and long.startswith("key_0=value_0")
     # in a sweep: the swept keys come first, are the ones shown, and name the run
     hp, shown = curated_hparams(cfg, ["model.depth=2", "mask=zero", "seed=3"], swept=["seed"])
-    assert list(hp)[0] == "seed" and shown == ["seed", "model/name", "trainer/max_epochs", "data/name", "mask/name"]
+    assert list(hp)[0] == "seed" and shown == ["seed"]  # constant columns (model/name, data/name, ...) not shown
     assert run_label(cfg, ["model.depth=2", "seed=3"], swept=["seed"]) == "seed=3 - graph_transformer"
     # what distinguishes the run leads (the issue's example: a mask x norm sweep), the model last unless swept
     assert run_label(cfg, ["data=synthetic", "mask=zero", "model.norm=layer"], swept=["mask", "model.norm"]) == \
-        "mask=zero model.norm=layer - graph_transformer"
+        "mask=zero norm=layer - graph_transformer"
     assert run_label(cfg, ["model=unet1d", "seed=3"], swept=["model", "seed"]) == "model=unet1d seed=3"
     assert hparams_metrics([5, 45], [5])[:3] == ["val/l2p_mean_best", "test/l2p_ratio@5", "test/l2p_ratio@45"]
 
@@ -75,10 +90,12 @@ def test_figures_are_thumbnail_sized_and_draw_what_they_say():
     names = ["Hips", "Spine", "Head"]
     model = {5: {"pos": np.array([1.0, 2.0, 3.0]), "rot": np.array([4.0, 5.0, 6.0])}}
     fig = per_joint_figure(names, model, {5: {"pos": np.ones(3), "rot": np.ones(3)}})
-    top, bottom = fig.axes[:2]
-    assert [t.get_text() for t in bottom.get_xticklabels()] == names  # skeleton order, not alphabetical
-    assert "cm" in top.get_ylabel() and "deg" in bottom.get_ylabel()
-    assert len(top.get_lines()) == 3  # model, interpolation and the legend's dashed sample
+    (ax,) = fig.axes
+    assert [t.get_text() for t in ax.get_xticklabels()] == names  # skeleton order, not alphabetical
+    assert "cm" in ax.get_ylabel() and len(ax.get_lines()) == 2  # model and interpolation
+    assert np.allclose(ax.get_lines()[0].get_ydata(), [1.0, 2.0, 3.0])
+    rot = per_joint_figure(names, model, key="rot").axes[0]
+    assert "deg" in rot.get_ylabel() and np.allclose(rot.get_lines()[0].get_ydata(), [4.0, 5.0, 6.0])
     t, j = 26, 3
     gt = np.zeros((t, j, 3))
     gt[:, 1, 1], gt[:, 2, 1] = 50.0, 100.0
@@ -87,12 +104,12 @@ def test_figures_are_thumbnail_sized_and_draw_what_they_say():
     assert frames[0] == 9 and frames[-1] == 25 and len(frames) == 6
     fig = transition_figure(gt, pred, gt, [-1, 0, 1], 10, 15, frames, title="x")
     w, h = fig.get_size_inches() * fig.dpi
-    assert w <= 1000 and h <= 450
+    assert (w, h) == (WIDTH_PX, HEIGHT_PX)  # drawn for the card: tests/test_figures.py checks the text and legends
     err = fig.axes[len(frames)]
     model_line, interp_line = err.get_lines()[:2]
     assert np.allclose(model_line.get_ydata(), np.linspace(0, 1, t)[10:25] * np.sqrt(3))
     assert np.allclose(interp_line.get_ydata(), 0.0)
-    assert [a.get_title() for a in fig.axes[:len(frames)]][0] == "frame 9 (key)"
+    assert [a.get_title() for a in fig.axes[:len(frames)]][0] == "9 key"
 
 
 def test_validation_skips_lengths_its_windows_are_too_short_for(tmp_path, cache_dir):
@@ -122,19 +139,24 @@ def fitted(tmp_path_factory, cache_dir):
 def test_groups_read_train_val_test(fitted):
     out, metrics = fitted
     run, ea = _events(out / "tensorboard")
-    assert run.name == "graph_transformer"  # named after the configuration, not "tensorboard"
+    assert run.parent.name == "graph_transformer"  # <label>/<start time>: named after the configuration
     scalars = set(ea.Tags()["scalars"])
-    assert {t.split("/")[0] for t in scalars} == {"train", "val", "test"}, scalars  # no "epoch", "hp", per-joint
+    # no "epoch", "hp", per-joint; the baseline in a group of its own that TensorBoard lists after the model's
+    assert {t.split("/")[0] for t in scalars} == {"train", "val", "test", BASELINE}, scalars
+    assert sorted(["val", "test", "train", BASELINE])[-1] == BASELINE  # TensorBoard compares group names by code
     assert {"train/lr", "train/windows_per_s", "train/epoch_time_s", "train/grad_norm", "train/epoch",
             "train/sampled_transition_frames", "val/l2p@45", "val/l2p_mean_best", "test/l2p@45"} <= scalars
     for n in (5, 15, 30, 45):
         for stage in ("val", "test"):
-            assert {f"{stage}/l2p_ratio@{n}", f"{stage}/interp_l2p@{n}", f"{stage}/l2q_ratio@{n}"} <= scalars
+            assert {f"{stage}/l2p_ratio@{n}", f"{BASELINE}/{stage}/l2p@{n}", f"{stage}/l2q_ratio@{n}"} <= scalars
         assert ea.Scalars(f"test/l2p@{n}")[-1].value == pytest.approx(metrics[f"l2p@{n}"], rel=1e-6)
-        model, interp = ea.Scalars(f"val/l2p@{n}"), ea.Scalars(f"val/interp_l2p@{n}")
+        model, interp = ea.Scalars(f"val/l2p@{n}"), ea.Scalars(f"{BASELINE}/val/l2p@{n}")
         ratio = ea.Scalars(f"val/l2p_ratio@{n}")
         assert len(model) == len(interp) == 2 and interp[0].value == interp[1].value  # cached, deterministic
         assert ratio[-1].value == pytest.approx(model[-1].value / interp[-1].value, rel=1e-5)
+    # the test values sit where the validation curves end, not alone one step further
+    assert {e.step for t in scalars if t.startswith(("test/", f"{BASELINE}/test/")) for e in ea.Scalars(t)} == \
+        {ea.Scalars("val/l2p@15")[-1].step}
     best = [e.value for e in ea.Scalars("val/l2p_mean_best")]
     assert best == [min(e.value for e in ea.Scalars("val/l2p_mean")[: i + 1]) for i in range(2)]
     assert all(e.value > 0 for e in ea.Scalars("train/grad_norm"))
@@ -144,11 +166,11 @@ def test_figures_are_logged_at_the_validation_steps(fitted):
     out, _ = fitted
     _, ea = _events(out / "tensorboard")
     val_steps = [e.step for e in ea.Scalars("val/l2p@15")]
-    assert [e.step for e in ea.Images("val/per_joint")] == val_steps
+    assert [e.step for e in ea.Images("val/per_joint")] == val_steps == [e.step for e in ea.Images("val/per_joint_rotation")]
     skel = [e.step for e in ea.Images("val/skeleton")]
     assert skel == val_steps  # epoch 0 (every 5) and the last (also the best) epoch, nothing off by one
     img = ea.Images("val/skeleton")[-1]
-    assert img.width <= 1000 and img.height <= 450 and img.encoded_image_string[:4] == b"\x89PNG"
+    assert (img.width, img.height) == (WIDTH_PX, HEIGHT_PX) and img.encoded_image_string[:4] == b"\x89PNG"
 
 
 def test_hparams_session_starts_with_the_fit(fitted):
@@ -196,15 +218,30 @@ def test_resume_with_logging_equals_the_uninterrupted_run(tmp_path, cache_dir):
 
 
 def test_a_resumed_fit_continues_its_tensorboard_run(tmp_path):
-    """Resuming with other compute settings (python train.py ... threads=2 ckpt_path=...) continues the one run of
-    the run directory; a fresh fit, or a directory with several runs, is named after its configuration."""
-    tb = tmp_path / "tensorboard"
-    assert resumed_version(tb, True) is None  # nothing logged yet
-    (tb / "graph_transformer threads=1").mkdir(parents=True)
-    assert resumed_version(tb, True) == "graph_transformer threads=1"
-    assert resumed_version(tb, False) is None
-    (tb / "graph_transformer").mkdir()
-    assert resumed_version(tb, True) is None
+    """Resuming (python train.py ... ckpt_path=<run>/checkpoints/last.ckpt, in that run directory or a new one)
+    continues the TensorBoard run the checkpoint's run logged to: the ``tensorboard`` link of its run directory, or the
+    one run folder under it (runs logged before the link); a fresh fit gets a run of its own."""
+    from omegaconf import OmegaConf
+
+    run, new = tmp_path / "logs/train/runs/a", tmp_path / "logs/train/runs/b"
+    cfg = OmegaConf.create({"ckpt_path": str(run / "checkpoints/last.ckpt"), "paths": {"output_dir": str(new)}})
+    assert resumed_run(cfg) is None  # nothing logged yet
+    events = tmp_path / "logs/tensorboard/depth=2 - graph_transformer/2026-01-01_00-00-00"
+    events.mkdir(parents=True)
+    from inbetweening.training.tb_logging import link_run
+
+    link_run(run, events)
+    assert (run / "tensorboard").is_symlink()
+    assert resumed_run(cfg) == events.resolve()
+    assert resumed_run(OmegaConf.merge(cfg, {"ckpt_path": None})) is None
+    old = tmp_path / "old"  # the layout before: <run>/tensorboard/<label>/events...
+    (old / "tensorboard/graph_transformer").mkdir(parents=True)
+    (old / "tensorboard/graph_transformer/events.out.tfevents.1").write_bytes(b"")
+    cfg = OmegaConf.create({"ckpt_path": str(old / "checkpoints/last.ckpt"), "paths": {"output_dir": str(old)}})
+    assert resumed_run(cfg) == old / "tensorboard/graph_transformer"
+    (old / "tensorboard/other").mkdir()
+    (old / "tensorboard/other/events.out.tfevents.2").write_bytes(b"")
+    assert resumed_run(cfg) is None  # several: a run of its own
 
 
 # ------------------------------------------------------------------ which experiment TensorBoard serves
@@ -268,14 +305,94 @@ def test_a_sweeps_keys_stay_the_default_columns_next_to_a_single_run(tmp_path, c
         cfg = compose_cfg("train", over, tmp_path / norm, cache_dir)
         sweep.append(_session(logdir, cfg, over, ["model.norm"], f"multiruns/{norm}/model.norm={norm}"))
     exp = _served_experiment(logdir, [single, *sweep] if single_first else [*sweep, single])
-    assert "model/norm" in _default_columns(exp), _default_columns(exp)
-    assert sum(h.differs for h in exp.hparam_infos) == 5  # the swept key, then 4 essentials
-    assert "trainer/max_epochs" in {h.name for h in exp.hparam_infos}
+    assert _default_columns(exp) == ["model/norm"]  # the swept key, no constant column (data/name, model/name)
+    assert all(h.differs for h in exp.hparam_infos)
     assert [m.name.tag for m in exp.metric_infos][:3] == ["val/l2p_mean_best", "test/l2p_ratio@5",
                                                           "test/l2p_ratio@15"]
     # the single run alone: no experiment of its own; the plugin builds one from its session
     alone = _served_experiment(logdir, [single])
     assert {"data/batch_size", "seed", "model/norm"} <= {h.name for h in alone.hparam_infos}
+
+
+def _session_groups(logdir: Path):
+    """The HParams table's rows as TensorBoard's own plugin backend serves them for ``logdir`` (the runs it finds
+    itself): ``{session group name: [session names]}``."""
+    from tensorboard import context
+    from tensorboard.backend.event_processing import data_provider, plugin_event_multiplexer
+    from tensorboard.plugins import base_plugin
+    from tensorboard.plugins.hparams import api_pb2, backend_context, list_session_groups
+
+    mux = plugin_event_multiplexer.EventMultiplexer()
+    mux.AddRunsFromDirectory(str(logdir))
+    mux.Reload()
+    tb = base_plugin.TBContext(logdir=str(logdir), multiplexer=mux,
+                               data_provider=data_provider.MultiplexerDataProvider(mux, str(logdir)))
+    ctx = backend_context.Context(tb)
+    request = api_pb2.ListSessionGroupsRequest(
+        experiment_name="", allowed_statuses=[api_pb2.STATUS_UNKNOWN, api_pb2.STATUS_SUCCESS, api_pb2.STATUS_RUNNING],
+        aggregation_type=api_pb2.AGGREGATION_AVG, start_index=0, slice_size=100)
+    groups = list_session_groups.Handler(context.RequestContext(), ctx, "", request).run().session_groups
+    return {g.name: [x.name for x in g.sessions] for g in groups}, sorted(mux.Runs())
+
+
+def test_rerunning_the_same_command_is_a_row_of_its_own(tmp_path, cache_dir):
+    """The same single-run command twice into one log folder: two TensorBoard runs (``<label>/<start time>``, the
+    second never written into the first), each its own HParams trial, so the table shows two rows instead of
+    averaging the re-run with the earlier run; each run directory links to its events."""
+    logs = tmp_path / "logs"
+    outs = [logs / "train" / "runs" / f"2026-01-01_00-00-0{i}" for i in range(2)]
+    for out in outs:
+        cfg = compose_cfg("train", TINY + ["run_test=false", "callbacks.skeleton_figure=null"], out, cache_dir)
+        cfg.paths.log_dir = str(logs)  # the default layout: the run directory inside the log folder
+        train(cfg)
+    root = logs / "tensorboard"
+    runs = sorted(d for d in root.glob("*/*") if d.is_dir())
+    assert [r.parent.name for r in runs] == ["graph_transformer"] * 2 and runs[0] != runs[1]
+    assert sorted((o / "tensorboard").resolve() for o in outs) == [r.resolve() for r in runs]
+    groups, names = _session_groups(root)
+    assert len(groups) == 2 and all(len(v) == 1 for v in groups.values()), groups  # one row per run
+    assert sorted(groups) == names == sorted(str(r.relative_to(root)) for r in runs)  # the trial id: the run's path
+    assert all(n.startswith("graph_transformer/") for n in names)
+    # a version is never reused, even within the same second
+    (root / "graph_transformer" / run_version(root, "graph_transformer", when=0)).mkdir()
+    assert run_version(root, "graph_transformer", when=0).endswith("_2")
+
+
+def test_sweep_runs_are_named_by_their_swept_values(tmp_path, cache_dir, monkeypatch):
+    """A sweep's job writes to ``<log dir>/tensorboard/<swept values> - <model>/<start time>``: the run names
+    TensorBoard shows (paths under its --logdir) begin with what distinguishes the jobs, not the Hydra folder."""
+    from inbetweening.training import builders
+
+    monkeypatch.setattr(builders, "task_overrides", lambda: ["mask=zero", "model.norm=layer", "trainer.max_steps=3"])
+    monkeypatch.setattr(builders, "swept_keys", lambda: ["mask", "model.norm"])
+    logs = tmp_path / "logs"
+    cfg = compose_cfg("train", TINY, logs / "train/multiruns/2026-01-01_00-00-00/0", cache_dir)
+    cfg.paths.log_dir = str(logs)
+    logger = builders._make_logger(cfg, cfg.logger.tensorboard)
+    run = Path(logger.log_dir)
+    assert run.relative_to(logs / "tensorboard").parts[0] == "mask=zero norm=layer - graph_transformer"
+    assert logger.trial_id == str(run.relative_to(logs / "tensorboard"))
+    assert (Path(cfg.paths.output_dir) / "tensorboard").resolve() == run.resolve()
+    # a run given a directory of its own outside the log folder keeps its events in it
+    cfg = compose_cfg("train", TINY, tmp_path / "elsewhere", cache_dir)
+    assert Path(builders._make_logger(cfg, cfg.logger.tensorboard).log_dir).parent.parent == tmp_path / "elsewhere/tensorboard"
+
+
+def test_custom_scalars_keep_model_and_baseline_apart():
+    """TensorBoard colours Custom Scalars lines by run only: no chart may hold two quantities of one run (the model
+    and its interpolation, train/loss and val/loss), or they share a colour."""
+    import re
+
+    layout = custom_scalars_layout([5, 15, 30, 45], [5, 15, 30, 45])
+    tags = ["train/loss", "val/loss", "train/lr", "train/windows_per_s", "train/grad_norm", "val/l2p_mean",
+            "val/pos_rmse_cm",
+            *[f"{p}val/{m}@{n}" for p in ("", f"{BASELINE}/") for m in ("l2p", "l2q", "npss") for n in (5, 15, 30, 45)],
+            *[f"val/{m}_ratio@{n}" for m in ("l2p", "l2q", "npss") for n in (5, 15, 30, 45)]]
+    for charts in layout.values():
+        for title, (_, patterns) in charts.items():
+            matched = {t for t in tags for pat in patterns if re.search(pat, t)}
+            assert len(matched) == 1, (title, matched)  # one quantity per chart: its lines are the runs
+    assert list(layout)[0].startswith("1 val: model / interpolation")  # the ratios first: below 1 beats the baseline
 
 
 # ------------------------------------------------------------------ the TensorBoard server, as the browser reads it
@@ -298,14 +415,15 @@ def test_tensorboard_server_shows_groups_hparams_and_figures(tmp_path, cache_dir
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1"}
     tiny = [o for o in FIT if not o.startswith("model.depth")]
     sweep = subprocess.run([sys.executable, "train.py", "-m", "model.depth=1,2", *tiny, f"hydra.sweep.dir={tmp_path}/logs/sweep",
-                            "hydra.sweep.subdir=${hydra.job.num}",
+                            "hydra.sweep.subdir=${hydra.job.num}", f"paths.log_dir={tmp_path}/logs",
                             f"paths.cache_dir={cache_dir}"], cwd=ROOT, capture_output=True, text=True, env=env, timeout=900)
     assert sweep.returncode == 0, sweep.stderr[-3000:]
     single = subprocess.run([sys.executable, "train.py", *tiny, "run_test=false", f"hydra.run.dir={tmp_path}/logs/fit_only",
+                             f"paths.log_dir={tmp_path}/logs",
                              f"paths.cache_dir={cache_dir}"], cwd=ROOT, capture_output=True, text=True, env=env, timeout=900)
     assert single.returncode == 0, single.stderr[-3000:]
     port = _free_port()
-    tb = subprocess.Popen([sys.executable, "-m", "tensorboard.main", "--logdir", str(tmp_path / "logs"), "--host",
+    tb = subprocess.Popen([sys.executable, "-m", "tensorboard.main", "--logdir", str(tmp_path / "logs/tensorboard"), "--host",
                            "127.0.0.1", "--port", str(port), "--load_fast=true", "--reload_interval=1"],
                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
     try:
@@ -317,18 +435,18 @@ def test_tensorboard_server_shows_groups_hparams_and_figures(tmp_path, cache_dir
             except OSError:
                 pass
             time.sleep(1)
-        names = sorted(r.rsplit("/", 1)[-1] for r in runs)
-        assert names[1:] == ["model.depth=1 - graph_transformer", "model.depth=2 - graph_transformer"], runs
-        assert names[0].startswith("graph_transformer ") and "data.batch_size=8" in names[0]  # the overrides
+        names = sorted(r.split("/")[0] for r in runs)  # <what distinguishes the run>/<start time>
+        assert names[1:] == ["depth=1 - graph_transformer", "depth=2 - graph_transformer"], runs
+        assert names[0].startswith("batch_size=8 ") and names[0].endswith(" - graph_transformer")  # the overrides
         tags = _get(port, "/data/plugin/scalars/tags")
         groups = {t.split("/")[0] for run_tags in tags.values() for t in run_tags}
-        assert groups == {"train", "val", "test"}, groups
+        assert groups == {"train", "val", "test", "~interpolation"}, groups
         exp = _get(port, "/data/plugin/hparams/experiment", {"experimentName": "", "includeMetrics": True,
                                                               "hparamsLimit": 1000})
         shown = sorted(h["name"] for h in exp["hparamInfos"] if h.get("differs"))
         # only the sweep's jobs write an experiment, so TensorBoard serves the sweep's (the swept key, then 4
         # essentials) whichever run it reads first
-        assert "model/depth" in shown and len(shown) == 5, shown
+        assert shown == ["model/depth"], shown  # no constant column
         first = sorted(exp["hparamInfos"], key=lambda h: not h.get("differs"))[:5]  # the dashboard's default columns
         assert "model/depth" in [h["name"] for h in first]
         metrics = [m["name"]["tag"] for m in exp["metricInfos"]]
@@ -347,16 +465,16 @@ def test_tensorboard_server_shows_groups_hparams_and_figures(tmp_path, cache_dir
         assert {1.0, 2.0} <= set(by_depth)
         assert all("test/l2p_ratio@15" in v for d in (1.0, 2.0) for v in by_depth[d])
         images = _get(port, "/data/plugin/images/tags")
-        run = next(r for r in images if r.endswith("model.depth=2 - graph_transformer"))
+        run = next(r for r in images if r.startswith("depth=2 - graph_transformer/"))
         assert {"val/skeleton", "val/per_joint"} <= set(images[run])
         imgs = _get(port, f"/data/plugin/images/images?run={urllib.request.quote(run)}&tag=val/skeleton")
         png = _get(port, "/data/plugin/images/individualImage?" + imgs[-1]["query"])
         assert png[:4] == b"\x89PNG"
         layout = _get(port, "/data/plugin/custom_scalars/layout")
         titles = [c["title"] for c in layout["category"]]
-        assert titles == ["1 train", "2 val", "3 test"]
-        chart = layout["category"][1]["chart"][0]["multiline"]["tag"]
-        assert chart == [r"^val/l2p@\d+$", r"^val/interp_l2p@\d+$"]
+        assert titles[0].startswith("1 val: model / interpolation") and len(titles) == 4
+        chart = layout["category"][0]["chart"][0]["multiline"]["tag"]
+        assert chart == [r"^val/l2p_ratio@5$"]
     finally:
         tb.terminate()
         tb.wait(timeout=30)

@@ -1,49 +1,73 @@
-"""Re-draw what TensorBoard serves for a log folder as small PNGs (docs/tensorboard.md).
+"""Screenshots of TensorBoard's real web UI for docs/tensorboard.md, taken with headless Chromium.
 
-No headless browser is available on this project's machines, so these are not browser screenshots: the script
-starts TensorBoard on 127.0.0.1, reads the same HTTP API the web page reads (scalar series, the HParams session
-groups with their default columns, the logged images) and draws that with matplotlib.
+    apt-get install -y chromium          # Debian's package
+    python docs/tensorboard/make_screenshots.py [--logs /tmp/tb_demo] [--out docs/img]
 
-    python docs/tensorboard/make_screenshots.py <logdir> [--out docs/tensorboard]
+Runs a tiny 4-job sweep (``mask=zero,lerp model.norm=layer,batch``, 4 epochs, the skeleton figure every epoch) and
+the same single-run command twice into one log folder (synthetic data, about a minute on 2 CPU cores; ``--reuse``
+keeps an existing ``--logs``), starts TensorBoard on 127.0.0.1 on that folder's ``tensorboard``, and saves PNGs
+of the page as a browser draws it (``tb_*.png``, palette-compressed to well under 300 KB each).
 """
 from __future__ import annotations
 
 import argparse
+import base64
 import io
 import json
+import os
+import shutil
 import socket
 import subprocess
 import sys
+import threading
 import time
-import urllib.parse
 import urllib.request
 from pathlib import Path
 
-import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from PIL import Image
 
+ROOT = Path(__file__).resolve().parents[2]
+TINY = ["model.d_model=16", "model.depth=1", "model.heads=2", "data.synthetic.num_clips=10",
+        "data.synthetic.min_frames=120", "data.synthetic.max_frames=160", "data.batch_size=8",
+        "data.max_eval_windows=8", "data.max_train_windows=64", "trainer.max_epochs=4", "trainer.log_every_n_steps=1",
+        "callbacks.progress_bar=null", "callbacks.skeleton_figure.every_n_epochs=1", "calibrate=false", "threads=1"]
+#: Closes Time Series' settings pane (open by default on a wide page), giving the cards its room.
+CLOSE_SETTINGS = "document.querySelector('[aria-label=\"Close side pane\"]')?.click()"
+#: (file, page, window size, what it shows); ``forceSVG``: TensorBoard's charts drawn as SVG (no WebGL in headless)
+SHOTS = [
+    ("tb_scalars.png", "?forceSVG=true&tagFilter=%5Eval%2Fl2p_ratio#timeseries", (1280, 860),
+     "Time Series, the validation L2P ratios of the sweep (filter ^val/l2p_ratio)"),
+    ("tb_landing.png", "?forceSVG=true#timeseries", (1280, 860), "Time Series as it opens"),
+    ("tb_skeleton.png", "?forceSVG=true&tagFilter=%5Eval%2Fskeleton#timeseries", (1280, 1000), "the val/skeleton image cards"),
+    ("tb_per_joint.png", "?forceSVG=true&tagFilter=%5Eval%2Fper_joint#timeseries", (1280, 1000), "the val/per_joint image cards"),
+    ("tb_hparams.png", "#hparams", (1280, 560), "the HParams table"),
+    ("tb_custom_scalars.png", "?forceSVG=true#custom_scalars", (1280, 860), "Custom Scalars"),
+]
 
-def get(port: int, path: str, body: dict | None = None, raw: bool = False):
-    req = urllib.request.Request(f"http://127.0.0.1:{port}{path}", headers={"Content-Type": "application/json"},
-                                 data=None if body is None else json.dumps(body).encode())
-    with urllib.request.urlopen(req, timeout=60) as r:
-        data = r.read()
-    return data if raw else json.loads(data)
+
+def make_logs(logs: Path) -> None:
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"}
+    common = [*TINY, f"paths.log_dir={logs}"]
+    runs = [["-m", "mask=zero,lerp", "model.norm=layer,batch", *common], common, common]  # the single run twice
+    for args in runs:
+        r = subprocess.run([sys.executable, "train.py", *args], cwd=ROOT, env=env, capture_output=True, text=True)
+        if r.returncode:
+            sys.exit(r.stderr[-3000:])
+        time.sleep(1.1)  # a re-run in the same second would get the version <time>_2: also distinct, less readable
 
 
-def start(logdir: str) -> tuple[subprocess.Popen, int]:
+def start_tensorboard(logdir: Path) -> tuple[subprocess.Popen, int]:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    tb = subprocess.Popen([sys.executable, "-m", "tensorboard.main", "--logdir", logdir, "--host", "127.0.0.1",
+    tb = subprocess.Popen([sys.executable, "-m", "tensorboard.main", "--logdir", str(logdir), "--host", "127.0.0.1",
                            "--port", str(port), "--load_fast=true"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     for _ in range(120):
         try:
-            if get(port, "/data/runs"):
-                time.sleep(3)  # let the data server finish its first load
-                return tb, port
+            with urllib.request.urlopen(f"http://127.0.0.1:{port}/data/runs", timeout=5) as r:
+                if len(r.read()) > 2:
+                    time.sleep(5)  # the data server's first full load
+                    return tb, port
         except OSError:
             pass
         time.sleep(1)
@@ -51,114 +75,95 @@ def start(logdir: str) -> tuple[subprocess.Popen, int]:
     raise RuntimeError("TensorBoard did not start")
 
 
-def save(fig: Figure, path: Path) -> None:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=fig.dpi)
-    Image.open(buf).convert("P", palette=Image.ADAPTIVE, colors=128).save(path, optimize=True)
-    print(path, path.stat().st_size, "bytes")
+class Chromium:
+    """Headless Chromium driven over its DevTools pipe (``--remote-debugging-pipe``: commands on fd 3, replies on
+    fd 4, NUL-separated JSON), so a page gets real time to load: TensorBoard draws its charts in a web worker,
+    which ``--screenshot --virtual-time-budget`` captures before they are drawn."""
 
+    def __init__(self, browser: str, profile: Path):
+        cmd_r, self._cmd_w = os.pipe()
+        self._res_r, res_w = os.pipe()
 
-def landing(port: int, out: Path) -> None:
-    """The Time Series landing page: the groups in the page's order, first charts of each, every run."""
-    tags = get(port, "/data/plugin/scalars/tags")
-    runs = sorted(tags)
-    groups: dict[str, list[str]] = {}
-    for t in sorted({t for r in runs for t in tags[r]}):
-        groups.setdefault(t.split("/")[0], []).append(t)
-    pick = {"test": ["test/l2p@15", "test/l2p_ratio@15", "test/l2p@45", "test/l2p_ratio@45"],
-            "train": ["train/loss", "train/lr", "train/windows_per_s", "train/grad_norm"],
-            "val": ["val/l2p@15", "val/l2p_ratio@15", "val/l2p@45", "val/l2p_mean_best"]}
-    fig = Figure(figsize=(11, 6.6), dpi=80)
-    FigureCanvasAgg(fig)
-    names = sorted(groups)
-    colours = dict(zip(runs, ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple"]))
-    for row, g in enumerate(names):
-        for col, tag in enumerate(pick.get(g, groups[g][:4])):
-            ax = fig.add_subplot(len(names), 4, row * 4 + col + 1)
-            for r in runs:
-                if tag not in tags[r]:
-                    continue
-                q = urllib.parse.urlencode({"run": r, "tag": tag})
-                pts = np.array(get(port, f"/data/plugin/scalars/scalars?{q}"))
-                ax.plot(pts[:, 1], pts[:, 2], "-o" if len(pts) < 20 else "-", ms=3, color=colours[r], lw=1.2)
-            if tag.startswith("val/l2p@"):
-                ref = tag.replace("val/", "val/interp_")
-                for r in runs:
-                    if ref in tags[r]:
-                        q = urllib.parse.urlencode({"run": r, "tag": ref})
-                        pts = np.array(get(port, f"/data/plugin/scalars/scalars?{q}"))
-                        ax.plot(pts[:, 1], pts[:, 2], "--", color="0.5", lw=1)
-                        break
-            ax.set_title(tag, fontsize=9, loc="left")
-            ax.tick_params(labelsize=7)
-            ax.grid(alpha=0.3)
-        fig.text(0.005, 1 - (row + 0.5) / len(names) * 0.9 - 0.06, f"{g}/\n({len(groups[g])} charts)", fontsize=10,
-                 weight="bold", va="center")
-    handles = [fig.axes[0].plot([], [], color=c)[0] for c in colours.values()]
-    fig.legend(handles, [r.split("/")[-1].replace("graph_transformer ", "")[-40:] for r in runs], loc="upper left",
-               bbox_to_anchor=(0.01, 0.975), ncol=len(runs), fontsize=8, frameon=False)
-    fig.suptitle("TensorBoard Time Series (re-drawn from its scalars API): its three groups, first charts of each; "
-                 "dashed grey = interpolation", fontsize=10, y=0.998, x=0.01, ha="left")
-    fig.subplots_adjust(left=0.1, right=0.99, top=0.87, bottom=0.05, hspace=0.6, wspace=0.35)
-    save(fig, out / "landing.png")
+        def fds():  # in the child: the pipe ends on fds 3 and 4 (through high fds: either may be 3 or 4 already)
+            os.dup2(cmd_r, 200)
+            os.dup2(res_w, 201)
+            os.dup2(200, 3)
+            os.dup2(201, 4)
 
+        self.proc = subprocess.Popen([browser, "--headless=new", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                                      "--no-first-run", f"--user-data-dir={profile}", "--remote-debugging-pipe",
+                                      "about:blank"], preexec_fn=fds, close_fds=False,
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        os.close(cmd_r)
+        os.close(res_w)
+        self._id, self._buf, self._replies = 0, b"", {}
+        self._lock = threading.Lock()
+        threading.Thread(target=self._read, daemon=True).start()
+        target = self.call("Target.createTarget", url="about:blank")["targetId"]
+        self.session = self.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
 
-def hparams(port: int, out: Path) -> None:
-    """The HParams table view with its default columns (the 5 hparams marked ``differs``, the first 5 metrics)."""
-    exp = get(port, "/data/plugin/hparams/experiment", {"experimentName": "", "includeMetrics": True})
-    infos = sorted(exp["hparamInfos"], key=lambda h: not h.get("differs"))  # the dashboard's order (stable)
-    shown = [h["name"] for h in infos][:5]
-    metrics = [m["name"]["tag"] for m in exp["metricInfos"]][:5]
-    req = {"experimentName": "", "allowedStatuses": ["STATUS_UNKNOWN", "STATUS_SUCCESS", "STATUS_FAILURE",
-                                                      "STATUS_RUNNING"],
-           "colParams": [{"hparam": h} for h in shown] + [{"metric": {"group": "", "tag": m}} for m in metrics],
-           "aggregationType": "AGGREGATION_AVG", "startIndex": 0, "sliceSize": 50}
-    rows = []
-    for g in get(port, "/data/plugin/hparams/session_groups", req)["sessionGroups"]:
-        vals = {m["name"]["tag"]: m["value"] for m in g.get("metricValues", [])}
-        run = g["name"].split("/")[-1].replace("graph_transformer ", "")[-34:]
-        rows.append([run] + [str(g["hparams"].get(h, "")) for h in shown]
-                    + [f"{vals[m]:.3f}" if m in vals else "" for m in metrics])
-    fig = Figure(figsize=(13, 0.6 + 0.32 * (len(rows) + 1)), dpi=80)
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot(111)
-    ax.axis("off")
-    table = ax.table(cellText=rows, colLabels=["run"] + shown + metrics, loc="center", cellLoc="center")
-    table.auto_set_font_size(False)
-    table.set_fontsize(7.5)
-    table.auto_set_column_width(list(range(len(shown) + len(metrics) + 1)))
-    fig.suptitle(f"HParams table view, default columns (re-drawn from its API; {len(exp['hparamInfos'])} "
-                 f"hparams and {len(exp['metricInfos'])} metrics logged)", fontsize=10, x=0.01, ha="left")
-    fig.subplots_adjust(left=0.01, right=0.99, top=0.8, bottom=0.02)
-    save(fig, out / "hparams.png")
+    def _read(self) -> None:
+        while chunk := os.read(self._res_r, 1 << 20):
+            self._buf += chunk
+            while b"\0" in self._buf:
+                msg, self._buf = self._buf.split(b"\0", 1)
+                data = json.loads(msg)
+                if "id" in data:
+                    with self._lock:
+                        self._replies[data["id"]] = data
 
+    def call(self, method: str, session: bool = False, **params) -> dict:
+        self._id += 1
+        msg = {"id": self._id, "method": method, "params": params, **({"sessionId": self.session} if session else {})}
+        os.write(self._cmd_w, json.dumps(msg).encode() + b"\0")
+        for _ in range(1200):
+            with self._lock:
+                if self._id in self._replies:
+                    reply = self._replies.pop(self._id)
+                    if "error" in reply:
+                        raise RuntimeError(f"{method}: {reply['error']}")
+                    return reply.get("result", {})
+            time.sleep(0.05)
+        raise TimeoutError(method)
 
-def image(port: int, out: Path, run_suffix: str, tag: str, name: str) -> None:
-    tags = get(port, "/data/plugin/images/tags")
-    run = next(r for r in sorted(tags) if r.endswith(run_suffix) and tag in tags[r])
-    q = urllib.parse.urlencode({"run": run, "tag": tag})
-    last = get(port, f"/data/plugin/images/images?{q}")[-1]
-    png = get(port, "/data/plugin/images/individualImage?" + last["query"], raw=True)
-    img = Image.open(io.BytesIO(png)).convert("RGB")
-    img.convert("P", palette=Image.ADAPTIVE, colors=96).save(out / name, optimize=True)
-    print(out / name, (out / name).stat().st_size, "bytes")
+    def shot(self, url: str, size: tuple[int, int], path: Path, wait: float = 12.0, script: str = "") -> None:
+        self.call("Emulation.setDeviceMetricsOverride", session=True, width=size[0], height=size[1],
+                  deviceScaleFactor=1, mobile=False)
+        self.call("Page.navigate", session=True, url=url)
+        time.sleep(wait)
+        if script:
+            self.call("Runtime.evaluate", session=True, expression=script)
+            time.sleep(3)
+        png = base64.b64decode(self.call("Page.captureScreenshot", session=True, format="png")["data"])
+        img = Image.open(io.BytesIO(png)).convert("RGB")
+        img.quantize(colors=128, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)
+        print(f"{path} ({path.stat().st_size // 1024} KB)")
+
+    def close(self) -> None:
+        self.proc.terminate()
+        self.proc.wait(timeout=30)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("logdir")
-    ap.add_argument("--out", default=str(Path(__file__).parent))
-    ap.add_argument("--run", default="graph_transformer", help="run (name suffix) whose figures are taken")
-    a = ap.parse_args()
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
-    tb, port = start(a.logdir)
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--logs", type=Path, default=Path("/tmp/tb_demo"))
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "img")
+    ap.add_argument("--reuse", action="store_true", help="keep an existing --logs instead of training again")
+    args = ap.parse_args()
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    if not browser:
+        sys.exit("no chromium: apt-get install -y chromium")
+    if not (args.reuse and (args.logs / "tensorboard").is_dir()):
+        shutil.rmtree(args.logs, ignore_errors=True)
+        make_logs(args.logs)
+    args.out.mkdir(parents=True, exist_ok=True)
+    tb, port = start_tensorboard(args.logs / "tensorboard")
+    chrome = Chromium(browser, args.logs / "chromium")
     try:
-        landing(port, out)
-        hparams(port, out)
-        image(port, out, a.run, "val/skeleton", "skeleton.png")
-        image(port, out, a.run, "val/per_joint", "per_joint.png")
+        for name, page, size, _ in SHOTS:
+            chrome.shot(f"http://127.0.0.1:{port}/{page}", size, args.out / name, script=CLOSE_SETTINGS)
     finally:
+        chrome.close()
         tb.terminate()
         tb.wait(timeout=30)
 

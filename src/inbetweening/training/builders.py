@@ -16,14 +16,18 @@ from inbetweening.predictor.predictor import upgrade_hparams
 from inbetweening.training.callbacks import AtomicCheckpointIO, InterruptCheckpoint, NonFiniteGuard, ResumeState, TrimHeap
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.module import InbetweenModule
+from inbetweening.training.sampling import rank_world
 from inbetweening.training.tb_logging import (
     HParamsSession,
     TrainStats,
     curated_hparams,
-    resumed_version,
+    link_run,
+    resumed_run,
     run_label,
+    run_version,
     swept_keys,
     task_overrides,
+    tensorboard_root,
 )
 
 __all__ = ["make_datamodule", "make_module", "make_trainer", "output_dir", "resume_command"]
@@ -68,12 +72,20 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule, init: dict | None = No
 
 
 def _make_logger(cfg: DictConfig, node: DictConfig):
-    """A logger from its config; a :class:`RunLogger` without a ``version`` is named after the run's configuration
-    (:func:`~inbetweening.training.tb_logging.run_label`), or continues the run a resumed fit was logging to."""
-    if str(node.get("_target_", "")).endswith("RunLogger") and node.get("version") is None:
-        version = resumed_version(node.save_dir, bool(cfg.get("ckpt_path")))
-        return instantiate(node, version=version or run_label(cfg, task_overrides(), swept_keys()))
-    return instantiate(node)
+    """A logger from its config.  A :class:`RunLogger` without a ``name`` writes under
+    :func:`~inbetweening.training.tb_logging.tensorboard_root` (``save_dir: null``) to
+    ``<label>/<start time>`` (:func:`~inbetweening.training.tb_logging.run_label`, ``run_version``), or continues
+    the run a resumed fit was logging to; the run directory gets a ``tensorboard`` link to it."""
+    if not str(node.get("_target_", "")).endswith("RunLogger") or node.get("name") is not None:
+        return instantiate(node)
+    run = resumed_run(cfg)
+    if run is None:
+        root = Path(node.get("save_dir") or tensorboard_root(cfg))
+        label = run_label(cfg, task_overrides(), swept_keys())
+        run = root / label / (node.get("version") or run_version(root, label))
+    if rank_world()[0] == 0:
+        link_run(cfg.paths.output_dir, run)
+    return instantiate(node, save_dir=str(run.parent.parent), name=run.parent.name, version=run.name)
 
 
 def _enabled(group) -> list:
