@@ -95,6 +95,39 @@ def qbetween(a: Array, b: Array) -> Array:
     return _stack([w, c[..., 0], c[..., 1], c[..., 2]])
 
 
+def qswing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Unit quaternion of the shortest rotation taking direction ``a`` onto ``b`` (numpy); where they are opposite, a
+    half turn about an axis perpendicular to ``a``.  ``(..., 3), (..., 3) -> (..., 4)``."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-12)
+    b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-12)
+    q = qbetween(a, b)
+    opposite = q[..., 0] < 1e-9
+    if np.any(opposite):
+        helper = np.where((np.abs(a[..., :1]) < 0.9), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+        axis = _cross(a, helper)
+        axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+        half = np.concatenate([np.zeros(axis.shape[:-1] + (1,)), axis], axis=-1)
+        q = np.where(opposite[..., None], half, q)
+    return qnormalize(q, 0.0)
+
+
+def qframe(a1: np.ndarray, a2: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
+    """Unit quaternion of the rotation taking direction ``a1`` onto ``b1`` exactly and the plane of ``(a1, a2)`` onto
+    that of ``(b1, b2)`` (``a2`` turned about ``b1`` as close to ``b2`` as it goes): a frame given by a primary and a
+    secondary direction (numpy).  ``(..., 3) x 4 -> (..., 4)``."""
+    r1 = qswing(a1, b1)
+    b1 = np.asarray(b1, dtype=np.float64)
+    b1 = b1 / np.linalg.norm(b1, axis=-1, keepdims=True)
+    a2r = qrot(r1, np.asarray(a2, dtype=np.float64))
+    pa = a2r - (a2r * b1).sum(-1, keepdims=True) * b1
+    pb = np.asarray(b2, dtype=np.float64) - (np.asarray(b2, dtype=np.float64) * b1).sum(-1, keepdims=True) * b1
+    half = 0.5 * np.arctan2((_cross(pa, pb) * b1).sum(-1), (pa * pb).sum(-1))  # the turn about b1
+    twist = np.concatenate([np.cos(half)[..., None], np.sin(half)[..., None] * b1], axis=-1)
+    return qnormalize(qmul(twist, r1), 0.0)
+
+
 def remove_discontinuities(q: Array, axis: int = 0) -> Array:
     """Flip signs along time so consecutive quaternions have a non-negative dot product.
 

@@ -1,0 +1,297 @@
+"""Retargeting between a humanoid rig (the animator's character) and the model's skeleton: the runtime's stage that
+lets a model fill any humanoid whose bones a :class:`~inbetweening.runtime.bone_map.BoneMap` names.
+
+Both skeletons are first put in one reference pose, a **T-pose** built for each from its rest pose: the body chain
+(hips to head) up, the legs down, the feet forward, the arms out to the sides, each bone turned from its rest
+direction by the shortest rotation (no twist added: a rig's own rest twists are kept), the hips and the bone the arms
+hang from turned as a whole so the legs and the shoulders lie across (left to +X, up +Y, forward +Z in the model's
+world).  The model's zero pose is degenerate (every bone along its parent's X axis), its T-pose is what its data's
+motions are measured against here.  A rig's rest pose may be a T-pose, an A-pose, Z up or Y up, in any unit.
+
+A motion then moves across as **world rotations from the T-pose**: a mapped bone's global rotation ``G`` is
+``W T`` with ``T`` its T-pose rotation, and the other skeleton's bone takes the same ``W`` (turned into its world).
+Chains of different lengths are distributed: a body bone (spine, neck) that one skeleton has and the other lacks
+takes the rotation interpolated between its chain's mapped neighbours by its place along the chain; a bone inside a
+limb (a twist segment) moves rigidly with the mapped bone above it; a missing clavicle follows the chest, missing
+toes the foot.  The root (the hips) moves by the rig's hip height: ``p_model = s F p_rig``.  Bones without a slot
+(fingers, twist leaves, face, props) keep their own local values, which the runtime interpolates between the keys.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from inbetweening.geometry.quaternion import qframe, qinv, qmul, qrot, qswing, slerp_np
+from inbetweening.geometry.skeleton import Skeleton, fk
+
+if TYPE_CHECKING:
+    from .bone_map import BoneMap
+
+__all__ = ["BODY", "Retarget", "rest_pose", "tpose"]
+
+BODY = ("Hips", "Spine", "Chest", "Neck", "Head")
+ARM = ("Shoulder", "UpperArm", "LowerArm", "Hand")
+LEG = ("UpperLeg", "LowerLeg", "Foot", "Toes")
+UP, LEFT, FORWARD = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+
+
+def _side_chains() -> list[tuple[tuple[str, ...], np.ndarray, np.ndarray]]:
+    """``(slots, direction of the segments, direction of the last segment)`` of the four limbs."""
+    out = []
+    for side, sign in (("L", 1.0), ("R", -1.0)):
+        out.append((tuple(f"{s}_{side}" for s in ARM), sign * LEFT, sign * LEFT))
+        out.append((tuple(f"{s}_{side}" for s in LEG), -UP, FORWARD))
+    return out
+
+
+def _path(parents, top: int, bottom: int) -> list[int]:
+    """Joints from ``top`` down to ``bottom`` (both included); ``[]`` when ``bottom`` is not below ``top``."""
+    path = [bottom]
+    while path[-1] != top:
+        p = parents[path[-1]]
+        if p < 0:
+            return []
+        path.append(p)
+    return path[::-1]
+
+
+@dataclass(frozen=True)
+class _Chains:
+    """A skeleton's chains: per joint the chain it belongs to (``body`` or a limb's first slot), the joint it aims at
+    along the chain, the direction of that segment in the T-pose, and the chains' joints in order."""
+
+    aim: dict[int, int]
+    direction: dict[int, np.ndarray]
+    paths: dict[str, list[int]]
+
+
+def _chains(parents, slot_of: dict[str, int]) -> _Chains:
+    aim, direction, paths = {}, {}, {}
+    body = [slot_of[s] for s in BODY if s in slot_of]
+    path = _path(parents, body[0], body[-1])
+    paths["body"] = path
+    for a, b in zip(path, path[1:]):
+        aim[a], direction[a] = b, UP
+    for slots, seg, last in _side_chains():
+        present = [slot_of[s] for s in slots if s in slot_of]
+        path = _path(parents, present[0], present[-1]) if len(present) > 1 else present
+        paths[slots[0]] = path
+        foot = slot_of.get(slots[2]) if slots[1].startswith("LowerLeg") else None
+        for a, b in zip(path, path[1:]):
+            aim[a] = b  # the leg's bones at or below the ankle point forward, the others along the limb
+            direction[a] = last if foot is not None and _below(parents, a, foot) else seg
+    return _Chains(aim, direction, paths)
+
+
+def _below(parents, j: int, top: int) -> bool:
+    """Whether ``j`` is ``top`` or below it."""
+    while j >= 0:
+        if j == top:
+            return True
+        j = parents[j]
+    return False
+
+
+def rest_pose(skeleton: Skeleton, slot_of: dict[str, int], reference: np.ndarray | None = None):
+    """``(global rotations (J, 4), positions (J, 3))`` of the rest pose: every local rotation the identity (BVH's rest),
+    except the bones above the hips, which take ``reference`` (local rotations ``(J, 4)``, e.g. a key frame's): a
+    static top bone that turns the whole character (an armature's axis change) is part of where the body stands."""
+    n = skeleton.num_joints
+    local = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    if reference is not None:
+        above = _path(skeleton.parents, 0, slot_of["Hips"])[:-1]
+        local[above] = np.asarray(reference, dtype=np.float64)[above]
+    return fk(local, skeleton.offsets, skeleton.parents)
+
+
+def tpose(skeleton: Skeleton, slot_of: dict[str, int], basis: np.ndarray | None = None,
+          reference: np.ndarray | None = None) -> np.ndarray:
+    """Global rotations ``(J, 4)`` of the skeleton in its T-pose (module docstring) in its own world, whose body frame
+    is ``basis`` (columns: left, up, forward; default: the model's world, the identity), built from its rest pose
+    (:func:`rest_pose`, ``reference`` for the bones above the hips)."""
+    basis = np.eye(3) if basis is None else basis
+    parents = skeleton.parents
+    rq, rest = rest_pose(skeleton, slot_of, reference)
+    ch = _chains(parents, slot_of)
+    hips = slot_of["Hips"]
+    arm_root = parents[ch.paths["Shoulder_L"][0]]
+    lateral_hips = rest[slot_of["UpperLeg_L"]] - rest[slot_of["UpperLeg_R"]]
+    lateral_arms = rest[ch.paths["Shoulder_L"][0]] - rest[ch.paths["Shoulder_R"][0]]
+    full = {hips: lateral_hips, arm_root: lateral_arms}
+    t = rq.copy()
+    for j in range(len(parents)):
+        p = parents[j]
+        if p >= 0:
+            t[j] = qmul(t[p], qmul(qinv(rq[p]), rq[j]))  # the parent's T-pose turn, the rest's local rotation
+        if j in ch.aim:
+            d = rest[ch.aim[j]] - rest[j]  # the rest direction (world)
+            want = basis @ ch.direction[j]
+            if j in full:
+                t[j] = qmul(qframe(d, full[j], want, basis @ LEFT), rq[j])
+            else:
+                t[j] = qmul(qswing(qrot(qmul(t[j], qinv(rq[j])), d), want), t[j])
+    return t
+
+
+def _body_basis(skeleton: Skeleton, slot_of: dict[str, int], reference: np.ndarray | None = None) -> np.ndarray:
+    """The rig's body frame at rest: columns left, up, forward (from the legs' sides and hips -> head)."""
+    rest = rest_pose(skeleton, slot_of, reference)[1]
+    up = rest[slot_of["Head"]] - rest[slot_of["Hips"]]
+    up = up / np.linalg.norm(up)
+    left = rest[slot_of["UpperLeg_L"]] - rest[slot_of["UpperLeg_R"]]
+    left = left - (left @ up) * up
+    left = left / np.linalg.norm(left)
+    return np.stack([left, up, np.cross(left, up)], axis=1)
+
+
+def _quat_of(basis: np.ndarray) -> np.ndarray:
+    """The unit quaternion of an orthonormal basis (a rotation matrix)."""
+    return qframe(np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]), basis[:, 1], basis[:, 0])
+
+
+def _hip_height(skeleton: Skeleton, t: np.ndarray, slot_of: dict[str, int], up: np.ndarray) -> float:
+    """The hips' height above the ankles in the T-pose ``t`` (global rotations), along ``up``."""
+    parents = skeleton.parents
+    local = np.array([t[0]] + [qmul(qinv(t[parents[j]]), t[j]) for j in range(1, len(parents))])
+    pos = fk(local, skeleton.offsets, parents)[1]
+    feet = 0.5 * (pos[slot_of["Foot_L"]] + pos[slot_of["Foot_R"]])
+    return float((pos[slot_of["Hips"]] - feet) @ up)
+
+
+class Retarget:
+    """Motion between ``rig`` (a humanoid skeleton, its rest offsets) and ``model`` (the model's skeleton, whose joint
+    names are the slots) through ``bone_map`` (slot -> rig bone).  :meth:`to_model` and :meth:`to_rig` (module
+    docstring); ``reference``: the rig's local rotations ``(J, 4)`` at a key (its bones above the hips stand as there
+    in the reference pose); ``scale``: model lengths per rig length (hip heights); ``world``: the rotation from the
+    rig's world to the model's (wxyz)."""
+
+    def __init__(self, rig: Skeleton, model: Skeleton, bone_map: BoneMap, reference: np.ndarray | None = None):
+        self.rig, self.model, self.map = rig, model, bone_map
+        self.rig_slot = {s: rig.names.index(b) for s, b in bone_map.slots.items()}
+        self.model_slot = {s: model.names.index(s) for s in model.names}
+        basis = _body_basis(rig, self.rig_slot, reference)
+        self.world = qinv(_quat_of(basis))  # rig world -> model world
+        self.t_rig = tpose(rig, self.rig_slot, basis, reference)
+        self.t_model = tpose(model, self.model_slot)
+        self.scale = _hip_height(model, self.t_model, self.model_slot, UP) / \
+            _hip_height(rig, self.t_rig, self.rig_slot, basis[:, 1])
+        self._plan_model()
+        self._plan_rig()
+
+    # ------------------------------------------------------------------ where each joint's rotation comes from
+    def _fractions(self, skeleton: Skeleton, path: list[int]) -> np.ndarray:
+        rest = fk(np.tile([1.0, 0, 0, 0], (skeleton.num_joints, 1)), skeleton.offsets, skeleton.parents)[1]
+        seg = np.linalg.norm(np.diff(rest[path], axis=0), axis=-1)
+        return np.concatenate([[0.0], np.cumsum(seg)])
+
+    def _plan_model(self) -> None:
+        """Per model joint ``(a, b, f)``: its world rotation is ``slerp(W[a], W[b], f)`` of rig bones ``a``, ``b``."""
+        m, slots = self.model, self.rig_slot
+        src = {}
+        for j, name in enumerate(m.names):
+            if name in slots:
+                src[j] = (slots[name], slots[name], 0.0)
+        body = [self.model_slot[s] for s in BODY]
+        pos = self._fractions(m, body)
+        for i, j in enumerate(body):
+            if j in src:
+                continue
+            lo = max(k for k in range(i) if body[k] in src)
+            hi = min(k for k in range(i + 1, len(body)) if body[k] in src)
+            f = (pos[i] - pos[lo]) / (pos[hi] - pos[lo])
+            src[j] = (src[body[lo]][0], src[body[hi]][0], float(f))
+        for j, name in enumerate(m.names):  # a missing clavicle follows the chest, missing toes the foot
+            if j not in src:
+                src[j] = src[m.parents[j]]
+        self.model_source = [src[j] for j in range(m.num_joints)]
+
+    def _plan_rig(self) -> None:
+        """Per rig bone: ``("slot", model joint)``, ``("body", model a, model b, f)``, ``("limb", model joint)`` or
+        ``("free",)`` (keeps its local values)."""
+        r = self.rig
+        mapped = {b: self.model_slot[s] for s, b in self.rig_slot.items()}
+        plan: list[tuple] = [("free",)] * r.num_joints
+        for b, j in mapped.items():
+            plan[b] = ("slot", j)
+        ch = _chains(r.parents, self.rig_slot)
+        body = ch.paths["body"]
+        pos = self._fractions(r, body)
+        for i, b in enumerate(body):
+            if b in mapped:
+                continue
+            lo = max(k for k in range(i) if body[k] in mapped)
+            hi = min(k for k in range(i + 1, len(body)) if body[k] in mapped)
+            plan[b] = ("body", mapped[body[lo]], mapped[body[hi]], float((pos[i] - pos[lo]) / (pos[hi] - pos[lo])))
+        for key, path in ch.paths.items():
+            if key == "body":
+                continue
+            last = None
+            for b in path:
+                if b in mapped:
+                    last = mapped[b]
+                elif last is not None:
+                    plan[b] = ("limb", last)
+        self.rig_plan = plan
+
+    # ------------------------------------------------------------------ the two directions
+    def _to_model_world(self, w: np.ndarray) -> np.ndarray:
+        return qmul(qmul(self.world, w), qinv(self.world))
+
+    def _to_rig_world(self, w: np.ndarray) -> np.ndarray:
+        return qmul(qmul(qinv(self.world), w), self.world)
+
+    def to_model(self, local_q: np.ndarray, local_p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The rig's motion ``local_q (F, J, 4), local_p (F, J, 3)`` (every joint's local translation: its offset or
+        its position channels) -> the model's ``root (F, 3), local_q (F, Jm, 4)``."""
+        gq, gp = fk(np.asarray(local_q, np.float64), np.asarray(local_p, np.float64), self.rig.parents)
+        w_rig = qmul(gq, qinv(self.t_rig)[None])  # (F, J, 4) world rotation from the T-pose
+        a = np.array([s[0] for s in self.model_source])
+        b = np.array([s[1] for s in self.model_source])
+        f = np.array([s[2] for s in self.model_source])
+        w = np.where((f > 0)[None, :, None], slerp_np(w_rig[:, a], w_rig[:, b], f[None, :]), w_rig[:, a])
+        g = qmul(self._to_model_world(w), self.t_model[None])
+        par = list(self.model.parents[1:])
+        lq = np.concatenate([g[:, :1], qmul(qinv(g[:, par]), g[:, 1:])], axis=1)
+        root = self.scale * qrot(np.broadcast_to(self.world, gp[:, 0].shape[:-1] + (4,)), gp[:, self.rig_slot["Hips"]])
+        return root, lq
+
+    def to_rig(self, root: np.ndarray, local_q: np.ndarray, free_q: np.ndarray, free_p: np.ndarray,
+               movers: list[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The model's ``root (F, 3), local_q (F, Jm, 4)`` -> the rig's ``local_q (F, J, 4), local_p (F, J, 3)``;
+        ``free_q``/``free_p`` give the local values of the bones without a slot (and every local translation but the
+        one that carries the hips).  ``movers``: rig joints with position channels (the hips' translation goes to the
+        nearest of them at or above the hips; default: the rig's root)."""
+        gm = fk(np.asarray(local_q, np.float64), np.repeat(self.model.offsets[None], len(root), 0), self.model.parents)[0]
+        w = self._to_rig_world(qmul(gm, qinv(self.t_model)[None]))  # (F, Jm, 4) in the rig's world
+        r = self.rig
+        f = len(root)
+        gq = np.zeros((f, r.num_joints, 4))
+        lq = np.array(free_q, dtype=np.float64, copy=True)
+        for b, plan in enumerate(self.rig_plan):
+            p = r.parents[b]
+            kind = plan[0]
+            if kind == "slot":
+                gq[:, b] = qmul(w[:, plan[1]], self.t_rig[b])
+            elif kind == "body":
+                gq[:, b] = qmul(slerp_np(w[:, plan[1]], w[:, plan[2]], plan[3]), self.t_rig[b])
+            elif kind == "limb":
+                gq[:, b] = qmul(w[:, plan[1]], self.t_rig[b])
+            else:
+                gq[:, b] = lq[:, b] if p < 0 else qmul(gq[:, p], lq[:, b])
+            if kind != "free":
+                lq[:, b] = gq[:, b] if p < 0 else qmul(qinv(gq[:, p]), gq[:, b])
+        lp = np.array(free_p, dtype=np.float64, copy=True)
+        hips = self.rig_slot["Hips"]
+        chain = [j for j in _path(r.parents, 0, hips)]
+        carriers = [j for j in chain if j in set(movers if movers is not None else [0])]
+        if carriers:
+            mover = carriers[-1]
+            target = qrot(np.broadcast_to(qinv(self.world), root.shape[:-1] + (4,)), np.asarray(root, np.float64)) \
+                / self.scale
+            gp = fk(lq, lp, r.parents)[1]
+            shift = target - gp[:, hips]  # move the mover by what the hips lack
+            pm = r.parents[mover]
+            lp[:, mover] += shift if pm < 0 else qrot(qinv(fk(lq, lp, r.parents)[0][:, pm]), shift)
+        return lq, lp
