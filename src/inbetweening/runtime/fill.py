@@ -28,14 +28,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from inbetweening.geometry import canonical
-from inbetweening.geometry.interp import interpolate_pose
+from inbetweening.geometry.interp import interpolate_keyframes, interpolate_pose
 from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities
 
 from .foot_lock import key_contacts, lock_feet
 from .model import Backend, InbetweenError, ModelInfo
 from .plan import GapPlan, check_keys, plan_gaps
 
-__all__ = ["Filled", "FillRuntime"]
+__all__ = ["Filled", "FillRuntime", "RigFilled"]
 
 
 @dataclass
@@ -58,6 +58,17 @@ def _check_batch_size(batch_size) -> int:
     if isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
         raise InbetweenError(f"batch_size must be a positive integer, got {batch_size!r}")
     return int(batch_size)
+
+
+@dataclass
+class RigFilled:
+    """One filled clip of a rig (:meth:`FillRuntime.fill_rig`): the rig's ``local_q (F, J, 4)`` and ``local_p (F, J, 3)``
+    (keys and frames outside the filled span exactly the input), and ``model``: the fill in the model's skeleton
+    (:class:`Filled`; its root and rotations, the contacts and the blend weights)."""
+
+    local_q: np.ndarray
+    local_p: np.ndarray
+    model: Filled
 
 
 class _Clip:
@@ -138,6 +149,40 @@ class FillRuntime:
                         progress(done, total)
         lock = self.foot_lock if foot_lock is None else bool(foot_lock)
         return [self._finish(c, lock, file_frame) for c in work]
+
+    def fill_rig(self, retarget, local_q, local_p, keys: Sequence[int], *, movers: Sequence[int] | None = None,
+                 **kw) -> RigFilled:
+        """Fill a humanoid rig that is not the model's skeleton: the keys are retargeted onto the model's skeleton
+        (``retarget``: a :class:`~inbetweening.runtime.retarget.Retarget` from the rig to the model), filled there
+        (:meth:`fill`; ``kw`` as there), and the fill retargeted back; the rig's bones without a slot (fingers, twist
+        and face bones, props) and every local translation but the hips' are interpolated between the keys (rotations by
+        slerp, translations linearly); the keys, and the frames outside ``[first key, last key]``, come back exactly.
+        ``local_q (F, J, 4)``, ``local_p (F, J, 3)``: the rig's local rotations and translations (offsets or position
+        channels); values at frames that are not keys are never read, but for context frames before the first key.
+        ``movers``: the rig's joints with position channels (the hips' translation goes to the nearest at or above the
+        hips; default: the root)."""
+        lq = np.array(local_q, dtype=np.float64)
+        lp = np.array(local_p, dtype=np.float64)
+        n = len(lq)
+        if lq.ndim != 3 or lq.shape[1:] != (retarget.rig.num_joints, 4) or lp.shape != lq.shape[:2] + (3,):
+            raise InbetweenError(f"fill_rig: expected local_q (F, {retarget.rig.num_joints}, 4) and local_p (F, "
+                                 f"{retarget.rig.num_joints}, 3) of the rig, got {lq.shape} and {lp.shape}")
+        keys = check_keys(keys, n, "keys")
+        if not (np.isfinite(lq[keys]).all() and np.isfinite(lp[keys]).all()):
+            raise InbetweenError("fill_rig: the keys contain NaN or infinite values")
+        first, last = keys[0], keys[-1]
+        rows = [t for t in range(first) if np.isfinite(lq[t]).all() and np.isfinite(lp[t]).all()] + list(keys)
+        root = np.full((n, 3), np.nan)
+        q = np.full((n, self.info.skeleton.num_joints, 4), np.nan)
+        root[rows], q[rows] = retarget.to_model(lq[rows], lp[rows])
+        model = self.fill(root, q, keys, **kw)
+        span = np.arange(first, last + 1)
+        free_p, free_q = interpolate_keyframes(lp[span].reshape(len(span), -1), lq[span], [k - first for k in keys])
+        out_q, out_p = lq.copy(), lp.copy()
+        out_q[span], out_p[span] = retarget.to_rig(model.root[span], model.local_q[span], free_q,
+                                                   free_p.reshape(len(span), -1, 3), movers)
+        out_q[keys], out_p[keys] = lq[keys], lp[keys]
+        return RigFilled(out_q, out_p, model)
 
     # ------------------------------------------------------------------ stages
     def _prepare(self, root, local_q, keys, limit: int, seg: bool, file_frame: bool) -> _Clip:

@@ -23,7 +23,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from inbetweening.geometry.quaternion import qframe, qinv, qmul, qrot, qswing, slerp_np
+from inbetweening.geometry.quaternion import (
+    euler_to_quat_np,
+    qframe,
+    qinv,
+    qmul,
+    qrot,
+    qswing,
+    quat_to_euler_np,
+    remove_discontinuities,
+    slerp_np,
+)
 from inbetweening.geometry.skeleton import Skeleton, fk
 
 if TYPE_CHECKING:
@@ -35,6 +45,15 @@ BODY = ("Hips", "Spine", "Chest", "Neck", "Head")
 ARM = ("Shoulder", "UpperArm", "LowerArm", "Hand")
 LEG = ("UpperLeg", "LowerLeg", "Foot", "Toes")
 UP, LEFT, FORWARD = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+EULER_ORDER = "zxy"  # the rotation channels of the shipped models' training files (Bandai-Namco-2)
+
+
+def euler_sign(q: np.ndarray, order: str = EULER_ORDER) -> np.ndarray:
+    """Quaternions ``(..., 4)`` with the sign a BVH file's Euler angles give them (``order``): the network reads
+    quaternions as numbers, and ``q`` and ``-q`` are different inputs to it; a key read from a file of the model's
+    skeleton has this sign, a retargeted one gets it here."""
+    back = euler_to_quat_np(quat_to_euler_np(q, order), order)
+    return np.where(((q * back).sum(-1) < 0)[..., None], -q, q)
 
 
 def _side_chains() -> list[tuple[tuple[str, ...], np.ndarray, np.ndarray]]:
@@ -202,7 +221,7 @@ class Retarget:
             hi = min(k for k in range(i + 1, len(body)) if body[k] in src)
             f = (pos[i] - pos[lo]) / (pos[hi] - pos[lo])
             src[j] = (src[body[lo]][0], src[body[hi]][0], float(f))
-        for j, name in enumerate(m.names):  # a missing clavicle follows the chest, missing toes the foot
+        for j in range(m.num_joints):  # a missing clavicle follows the chest, missing toes the foot
             if j not in src:
                 src[j] = src[m.parents[j]]
         self.model_source = [src[j] for j in range(m.num_joints)]
@@ -244,7 +263,7 @@ class Retarget:
 
     def to_model(self, local_q: np.ndarray, local_p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The rig's motion ``local_q (F, J, 4), local_p (F, J, 3)`` (every joint's local translation: its offset or
-        its position channels) -> the model's ``root (F, 3), local_q (F, Jm, 4)``."""
+        its position channels; frames in time order) -> the model's ``root (F, 3), local_q (F, Jm, 4)``."""
         gq, gp = fk(np.asarray(local_q, np.float64), np.asarray(local_p, np.float64), self.rig.parents)
         w_rig = qmul(gq, qinv(self.t_rig)[None])  # (F, J, 4) world rotation from the T-pose
         a = np.array([s[0] for s in self.model_source])
@@ -254,6 +273,8 @@ class Retarget:
         g = qmul(self._to_model_world(w), self.t_model[None])
         par = list(self.model.parents[1:])
         lq = np.concatenate([g[:, :1], qmul(qinv(g[:, par]), g[:, 1:])], axis=1)
+        lq[:1] = euler_sign(lq[:1])  # as a file's frames are: the first frame's Euler sign, then continuous in time
+        lq = remove_discontinuities(lq, axis=0)
         root = self.scale * qrot(np.broadcast_to(self.world, gp[:, 0].shape[:-1] + (4,)), gp[:, self.rig_slot["Hips"]])
         return root, lq
 
