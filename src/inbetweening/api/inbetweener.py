@@ -13,10 +13,12 @@ blend, foot locking, keys kept exactly) is described there, and the CLI, ``eval.
 through the same runtime.  This module adds the clip level: a BVH file's joints and frames into the model's
 skeleton and back.
 
-The model's skeleton must match the file's: same joint names in the same order, or the file has one extra
-motionless top joint above the model's root (Bandai-Namco's ``joint_Root`` above ``Hips``), which is folded
-into the root for the model and unfolded again when writing (its channels are copied from the nearest
-keyframe).
+A clip of the model's skeleton (same joint names in the same order, or one extra motionless top joint above the
+model's root, Bandai-Namco's ``joint_Root`` above ``Hips``, folded into the root and unfolded again when writing) is
+filled as it is.  A clip of any other humanoid character is retargeted: its bones are matched to the model's joints
+(:func:`~inbetweening.runtime.bone_map.detect_bone_map`, or an override file, ``bone_map=``), the keys are carried
+onto the model's skeleton, filled there and carried back (:meth:`FillRuntime.fill_rig`), every bone of the
+character keyed exactly as given.
 """
 from __future__ import annotations
 
@@ -39,6 +41,20 @@ from inbetweening.runtime.torch_backend import TorchBackend
 __all__ = ["FillResult", "InbetweenError", "Inbetweener"]
 
 
+def _bone_map(bvh: BVH, bone_map):
+    """The character's :class:`~inbetweening.runtime.bone_map.BoneMap`: detected, with ``bone_map`` (a path of an
+    override file, or a dict ``rig bone -> slot``) on top; :class:`InbetweenError` (one line) when it cannot be made."""
+    from inbetweening.runtime.bone_map import BoneMapError, detect_bone_map, read_override
+
+    try:
+        override = read_override(bone_map) if isinstance(bone_map, (str, Path)) else bone_map
+        return detect_bone_map(bvh.names, bvh.parents, bvh.offsets, override, where=bvh.source)
+    except BoneMapError as e:
+        err = InbetweenError(str(e))
+        err.template = getattr(e, "template", None)
+        raise err from None
+
+
 @dataclass
 class FillResult:
     """What :meth:`Inbetweener.fill_detailed` produced.
@@ -56,6 +72,7 @@ class FillResult:
     skeleton: Skeleton
     pseudo_keyframes: list[int] = field(default_factory=list)
     contact: np.ndarray | None = None  # (F, J) foot contact in [0, 1]: predicted; keys: their own; None: not predicted
+    bone_map: object | None = None  # the character's BoneMap when the clip was retargeted (another skeleton)
 
     @property
     def num_frames(self) -> int:
@@ -165,7 +182,8 @@ class Inbetweener:
 
     # ------------------------------------------------------------------ BVH level
     def fill(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
-             max_gap: int | None = None, segment: bool | None = None, foot_lock: bool | None = None) -> BVH:
+             max_gap: int | None = None, segment: bool | None = None, foot_lock: bool | None = None,
+             bone_map=None) -> BVH:
         """In-between a BVH clip; returns a new :class:`~inbetweening.data.bvh.BVH` (write it with ``write_bvh``).
 
         Give exactly one of:
@@ -180,14 +198,17 @@ class Inbetweener:
         The output has the input's hierarchy, channel order and frame time; keyframe rows of ``motion`` are the
         input's rows, bit for bit; generated frames take non-root position channels (and a folded
         ``joint_Root``'s channels) from the nearest keyframe.  Gaps longer than ``max_gap`` are split with
-        interpolated pseudo-keyframes unless ``segment=False`` (then :class:`InbetweenError`).  Errors:
-        :class:`InbetweenError` (keyframes, gap, skeleton), ``BVHError`` (unreadable file).
+        interpolated pseudo-keyframes unless ``segment=False`` (then :class:`InbetweenError`).  A clip of another
+        humanoid is retargeted (module docstring; ``bone_map``: an override file's path or a dict ``rig bone -> slot``
+        for what detection gets wrong).  Errors: :class:`InbetweenError` (keyframes, gap, a rig that cannot be mapped),
+        ``BVHError`` (unreadable file).
         """
-        return self.fill_detailed(bvh, keyframes, gap, max_gap=max_gap, segment=segment, foot_lock=foot_lock).bvh
+        return self.fill_detailed(bvh, keyframes, gap, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
+                                  bone_map=bone_map).bvh
 
     def fill_detailed(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
                       max_gap: int | None = None, segment: bool | None = None,
-                      foot_lock: bool | None = None) -> FillResult:
+                      foot_lock: bool | None = None, bone_map=None) -> FillResult:
         """:meth:`fill` plus the arrays behind it (for rendering and inspection): a :class:`FillResult`."""
         if not isinstance(bvh, BVH):
             bvh = read_bvh(bvh)
@@ -205,24 +226,46 @@ class Inbetweener:
                 raise InbetweenError(f"gap: the input must hold at least 2 keyframes, it has {n_in} frame(s)")
             src = list(range(n_in))
             out_pos = [i * (int(gap) + 1) for i in range(n_in)]
+        kw = {"max_gap": max_gap, "segment": segment, "foot_lock": foot_lock}
+        try:
+            fold, root_in, q_in = clip_in_skeleton(bvh, self.skeleton)
+        except DatasetError:
+            return self._fill_character(bvh, src, out_pos, bone_map, kw)
         if bvh.frame_time > 0 and abs(1.0 / bvh.frame_time - self.fps) > 0.5:
             warnings.warn(f"{bvh.source}: {1.0 / bvh.frame_time:.3g} fps, the model was trained at {self.fps:.3g} "
                           f"fps; gaps are counted in the file's frames", stacklevel=2)
-        try:
-            fold, root_in, q_in = clip_in_skeleton(bvh, self.skeleton)
-        except DatasetError as e:
-            raise InbetweenError(str(e)) from None
         n_out = out_pos[-1] + 1
         root = np.full((n_out, 3), np.nan)
         q = np.full((n_out, self.skeleton.num_joints, 4), np.nan)
         root[out_pos], q[out_pos] = root_in[src], q_in[src]
-        filled = self.runtime.fill(root, q, out_pos, file_frame=True, max_gap=max_gap, segment=segment,
-                                   foot_lock=foot_lock)
+        filled = self.runtime.fill(root, q, out_pos, file_frame=True, **kw)
         out = self._to_bvh(bvh, fold, filled.root, filled.local_q, src, out_pos)
         convention = self.runtime.info.convention
         root, q = (filled.root, filled.local_q) if convention.is_project else convention.to_project(filled.root,
                                                                                                    filled.local_q)
         return FillResult(out, root, q, out_pos, self.skeleton, filled.pseudo_keyframes, filled.contact)
+
+    def _fill_character(self, bvh: BVH, src: list[int], out_pos: list[int], bone_map, kw) -> FillResult:
+        """Another humanoid's clip: retargeted onto the model's skeleton, filled, retargeted back (module docstring)."""
+        from inbetweening.runtime.retarget import Retarget
+
+        bm = _bone_map(bvh, bone_map)
+        lq_in, lp_in = bvh.local_rotations(), bvh.channel_positions()
+        n_out = out_pos[-1] + 1
+        lq = np.full((n_out, bvh.num_joints, 4), np.nan)
+        lp = np.full((n_out, bvh.num_joints, 3), np.nan)
+        lq[out_pos], lp[out_pos] = lq_in[src], lp_in[src]
+        movers = [j for j, ch in enumerate(bvh.channels) if any(c.lower().endswith("position") for c in ch)]
+        retarget = Retarget(bvh.skeleton(), self.skeleton, bm, reference=lq_in[src[0]])
+        fps = 1.0 / bvh.frame_time if bvh.frame_time > 0 else None
+        out = self.runtime.fill_rig(retarget, lq, lp, out_pos, movers=movers, fps=fps, **kw)
+        clip = bvh.with_motion(out.local_q, out.local_p)
+        clip.motion[out_pos] = bvh.motion[np.asarray(src)]
+        m = out.model
+        span = np.arange(out_pos[-1] + 1)
+        root, q = retarget.to_model(out.local_q[span], out.local_p[span])  # the character's fill, on the model's
+        contact = m.contact if m.contact is not None and len(m.contact) == len(span) else None  # (not resampled)
+        return FillResult(clip, root, q, out_pos, self.skeleton, m.pseudo_keyframes, contact, bm)
 
     @staticmethod
     def _to_bvh(bvh: BVH, fold: bool, root: np.ndarray, q: np.ndarray, src: list[int], out_pos: list[int]) -> BVH:

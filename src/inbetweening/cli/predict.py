@@ -43,7 +43,11 @@ previous one as its 10 context frames.  Your keyframes are never changed.  segme
 options:
   ckpt_path=PATH        checkpoint (.ckpt) of an in-betweening model (default: the shipped Bandai-Namco-2
                         model, models/bn2_reference/model.ckpt of this repository; its skeleton only)
-  input=PATH            BVH clip with the same skeleton as the checkpoint's training data  (required)
+  input=PATH            BVH clip: the model's skeleton, or any humanoid character (its bones are matched to the
+                        model's joints and the keys retargeted; the map used is printed and saved next to the
+                        output as <output>.bone_map.yaml)                                  (required)
+  bone_map=PATH         a bone map override (YAML, `rig_bone: slot` per line) for what detection gets wrong;
+                        a saved <output>.bone_map.yaml is one
   output=PATH           BVH file to write                                                (required)
   keyframes=LIST        form A, see above
   gap=N                 form B, see above
@@ -72,7 +76,7 @@ examples:
 OPTIONS = {
     "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "gap": int, "max_gap": int,
     "segment": parse_bool, "foot_lock": parse_bool, "render": str, "render_dpi": int, "device": str, "force": parse_bool,
-    "threads": int,
+    "threads": int, "bone_map": str,
 }
 ALIASES = {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "in": "input", "out": "output", "o": "output",
            "keys": "keyframes"}
@@ -184,10 +188,25 @@ def run(argv: Sequence[str]) -> int:
         clip = read_bvh(args["input"])
         kw = {k: args[k] for k in ("max_gap", "segment", "foot_lock") if k in args}
         ib = Inbetweener.from_checkpoint(args["ckpt_path"], device=device, **kw)
-        res = ib.fill_detailed(clip, keyframes=args.get("keyframes"), gap=args.get("gap"))
         out = Path(args["output"])
+        try:
+            res = ib.fill_detailed(clip, keyframes=args.get("keyframes"), gap=args.get("gap"),
+                                   bone_map=args.get("bone_map"))
+        except InbetweenError as e:
+            template = getattr(e, "template", None)
+            if template:  # a rig that cannot be mapped: an override template to fill in, next to the output
+                path = out.with_name(out.name + ".bone_map.yaml")
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_text(template)
+                fail(f"{e} (an override template: {path}; pass it back with bone_map={path})")
+            raise
         out.parent.mkdir(parents=True, exist_ok=True)
         write_bvh(res.bvh, out)
+        if res.bone_map is not None:
+            saved = out.with_name(out.name + ".bone_map.yaml")
+            saved.write_text(res.bone_map.to_yaml())
+            print(f"{clip.source}: another skeleton than the model's; bone map (saved to {saved}):")
+            print(res.bone_map.summary())
     except (CheckpointError, InbetweenError, BVHError, OSError) as e:
         fail(e)
     n_gen = res.num_frames - len(res.known_frames)

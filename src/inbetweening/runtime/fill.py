@@ -29,7 +29,7 @@ import numpy as np
 
 from inbetweening.geometry import canonical
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_pose
-from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities
+from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities, slerp_np
 
 from .foot_lock import key_contacts, lock_feet
 from .model import Backend, InbetweenError, ModelInfo
@@ -52,6 +52,27 @@ class Filled:
     pseudo_keyframes: list[int] = field(default_factory=list)
     segments: list[tuple[int, int, float]] = field(default_factory=list)
     locked: bool = False
+
+
+def _model_frames(times: np.ndarray, ratio: float) -> np.ndarray:
+    """Frames of the model's rate for rig frames ``times`` (relative to the first key, in order): rounded, and pushed
+    on so that no two fall on one frame."""
+    at = np.round(times * ratio).astype(int)
+    for i in range(1, len(at)):
+        at[i] = max(at[i], at[i - 1] + 1)
+    return at
+
+
+def _resample(root: np.ndarray, q: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A motion at fractional frames ``times``: the root linearly, rotations by slerp between the frames around."""
+    lo = np.clip(np.floor(times).astype(int), 0, len(root) - 1)
+    hi = np.clip(lo + 1, 0, len(root) - 1)
+    w = times - lo
+    exact = w < 1e-9
+    r = root[lo] + w[:, None] * (root[hi] - root[lo])
+    out = slerp_np(q[lo], q[hi], np.repeat(w[:, None], q.shape[1], axis=1))
+    out = np.where(exact[:, None, None], q[lo], out)
+    return np.where(exact[:, None], root[lo], r), out
 
 
 def _check_batch_size(batch_size) -> int:
@@ -151,7 +172,7 @@ class FillRuntime:
         return [self._finish(c, lock, file_frame) for c in work]
 
     def fill_rig(self, retarget, local_q, local_p, keys: Sequence[int], *, movers: Sequence[int] | None = None,
-                 **kw) -> RigFilled:
+                 fps: float | None = None, **kw) -> RigFilled:
         """Fill a humanoid rig that is not the model's skeleton: the keys are retargeted onto the model's skeleton
         (``retarget``: a :class:`~inbetweening.runtime.retarget.Retarget` from the rig to the model), filled there
         (:meth:`fill`; ``kw`` as there), and the fill retargeted back; the rig's bones without a slot (fingers, twist
@@ -160,7 +181,9 @@ class FillRuntime:
         ``local_q (F, J, 4)``, ``local_p (F, J, 3)``: the rig's local rotations and translations (offsets or position
         channels); values at frames that are not keys are never read, but for context frames before the first key.
         ``movers``: the rig's joints with position channels (the hips' translation goes to the nearest at or above the
-        hips; default: the root)."""
+        hips; default: the root).  ``fps``: the rig's frame rate; when it is not the model's, the keys are placed on the
+        model's frames by their time, the model fills at its own rate, and the rig's frames take the fill at their time
+        (rotations by slerp, the root linearly)."""
         lq = np.array(local_q, dtype=np.float64)
         lp = np.array(local_p, dtype=np.float64)
         n = len(lq)
@@ -171,16 +194,25 @@ class FillRuntime:
         if not (np.isfinite(lq[keys]).all() and np.isfinite(lp[keys]).all()):
             raise InbetweenError("fill_rig: the keys contain NaN or infinite values")
         first, last = keys[0], keys[-1]
-        rows = [t for t in range(first) if np.isfinite(lq[t]).all() and np.isfinite(lp[t]).all()] + list(keys)
-        root = np.full((n, 3), np.nan)
-        q = np.full((n, self.info.skeleton.num_joints, 4), np.nan)
-        root[rows], q[rows] = retarget.to_model(lq[rows], lp[rows])
-        model = self.fill(root, q, keys, **kw)
+        ratio = 1.0 if not fps or abs(float(fps) - self.info.fps) <= 0.5 else self.info.fps / float(fps)
+        context = [t for t in range(first) if np.isfinite(lq[t]).all() and np.isfinite(lp[t]).all()]
+        rows = context + list(keys)
+        at = _model_frames(np.array(rows, dtype=np.float64) - first, ratio)  # the rows' model frames, from the first key
+        shift = max(0, -int(at.min()))
+        at = at + shift
+        m = int(at.max()) + 1
+        root = np.full((m, 3), np.nan)
+        q = np.full((m, self.info.skeleton.num_joints, 4), np.nan)
+        root[at], q[at] = retarget.to_model(lq[rows], lp[rows])
+        model_keys = [int(a) for a in at[len(context):]]
+        model = self.fill(root, q, model_keys, **kw)
         span = np.arange(first, last + 1)
+        times = (span - first) * ratio + shift
+        times[np.searchsorted(span, keys)] = model_keys  # the keys at their own model frames
+        m_root, m_q = _resample(model.root, model.local_q, times)
         free_p, free_q = interpolate_keyframes(lp[span].reshape(len(span), -1), lq[span], [k - first for k in keys])
         out_q, out_p = lq.copy(), lp.copy()
-        out_q[span], out_p[span] = retarget.to_rig(model.root[span], model.local_q[span], free_q,
-                                                   free_p.reshape(len(span), -1, 3), movers)
+        out_q[span], out_p[span] = retarget.to_rig(m_root, m_q, free_q, free_p.reshape(len(span), -1, 3), movers)
         out_q[keys], out_p[keys] = lq[keys], lp[keys]
         return RigFilled(out_q, out_p, model)
 

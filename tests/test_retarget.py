@@ -1,0 +1,167 @@
+"""Retargeting (:mod:`inbetweening.runtime.retarget`) and the runtime's rig fill (:meth:`FillRuntime.fill_rig`) on
+characters generated from the model's own motion (tests/characters.py): other names, proportions, A-pose rests,
+extra bones, metres and Z up.  The generated rig moves exactly as the model does, so carrying it onto the model's
+skeleton must give the model's motion back."""
+from __future__ import annotations
+
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from characters import character
+from inbetweening.geometry.interp import interpolate_keyframes
+from inbetweening.geometry.quaternion import qrot
+from inbetweening.geometry.skeleton import fk
+from inbetweening.runtime import FillRuntime, InbetweenError
+from inbetweening.runtime.retarget import Retarget, tpose
+from inbetweening.runtime.torch_backend import TorchBackend
+
+MODEL = Path(__file__).resolve().parents[1] / "models" / "bn2_reference" / "model.ckpt"
+VARIANTS = {
+    "renamed": dict(extras=False, z_up=False, unit=1.0),
+    "metres_z_up": dict(extras=False),
+    "extra_bones": dict(),
+    "a_pose": dict(a_pose=40.0),
+    "proportions": dict(a_pose=30.0, scale={"legs": 1.15, "Spine": 0.85, "Chest": 1.1, "UpperArm_L": 1.15,
+                                            "UpperArm_R": 1.15, "LowerArm_L": 0.9, "LowerArm_R": 0.9, "Neck": 1.15}),
+}
+
+
+@pytest.fixture(scope="module")
+def backend():
+    return TorchBackend.from_checkpoint(MODEL)
+
+
+@pytest.fixture(scope="module")
+def motion(backend):
+    """A walk of the model's skeleton: the root turning, the legs and arms swinging."""
+    sk = backend.info.skeleton
+    rng = np.random.default_rng(0)
+    f = 121
+    t = np.arange(f)[:, None, None]
+    slot = {n: i for i, n in enumerate(sk.names)}
+    base = tpose(sk, slot)  # start from the T-pose: an upright body
+    local = np.array([base[0]] + [_local(base, sk.parents, j) for j in range(1, sk.num_joints)])
+    ang = 0.35 * np.sin(2 * np.pi * t / rng.uniform(25, 45, (1, sk.num_joints, 1)) + rng.uniform(0, 6, (1, sk.num_joints, 3)))
+    wiggle = np.concatenate([np.cos(np.linalg.norm(ang, axis=-1, keepdims=True) / 2),
+                             np.sin(np.linalg.norm(ang, axis=-1, keepdims=True) / 2) * ang /
+                             np.maximum(np.linalg.norm(ang, axis=-1, keepdims=True), 1e-9)], -1)
+    from inbetweening.geometry.quaternion import qmul
+
+    q = qmul(local[None], wiggle)
+    yaw = np.stack([np.cos(t[:, 0, 0] / 80), 0 * t[:, 0, 0], np.sin(t[:, 0, 0] / 80), 0 * t[:, 0, 0]], -1)
+    q[:, 0] = qmul(yaw, q[:, 0])
+    root = np.stack([40 * np.sin(t[:, 0, 0] / 30), 95 + 2 * np.sin(t[:, 0, 0] / 4), 2.5 * t[:, 0, 0]], -1)
+    return root, q
+
+
+def _local(g, parents, j):
+    from inbetweening.geometry.quaternion import qinv, qmul
+
+    return qmul(qinv(g[parents[j]]), g[j])
+
+
+@pytest.mark.parametrize("name", list(VARIANTS))
+def test_a_character_carries_the_models_motion_exactly(backend, motion, name):
+    """model skeleton -> character -> model skeleton: the joints' positions within 1e-4 of the body's height."""
+    sk = backend.info.skeleton
+    root, q = motion
+    rig, slots = character(sk, root, q, **VARIANTS[name])
+    lq, lp = rig.local_rotations(), rig.channel_positions()
+    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0])
+    r2, q2 = rt.to_model(lq, lp)
+    gp, gp2 = sk.pose(root, q)[1], sk.pose(r2, q2)[1]
+    height = np.ptp(gp[..., 1], axis=-1).max()
+    assert np.abs(gp2 - gp).max() <= 1e-4 * height, np.abs(gp2 - gp).max()
+    unit = VARIANTS[name].get("unit", 0.01)
+    legs = VARIANTS[name].get("scale", {}).get("legs", 1.0)
+    assert rt.scale == pytest.approx(1.0 / (unit * legs), rel=1e-6)  # the hips' height sets the root's scale
+
+
+@pytest.mark.parametrize("name", ["renamed", "extra_bones", "proportions"])
+def test_back_onto_the_character_and_again_is_the_same_motion(backend, motion, name):
+    """to_rig then to_model: the model's motion again (the rig's mapped bones carry all of it)."""
+    sk = backend.info.skeleton
+    root, q = motion
+    rig, slots = character(sk, root, q, **VARIANTS[name])
+    lq, lp = rig.local_rotations(), rig.channel_positions()
+    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0])
+    r2, q2 = rt.to_model(lq, lp)
+    lq3, lp3 = rt.to_rig(r2, q2, lq, lp, movers=list(range(rig.num_joints)))
+    r4, q4 = rt.to_model(lq3, lp3)
+    assert np.abs(sk.pose(r4, q4)[1] - sk.pose(r2, q2)[1]).max() < 1e-4  # cm
+    free = [i for i, b in enumerate(rig.names) if "finger" in b or "twist" in b]
+    assert np.allclose(np.abs((lq3[:, free] * lq[:, free]).sum(-1)), 1.0)  # bones without a slot keep their values
+
+
+def test_the_fill_on_a_character_is_the_fill_on_the_models_skeleton(backend, motion):
+    """Keys every 15 frames of a character: the rig's keys exactly as given, the fill (carried back onto the model's
+    skeleton) the native fill of the same keys within float rounding, bones without a slot interpolated."""
+    sk = backend.info.skeleton
+    root, q = motion
+    keys = list(range(0, 121, 15))
+    runtime = FillRuntime(backend)
+    native = runtime.fill(root, q, keys)
+    rig, slots = character(sk, root, q, **VARIANTS["proportions"])
+    lq, lp = rig.local_rotations(), rig.channel_positions()
+    hidden_q, hidden_p = lq.copy(), lp.copy()
+    gen = np.setdiff1d(np.arange(121), keys)
+    hidden_q[gen], hidden_p[gen] = np.nan, np.nan  # nothing between the keys is read
+    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0])
+    out = runtime.fill_rig(rt, hidden_q, hidden_p, keys, movers=list(range(rig.num_joints)))
+    assert np.array_equal(out.local_q[keys], lq[keys]) and np.array_equal(out.local_p[keys], lp[keys])
+    assert np.isfinite(out.local_q).all() and np.isfinite(out.local_p).all()
+    r, qq = rt.to_model(out.local_q, out.local_p)
+    assert np.abs(sk.pose(r, qq)[1] - sk.pose(native.root, native.local_q)[1]).max() < 0.05  # cm
+    finger = rig.names.index("hand_l_finger0_02")
+    _, iq = interpolate_keyframes(np.zeros((121, 3)), lq, keys)
+    assert np.allclose(np.abs((out.local_q[:, finger] * iq[:, finger]).sum(-1)), 1.0)
+
+
+def test_a_faster_rig_is_filled_at_the_models_rate(backend, motion):
+    """A 120 fps rig (every frame of the motion 4 times, interpolated): keys 60 frames apart are 15 of the model's;
+    the fill is the native fill of those keys, taken at the rig's frames."""
+    sk = backend.info.skeleton
+    root, q = motion
+    keys = list(range(0, 121, 15))
+    native = FillRuntime(backend).fill(root, q, keys)
+    rig, slots = character(sk, root, q, extras=False, z_up=False, unit=1.0)
+    lq, lp = rig.local_rotations(), rig.channel_positions()
+    fast = np.repeat(np.arange(121), 4)[:481]  # frame k of the fast rig is frame k/4 of the motion (keys exact)
+    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0])
+    out = FillRuntime(backend).fill_rig(rt, lq[fast], lp[fast], [4 * k for k in keys], movers=[0], fps=120.0)
+    r, qq = rt.to_model(out.local_q[::4], out.local_p[::4])
+    assert np.abs(sk.pose(r, qq)[1] - sk.pose(native.root, native.local_q)[1]).max() < 0.05
+
+
+def test_rig_fill_errors(backend, motion):
+    sk = backend.info.skeleton
+    root, q = motion
+    rig, slots = character(sk, root, q, **VARIANTS["renamed"])
+    lq, lp = rig.local_rotations(), rig.channel_positions()
+    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots))
+    runtime = FillRuntime(backend)
+    with pytest.raises(InbetweenError, match=r"expected local_q \(F, 21, 4\)"):
+        runtime.fill_rig(rt, lq[:, :5], lp, [0, 30])
+    bad = lq.copy()
+    bad[30] = np.nan
+    with pytest.raises(InbetweenError, match="NaN"):
+        runtime.fill_rig(rt, bad, lp, [0, 30])
+
+
+def test_a_static_top_bone_that_turns_the_character_is_part_of_its_world(backend, motion):
+    """extra_bones: a motionless ``root`` bone above the hips carries the Z-up turn (the rest pose itself is Y up);
+    with the key's pose as the reference, the character still stands upright on the model's side."""
+    sk = backend.info.skeleton
+    root, q = motion
+    rig, slots = character(sk, root, q, **VARIANTS["extra_bones"])
+    lq, lp = rig.local_rotations(), rig.channel_positions()
+    upright = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0]).to_model(lq, lp)
+    assert np.abs(sk.pose(*upright)[1] - sk.pose(root, q)[1]).max() < 1e-3
+    rest = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots)).to_model(lq, lp)  # the rest pose alone
+    head = sk.names.index("Head")
+    up = sk.pose(*rest)[1][:, head] - sk.pose(*rest)[1][:, 0]
+    assert np.abs(up[:, 1]).mean() < 0.5 * np.linalg.norm(up, axis=-1).mean()  # lying down: why the key is used
+    assert qrot is not None and fk is not None
