@@ -13,10 +13,13 @@ blend, foot locking, keys kept exactly) is described there, and the CLI, ``eval.
 through the same runtime.  This module adds the clip level: a BVH file's joints and frames into the model's
 skeleton and back.
 
-The model's skeleton must match the file's: same joint names in the same order, or the file has one extra
-motionless top joint above the model's root (Bandai-Namco's ``joint_Root`` above ``Hips``), which is folded
-into the root for the model and unfolded again when writing (its channels are copied from the nearest
-keyframe).
+The model's skeleton must match the file's: same joint names in the same order, or the file has one extra top
+joint above the model's root (Bandai-Namco's ``joint_Root`` above ``Hips``, still or carrying the locomotion),
+which is folded into the root for the model (by composition, :func:`~inbetweening.data.clips.fold_static_root`)
+and unfolded again when writing: on a generated frame the top joint moves between its values at the two
+surrounding keyframes (position lerp, rotation slerp; copied raw where they agree, so a still top joint keeps its
+channels bit for bit) and the root gets the generated global motion expressed under it, so the world motion is the
+model's and every channel curve is continuous; keyframe rows are the input's, bit for bit.
 """
 from __future__ import annotations
 
@@ -178,10 +181,11 @@ class Inbetweener:
           consecutive pair, so ``K`` input frames give ``K + (K - 1) * gap`` output frames.
 
         The output has the input's hierarchy, channel order and frame time; keyframe rows of ``motion`` are the
-        input's rows, bit for bit; generated frames take non-root position channels (and a folded
-        ``joint_Root``'s channels) from the nearest keyframe.  Gaps longer than ``max_gap`` are split with
-        interpolated pseudo-keyframes unless ``segment=False`` (then :class:`InbetweenError`).  Errors:
-        :class:`InbetweenError` (keyframes, gap, skeleton), ``BVHError`` (unreadable file).
+        input's rows, bit for bit; generated frames take non-root position channels from the nearest keyframe, and
+        a folded ``joint_Root`` moves between its values at the surrounding keyframes (module docstring).  Gaps
+        longer than ``max_gap`` are split with interpolated pseudo-keyframes unless ``segment=False`` (then
+        :class:`InbetweenError`).  Errors: :class:`InbetweenError` (keyframes, gap, skeleton), ``BVHError``
+        (unreadable file).
         """
         return self.fill_detailed(bvh, keyframes, gap, max_gap=max_gap, segment=segment, foot_lock=foot_lock).bvh
 
@@ -227,10 +231,16 @@ class Inbetweener:
     @staticmethod
     def _to_bvh(bvh: BVH, fold: bool, root: np.ndarray, q: np.ndarray, src: list[int], out_pos: list[int]) -> BVH:
         """The output clip (``root``, ``q`` in the file's frame): generated frames written into the file's hierarchy
-        (a folded top joint takes the nearest keyframe's values), the keyframes' rows copied unchanged."""
+        (non-root position channels from the nearest keyframe; a folded top joint between the surrounding keyframes'
+        values, :func:`~inbetweening.data.clips.motion_in_file`), the keyframes' rows copied unchanged."""
         t = np.arange(root.shape[0])
         keys = np.asarray(out_pos)
+        src = np.asarray(src)
         nearest = np.abs(t[:, None] - keys[None, :]).argmin(axis=1)  # ties -> the earlier keyframe
-        out = motion_in_file(bvh, fold, root, q, np.asarray(src)[nearest])
-        out.motion[keys] = bvh.motion[np.asarray(src)]
+        before = np.clip(np.searchsorted(keys, t, side="right") - 1, 0, len(keys) - 1)  # the key at or before t
+        after = np.minimum(before + 1, len(keys) - 1)
+        span = keys[after] - keys[before]
+        w = np.where(span > 0, (t - keys[before]) / np.maximum(span, 1), 0.0)
+        out = motion_in_file(bvh, fold, root, q, src[nearest], top_from=(src[before], src[after], w))
+        out.motion[keys] = bvh.motion[src]
         return out
