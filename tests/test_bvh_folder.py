@@ -11,15 +11,17 @@ import pytest
 import yaml
 
 from conftest import TINY, compose_cfg, model_overrides
-from inbetweening.data.bvh import read_bvh
+from inbetweening.data.bvh import BVH, read_bvh
 from inbetweening.data.bvh_folder import FolderOptions, derive_spec, hash_split
 from inbetweening.data.bvh_writer import write_bvh
+from inbetweening.data.clips import top_is_static
 from inbetweening.data.contacts import REFERENCE_HEIGHT_CM, find_feet
 from inbetweening.data.convention import FileConvention, parse_unit
 from inbetweening.data.datasets import load_dataset
 from inbetweening.data.errors import BVHError, DatasetError
 from inbetweening.data.mirror import derive_mirror
-from inbetweening.geometry.quaternion import qnormalize
+from inbetweening.geometry.quaternion import euler_to_quat_np, qinv, qmul, qnormalize, qrot
+from inbetweening.geometry.skeleton import fk
 from rigs import FPS, TRUE, write_other_rig
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -172,6 +174,78 @@ def test_mixed_skeletons_name_the_first_file_that_differs(rig, tmp_path):
     assert spec.feet == ("foot.L", "foot.R")
     with pytest.raises(DatasetError, match=r"take_02.bvh: mixed skeletons: .*\(20 joints, take_00.bvh has 21\)"):
         derive_spec([mixed], FolderOptions(fold_root=False))
+
+
+def _top_motion(f: int, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """A top joint carrying a dash (file frame: Z up, metres): yaw about Z and a run along X with a sideways sway."""
+    t = np.linspace(0.0, 1.0, f)
+    yaw = scale * (70.0 * t - 25.0)
+    top_q = euler_to_quat_np(np.stack([np.zeros(f), np.zeros(f), yaw], axis=1), "xyz")
+    return top_q, scale * np.stack([4.0 * t, 0.3 * np.sin(7.0 * t), np.zeros(f)], axis=1)
+
+
+def _moving_top(b: BVH) -> BVH:
+    """The take with its still top joint (``Armature``) now carrying a dash, the hips re-expressed under it: the
+    same world motion, the top joint's translation and yaw changing every frame."""
+    top_q, top_p = _top_motion(b.num_frames)
+    q, p = b.local_rotations(), b.channel_positions()
+    hips_q, hips_p = qmul(q[:, 0], q[:, 1]), p[:, 0] + qrot(q[:, 0], p[:, 1])
+    q[:, 0], p[:, 0] = top_q, top_p
+    q[:, 1], p[:, 1] = qmul(qinv(top_q), hips_q), qrot(qinv(top_q), hips_p - top_p)
+    return b.with_motion(q, p)
+
+
+def _under_top(b: BVH, name: str, top_q: np.ndarray, top_p: np.ndarray) -> BVH:
+    """The take under one more top joint ``name`` (6 channels), the old top's channels re-expressed under it."""
+    q, p = b.local_rotations(), b.channel_positions()
+    q0, p0 = qmul(qinv(top_q), q[:, 0]), qrot(qinv(top_q), p[:, 0] - top_p)
+    shell = BVH([name, *b.names], np.concatenate([[-1], b.parents + 1]), np.vstack([np.zeros(3), b.offsets]),
+                [b.channels[0], *b.channels], {j + 1: o for j, o in b.end_sites.items()}, b.frame_time,
+                np.zeros((b.num_frames, b.motion.shape[1] + len(b.channels[0]))))
+    return shell.with_motion(np.concatenate([top_q[:, None], q0[:, None], q[:, 1:]], axis=1),
+                             np.concatenate([top_p[:, None], p0[:, None], p[:, 1:]], axis=1))
+
+
+def test_a_top_joint_that_moves_in_some_takes_folds_in_every_take(rig, tmp_path):
+    """A folder whose top joint carries the locomotion in one take (a dash: translation and yaw) and is still in the
+    others loads as one skeleton, the moving take folded by composition: its joints' world trajectories are the
+    file's (FK of the file's own channels, in the project's frame) to 1e-6 cm."""
+    folder = tmp_path / "dash"
+    shutil.copytree(rig, folder)
+    write_bvh(_moving_top(read_bvh(rig / "take_05.bvh")), folder / "take_05.bvh")
+    moving = read_bvh(folder / "take_05.bvh")
+    assert not top_is_static(moving) and np.ptp(moving.motion[:, :3], axis=0).max() > 3.0  # metres
+    assert top_is_static(read_bvh(folder / "take_04.bvh"))
+    spec, rep = derive_spec([folder], FolderOptions())
+    assert rep["skeleton"] == {"joints": TRUE["joints"], "root": "hips", "folded_top_joint": "Armature"}
+    assert (rep["up_axis"], rep["unit"], rep["forward_axis"]) == (TRUE["up_axis"], TRUE["unit"], TRUE["forward_axis"])
+    read = {f: (c, sk) for f, c, sk, _ in spec.reader(spec, folder)}
+    assert len(read) == 12 and len({sk.names for _, sk in read.values()}) == 1
+    clip, sk = read["take_05.bvh"]
+    conv = FileConvention(rep["up_axis"], rep["unit_cm"])
+    world = fk(moving.local_rotations(), moving.channel_positions(), list(moving.parents))[1][:, 1:]  # below Armature
+    want = conv.unit_cm * qrot(np.broadcast_to(conv.rotation, world.shape[:-1] + (4,)), world)
+    assert np.abs(clip.root_pos - want[:, 0]).max() <= 1e-6  # the hips' world trajectory (cm)
+    assert np.abs(sk.pose(clip.root_pos, clip.local_q)[1] - want).max() <= 1e-6  # every joint
+    data = load_dataset("bvh", path=folder, cache_dir=tmp_path / "c")  # data=bvh data.path=<folder>
+    assert data.skeleton.names == sk.names and len(data.train) + len(data.test) == 12
+
+
+def test_a_moving_top_joint_above_a_chain_is_still_mixed(rig, tmp_path):
+    """A top joint that moves in one take and holds still in the others, above a child that does not branch (here
+    above ``Armature``): not hips-like, so not folded where it moves; the folder is refused with one line saying so,
+    and ``data.fold_root=true`` folds it everywhere."""
+    folder = tmp_path / "chain"
+    folder.mkdir()
+    for i in range(4):
+        b = read_bvh(rig / f"take_{i:02d}.bvh")
+        top_q, top_p = _top_motion(b.num_frames, scale=1.0 if i == 2 else 0.0)
+        write_bvh(_under_top(b, "Scene", top_q, top_p), folder / f"take_{i:02d}.bvh")
+    with pytest.raises(DatasetError, match=r"^take_02.bvh: mixed skeletons: the top joint 'Scene' moves in take_02.bvh "
+                                           r"and its child 'Armature' is not where the body branches.*data.fold_root"):
+        derive_spec([folder], FolderOptions())
+    _, rep = derive_spec([folder], FolderOptions(fold_root=True, forward_axis=[0, 0, 1]))  # Armature: no travel
+    assert rep["skeleton"] == {"joints": TRUE["joints"] + 1, "root": "Armature", "folded_top_joint": "Scene"}
 
 
 def test_too_short_and_motionless_files(rig, tmp_path):

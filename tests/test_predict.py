@@ -36,10 +36,12 @@ def _yaw(deg: float) -> np.ndarray:
     return np.array([math.cos(math.radians(deg) / 2), 0.0, math.sin(math.radians(deg) / 2), 0.0])
 
 
-def bandai_style(clip: BVH, top_yaw: float = 90.0, top_pos=(10.0, 0.0, -5.0)) -> BVH:
-    """The same motion under a static ``joint_Root`` above ``Hips``, every joint with 6 channels (pos + ZXY)."""
+def bandai_style(clip: BVH, top_yaw=90.0, top_pos=(10.0, 0.0, -5.0)) -> BVH:
+    """The same motion under a ``joint_Root`` above ``Hips``, every joint with 6 channels (pos + ZXY): a static one,
+    or a moving one with ``top_yaw (F,)`` and ``top_pos (F, 3)`` per frame (a take whose joint_Root carries the
+    locomotion)."""
     f, j = clip.num_frames, clip.num_joints
-    top_q = np.broadcast_to(_yaw(top_yaw), (f, 4))
+    top_q = np.stack([_yaw(d) for d in np.broadcast_to(np.asarray(top_yaw, float), (f,))])
     top_p = np.broadcast_to(np.asarray(top_pos, float), (f, 3))
     q = clip.local_rotations()
     pos = clip.channel_positions()
@@ -160,6 +162,37 @@ def test_bandai_namco_static_root_is_folded_and_unfolded(ib, clip):
     refolded, _ = fold_static_root(out, "out")
     np.testing.assert_allclose(refolded.root_pos, res_bn.root, atol=1e-5)
     assert _same_rotations(refolded.local_q, res_bn.local_q, 1e-10)
+
+
+def test_a_moving_joint_root_is_folded_and_unfolded(ib, clip, tmp_path, tiny_checkpoint):
+    """A take whose ``joint_Root`` carries the locomotion (a walk and a turn): the model sees the same motion as for
+    the plain file, the keys stay the input's rows bit for bit, ``joint_Root`` moves between its key values on the
+    generated frames (no step at the nearest key) and Hips under it gives the predicted global motion."""
+    f = clip.num_frames
+    t = np.arange(f) / (f - 1)
+    moving = bandai_style(clip, top_yaw=80.0 * t - 30.0, top_pos=np.stack([250.0 * t, 0 * t, -60.0 * t], axis=1))
+    assert np.ptp(moving.motion[:, [0, 2, 5]], axis=0).min() > 50  # X, Z and yaw (the Yrotation channel) move
+    keys = [0, 25, 50]
+    res_mv, res = ib.fill_detailed(moving, keyframes=keys), ib.fill_detailed(clip, keyframes=keys)
+    out = res_mv.bvh
+    assert out.names == moving.names and out.channels == moving.channels and out.num_frames == 51
+    assert np.array_equal(out.motion[keys], moving.motion[keys])  # the keys: the input's rows
+    np.testing.assert_allclose(res_mv.root, res.root, atol=1e-2)
+    assert _same_rotations(res_mv.local_q, res.local_q, 1e-6)
+    for k0, k1 in ((0, 25), (25, 50)):  # joint_Root's position: linear between its two keys
+        w = (np.arange(k0, k1 + 1) - k0)[:, None] / (k1 - k0)
+        lerp = moving.motion[k0, :3] + w * (moving.motion[k1, :3] - moving.motion[k0, :3])
+        np.testing.assert_allclose(out.motion[k0 : k1 + 1, :3], lerp, atol=1e-9)
+    refolded, _ = fold_static_root(out, "out")
+    np.testing.assert_allclose(refolded.root_pos, res_mv.root, atol=1e-4)  # the predicted Hips, Euler in between
+    assert _same_rotations(refolded.local_q, res_mv.local_q, 1e-9)
+    write_bvh(moving, tmp_path / "moving.bvh")  # python -m inbetweening.predict: the same, in a valid file
+    assert predict.run([f"ckpt_path={tiny_checkpoint}", f"input={tmp_path / 'moving.bvh'}", "keyframes=0,25,50",
+                        f"output={tmp_path / 'moving_filled.bvh'}"]) == 0
+    back, given = read_bvh(tmp_path / "moving_filled.bvh"), read_bvh(tmp_path / "moving.bvh")
+    assert back.names == moving.names and back.channels == moving.channels and back.num_frames == 51
+    assert np.array_equal(back.motion[keys], given.motion[keys])
+    np.testing.assert_allclose(back.motion, out.motion, atol=PRINT_ATOL, rtol=0)
 
 
 def test_skeleton_mismatch_is_a_clear_error(ib, clip):

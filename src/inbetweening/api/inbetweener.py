@@ -13,9 +13,14 @@ blend, foot locking, keys kept exactly) is described there, and the CLI, ``eval.
 through the same runtime.  This module adds the clip level: a BVH file's joints and frames into the model's
 skeleton and back.
 
-A clip of the model's skeleton (same joint names in the same order, or one extra motionless top joint above the
-model's root, Bandai-Namco's ``joint_Root`` above ``Hips``, folded into the root and unfolded again when writing) is
-filled as it is.  A clip of any other humanoid character is retargeted: its bones are matched to the model's joints
+A clip of the model's skeleton is filled as it is: same joint names in the same order, or one extra top joint
+above the model's root (Bandai-Namco's ``joint_Root`` above ``Hips``, still or carrying the locomotion), which is
+folded into the root for the model (by composition, :func:`~inbetweening.data.clips.fold_static_root`)
+and unfolded again when writing: on a generated frame the top joint moves between its values at the two
+surrounding keyframes (position lerp, rotation slerp; copied raw where they agree, so a still top joint keeps its
+channels bit for bit) and the root gets the generated global motion expressed under it, so the world motion is the
+model's and every channel curve is continuous; keyframe rows are the input's, bit for bit.
+A clip of any other humanoid character is retargeted: its bones are matched to the model's joints
 (:func:`~inbetweening.runtime.bone_map.detect_bone_map`, or an override file, ``bone_map=``), the keys are carried
 onto the model's skeleton, filled there and carried back (:meth:`FillRuntime.fill_rig`), every bone of the
 character keyed exactly as given.
@@ -196,12 +201,12 @@ class Inbetweener:
           consecutive pair, so ``K`` input frames give ``K + (K - 1) * gap`` output frames.
 
         The output has the input's hierarchy, channel order and frame time; keyframe rows of ``motion`` are the
-        input's rows, bit for bit; generated frames take non-root position channels (and a folded
-        ``joint_Root``'s channels) from the nearest keyframe.  Gaps longer than ``max_gap`` are split with
-        interpolated pseudo-keyframes unless ``segment=False`` (then :class:`InbetweenError`).  A clip of another
-        humanoid is retargeted (module docstring; ``bone_map``: an override file's path or a dict ``rig bone -> slot``
-        for what detection gets wrong).  Errors: :class:`InbetweenError` (keyframes, gap, a rig that cannot be mapped),
-        ``BVHError`` (unreadable file).
+        input's rows, bit for bit; generated frames take non-root position channels from the nearest keyframe, and
+        a folded ``joint_Root`` moves between its values at the surrounding keyframes (module docstring).  Gaps
+        longer than ``max_gap`` are split with interpolated pseudo-keyframes unless ``segment=False`` (then
+        :class:`InbetweenError`).  A clip of another humanoid is retargeted (module docstring; ``bone_map``: an
+        override file's path or a dict ``rig bone -> slot`` for what detection gets wrong).  Errors:
+        :class:`InbetweenError` (keyframes, gap, a rig that cannot be mapped), ``BVHError`` (unreadable file).
         """
         return self.fill_detailed(bvh, keyframes, gap, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
                                   bone_map=bone_map).bvh
@@ -270,10 +275,16 @@ class Inbetweener:
     @staticmethod
     def _to_bvh(bvh: BVH, fold: bool, root: np.ndarray, q: np.ndarray, src: list[int], out_pos: list[int]) -> BVH:
         """The output clip (``root``, ``q`` in the file's frame): generated frames written into the file's hierarchy
-        (a folded top joint takes the nearest keyframe's values), the keyframes' rows copied unchanged."""
+        (non-root position channels from the nearest keyframe; a folded top joint between the surrounding keyframes'
+        values, :func:`~inbetweening.data.clips.motion_in_file`), the keyframes' rows copied unchanged."""
         t = np.arange(root.shape[0])
         keys = np.asarray(out_pos)
+        src = np.asarray(src)
         nearest = np.abs(t[:, None] - keys[None, :]).argmin(axis=1)  # ties -> the earlier keyframe
-        out = motion_in_file(bvh, fold, root, q, np.asarray(src)[nearest])
-        out.motion[keys] = bvh.motion[np.asarray(src)]
+        before = np.clip(np.searchsorted(keys, t, side="right") - 1, 0, len(keys) - 1)  # the key at or before t
+        after = np.minimum(before + 1, len(keys) - 1)
+        span = keys[after] - keys[before]
+        w = np.where(span > 0, (t - keys[before]) / np.maximum(span, 1), 0.0)
+        out = motion_in_file(bvh, fold, root, q, src[nearest], top_from=(src[before], src[after], w))
+        out.motion[keys] = bvh.motion[src]
         return out

@@ -31,8 +31,10 @@ Two ways to say which frames are keyframes:
                         30 frames are generated between each consecutive pair, so K input frames give
                         K + (K - 1) * 30 output frames.
 
-Keyframe rows are copied unchanged into the output.  Generated frames take non-root position channels (and
-a folded Bandai-Namco joint_Root) from the nearest keyframe.
+Keyframe rows are copied unchanged into the output.  Generated frames take non-root position channels from
+the nearest keyframe; a folded Bandai-Namco joint_Root (still, or carrying the locomotion) moves between its
+values at the two surrounding keyframes and Hips gets the generated motion under it (the world motion is the
+model's).
 
 Long gaps: the model was trained on transitions of up to a fixed length (printed below as "max gap", from the
 checkpoint).  A longer gap is split into equal segments of at most max_gap frames; the poses at the split

@@ -4,8 +4,11 @@
 each with a ``data.<key>`` override (``None`` = derive):
 
 * **skeleton**: every file must have the same hierarchy (:class:`DatasetError` naming the first file that differs
-  and how); a top joint that does not move in any file and has one child is folded into it (``fold_root``: ``None``
-  = detect, ``True`` = always, ``False`` = never), as Bandai-Namco's ``joint_Root``;
+  and how); a top joint with one child is folded into it by composition (``fold_root``: ``None`` = detect, ``True``
+  = always, ``False`` = never), as Bandai-Namco's ``joint_Root``: detected per file where it holds still or sits
+  above a hips-like child (one where the body branches), moving or not, so a folder whose top joint carries the
+  locomotion in some takes (a dash) and is still in the others loads as one child-rooted skeleton
+  (:func:`~inbetweening.data.clips.top_folds`);
 * **frame rate** (``fps``): the most common rate; files at another rate are resampled to it through the project's
   one interpolation (:func:`~inbetweening.geometry.interp.interpolate_pose`), never silently mixed;
 * **up axis** (``up_axis``: ``y`` | ``z``): the axis along which the joints spread most (median over frames);
@@ -39,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from inbetweening.data.bvh import parse_bvh
-from inbetweening.data.clips import FOLD_STATIC, FOLD_TOP, Clip, read_bvh_clips
+from inbetweening.data.clips import FOLD_AUTO, FOLD_TOP, Clip, read_bvh_clips
 from inbetweening.data.contacts import REFERENCE_HEIGHT_CM, FootContact, body_height, find_feet, scaled_contact
 from inbetweening.data.convention import UNITS, FileConvention, parse_unit
 from inbetweening.data.errors import BVHError, DatasetError
@@ -50,9 +53,10 @@ from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.quaternion import qinv, qrot
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["BVH_DATASET", "FolderOptions", "derive_spec", "hash_split", "pattern_split", "source_paths"]
+__all__ = ["BVH_DATASET", "DERIVATION", "FolderOptions", "derive_spec", "hash_split", "pattern_split", "source_paths"]
 
 BVH_DATASET = "bvh"
+DERIVATION = 2  # in the prepared-data cache key: 2: a moving top joint above a hips-like root folds too
 TEST_EVERY = 10  # the hash split's share of test files: one in TEST_EVERY
 TRAVEL_SPEED = 0.2  # a clip travels where its root moves faster than this many body heights per second ...
 TRAVEL_SECONDS = 1.0  # ... for at least this long
@@ -140,7 +144,7 @@ class _ReadSpec:
 
 
 def _read(paths: list[Path], fold) -> list[tuple[str, Clip, Skeleton, float]]:
-    spec = _ReadSpec(FOLD_STATIC if fold is None else FOLD_TOP if fold else None)
+    spec = _ReadSpec(FOLD_AUTO if fold is None else FOLD_TOP if fold else None)
     items, seen = [], {}
     for p in paths:
         try:
@@ -164,10 +168,12 @@ def _check_skeletons(items, auto_fold: bool) -> Skeleton:
         if sk.same_topology(ref):
             continue
         a, b = list(sk.names), list(ref.names)
-        if auto_fold and (a[1:] == b or b[1:] == a):
-            moving = fname if len(a) > len(b) else f0
-            raise DatasetError(f"{fname}: mixed skeletons: the top joint {max(a, b, key=len)[0]!r} moves in {moving} "
-                               f"but not in the other; set data.fold_root=true (fold it everywhere) or false (never)")
+        if auto_fold and (a[1:] == b or b[1:] == a):  # folded in one file, not in the other (top_folds)
+            moving, still = (fname, f0) if len(a) > len(b) else (f0, fname)
+            top, child = max(a, b, key=len)[:2]
+            raise DatasetError(f"{fname}: mixed skeletons: the top joint {top!r} moves in {moving} and its child "
+                               f"{child!r} is not where the body branches, so it is not folded there, but it is in "
+                               f"{still}; set data.fold_root=true (fold it everywhere) or false (never)")
         if len(a) != len(b):
             how = f"{len(a)} joints, {f0} has {len(b)}"
         else:

@@ -1,8 +1,9 @@
 """Clips and prepared datasets: the :class:`Clip`/:class:`MotionData` classes and BVH -> clip conversion.
 
 :func:`read_bvh_clips` is the default reader of a :class:`~inbetweening.data.specs.DatasetSpec`: it yields
-one clip per BVH file of a folder or zip whose name one of the spec's split rules accepts, folding a static root
-joint into its child where the spec names one (:func:`fold_static_root`).
+one clip per BVH file of a folder or zip whose name one of the spec's split rules accepts, folding a top joint into
+its child where the spec asks (:func:`fold_static_root`: by composition, lossless whether the top joint holds still
+or carries the locomotion).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from inbetweening.data.convention import PROJECT, FileConvention
 from inbetweening.data.errors import BVHError, DatasetError
 from inbetweening.data.sources import list_bvh_sources, read_bvh_sources
 from inbetweening.data.windows import BenchmarkSet
+from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.quaternion import qinv, qmul, qrot, remove_discontinuities
 from inbetweening.geometry.skeleton import Skeleton
 
@@ -35,8 +37,8 @@ class ReadSpec(Protocol):
 
     def reads(self, name: str) -> bool: ...
 
-__all__ = ["FOLD_STATIC", "FOLD_TOP", "Clip", "MotionData", "check_skeleton", "clip_from_bvh", "clip_in_skeleton",
-           "fold_static_root", "motion_in_file", "read_bvh_clips", "top_is_static"]
+__all__ = ["FOLD_AUTO", "FOLD_TOP", "Clip", "MotionData", "check_skeleton", "clip_from_bvh", "clip_in_skeleton",
+           "fold_static_root", "motion_in_file", "read_bvh_clips", "top_folds", "top_is_static"]
 
 
 @dataclass
@@ -124,11 +126,13 @@ def clip_from_bvh(bvh: BVH, name: str) -> tuple[Clip, Skeleton]:
 
 
 def fold_static_root(bvh: BVH, name: str, root_name: str = "joint_Root") -> tuple[Clip, Skeleton]:
-    """Drop a motionless top joint (Bandai-Namco's ``joint_Root``) by composing it into its child.
+    """Drop the top joint (Bandai-Namco's ``joint_Root``) by composing it into its child, frame by frame.
 
-    The child (``Hips``) becomes the root: its global rotation = R_top ⊗ R_hips and its global
-    position = p_top + R_top · p_hips, so the animation is unchanged.  Raises if the top joint is
-    not ``root_name`` or has more than one child.
+    The child (``Hips``) becomes the root: its global rotation = R_top(f) ⊗ R_hips(f) and its global
+    position = p_top(f) + R_top(f) · p_hips(f), so the animation is unchanged whether the top joint holds still
+    (the name's origin) or moves (a take whose top joint carries the locomotion: its translation and rotation
+    channels are composed into the root's motion).  Raises if the top joint is not ``root_name`` or has more than
+    one child.  :func:`motion_in_file` writes such a clip back.
     """
     if bvh.names[0] != root_name:
         raise DatasetError(f"{name}: expected top joint {root_name!r}, found {bvh.names[0]!r}")
@@ -147,8 +151,9 @@ def fold_static_root(bvh: BVH, name: str, root_name: str = "joint_Root") -> tupl
 
 def clip_in_skeleton(bvh: BVH, skeleton: Skeleton) -> tuple[bool, np.ndarray, np.ndarray]:
     """``(folded?, root (F, 3), local_q (F, J, 4))`` of a file's motion in ``skeleton``'s joints: the same joint names
-    in the same order, or one extra motionless top joint above the skeleton's root (Bandai-Namco's ``joint_Root``),
-    folded into it (:func:`fold_static_root`).  :class:`DatasetError` naming the first joint that differs otherwise."""
+    in the same order, or one extra top joint above the skeleton's root (Bandai-Namco's ``joint_Root``, still or
+    moving), folded into it (:func:`fold_static_root`).  :class:`DatasetError` naming the first joint that differs
+    otherwise."""
     names, ck = list(bvh.names), list(skeleton.names)
     if names == ck:
         return False, bvh.local_positions()[:, 0].copy(), bvh.local_rotations()
@@ -163,32 +168,51 @@ def clip_in_skeleton(bvh: BVH, skeleton: Skeleton) -> tuple[bool, np.ndarray, np
         f"first difference at joint {i}: file {here}, checkpoint {there}")
 
 
-def motion_in_file(bvh: BVH, folded: bool, root: np.ndarray, q: np.ndarray, rows: np.ndarray) -> BVH:
+def motion_in_file(bvh: BVH, folded: bool, root: np.ndarray, q: np.ndarray, rows: np.ndarray,
+                   top_from: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> BVH:
     """The inverse of :func:`clip_in_skeleton`: a BVH of ``bvh``'s hierarchy and channels whose frames carry
-    ``root (F, 3), q (F, J, 4)`` (the skeleton's joints); the channels the skeleton does not hold (a folded top
-    joint, non-root position channels) are taken from ``bvh``'s frames ``rows (F,)`` (the top joint raw, without an
-    Euler round trip).  :class:`BVHError` when no joint can carry the root translation."""
-    file_q = bvh.local_rotations()[rows]
-    pos = bvh.channel_positions()[rows]
+    ``root (F, 3), q (F, J, 4)`` (the skeleton's joints).  The channels the skeleton does not hold are taken from
+    ``bvh``'s frames: non-root position channels from ``rows (F,)``; a folded top joint from ``rows`` too, or, with
+    ``top_from = (before (F,), after (F,), w (F,))``, moved from row ``before`` to row ``after`` by the weight ``w``
+    (position lerp, rotation slerp: a top joint that carries the locomotion moves smoothly between two keys).  The
+    top joint's channels are copied raw (no Euler round trip) wherever its two rows hold the same values or ``w``
+    is 0 (``before``'s) or 1 (``after``'s): a motionless top joint, a key.  The skeleton's root then gets the given
+    global motion expressed under that top joint (``R_top⁻¹ R_root``, ``R_top⁻¹ (p_root - p_top)``), so the world
+    motion is ``root, q`` whatever the top joint does; where the child has no position channels the translation goes
+    on the top joint's position channels (``p_root - R_top · offset``).  :class:`BVHError` when no joint can carry
+    the root translation."""
+    rows = np.asarray(rows)
+    all_q, all_p = bvh.local_rotations(), bvh.channel_positions()
+    file_q, pos = all_q[rows], all_p[rows]
     if not folded:
         file_q[:] = q
         pos[:, 0] = root
+        return bvh.with_motion(file_q, pos)
+    n_top = len(bvh.channels[0])
+    if top_from is None:
+        top_from = (rows, rows, np.zeros(len(rows)))
+    before, after, w = (np.asarray(a) for a in top_from)
+    raw = np.where((w >= 1)[:, None], bvh.motion[after, :n_top], bvh.motion[before, :n_top])
+    is_raw = (w <= 0) | (w >= 1) | np.all(bvh.motion[before, :n_top] == bvh.motion[after, :n_top], axis=1)
+    all_q, all_p = all_q[:, 0], all_p[:, 0]
+    top_p, top_q = interpolate_pose(all_p[before], all_q[before][:, None], all_p[after], all_q[after][:, None], w)
+    top_q = top_q[:, 0]
+    top_q[is_raw] = np.where((w >= 1)[is_raw, None], all_q[after[is_raw]], all_q[before[is_raw]])
+    top_p[is_raw] = np.where((w >= 1)[is_raw, None], all_p[after[is_raw]], all_p[before[is_raw]])
+    file_q[:, 0], pos[:, 0] = top_q, top_p
+    file_q[:, 1] = qmul(qinv(top_q), q[:, 0])
+    file_q[:, 2:] = q[:, 1:]
+    top_cols = np.arange(n_top)
+    if sum(c.lower().endswith("position") for c in bvh.channels[1]) == 3:
+        pos[:, 1] = qrot(qinv(top_q), root - top_p)
+    elif sum(c.lower().endswith("position") for c in bvh.channels[0]) == 3:
+        pos[:, 0] = root - qrot(top_q, bvh.offsets[1][None])  # the top joint carries the translation
+        top_cols = np.array([i for i, c in enumerate(bvh.channels[0]) if not c.lower().endswith("position")], int)
     else:
-        top_q, top_p = file_q[:, 0], pos[:, 0]
-        file_q[:, 1] = qmul(qinv(top_q), q[:, 0])
-        file_q[:, 2:] = q[:, 1:]
-        layout_pos = {c for c in bvh.channels[1] if c.lower().endswith("position")}
-        if len(layout_pos) == 3:
-            pos[:, 1] = qrot(qinv(top_q), root - top_p)
-        elif sum(c.lower().endswith("position") for c in bvh.channels[0]) == 3:
-            pos[:, 0] = root - qrot(top_q, bvh.offsets[1][None])
-        else:
-            raise BVHError(f"neither {bvh.names[0]} nor {bvh.names[1]} has 3 position channels: "
-                           "cannot write the root translation", bvh.source)
+        raise BVHError(f"neither {bvh.names[0]} nor {bvh.names[1]} has 3 position channels: "
+                       "cannot write the root translation", bvh.source)
     out = bvh.with_motion(file_q, pos)
-    if folded:  # the folded top joint is copied raw from its rows (no Euler round trip)
-        n_top = len(bvh.channels[0])
-        out.motion[:, :n_top] = bvh.motion[rows, :n_top]
+    out.motion[np.ix_(is_raw, top_cols)] = raw[np.ix_(is_raw, top_cols)]
     return out
 
 
@@ -215,7 +239,7 @@ def read_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-FOLD_STATIC = "<static top joint>"  # ReadSpec.fold_root: fold the top joint of each file where it does not move
+FOLD_AUTO = "<top joint above the hips>"  # ReadSpec.fold_root: fold the top joint of each file where top_folds says
 FOLD_TOP = "<top joint>"  # ReadSpec.fold_root: fold the top joint of every file
 
 
@@ -227,12 +251,23 @@ def top_is_static(bvh: BVH, tol: float = 1e-6) -> bool:
     return bool(top.size == 0 or np.all(np.ptp(top, axis=0) <= tol * np.maximum(1.0, np.abs(top).max(axis=0))))
 
 
+def top_folds(bvh: BVH, tol: float = 1e-6) -> bool:
+    """Whether the file's top joint is a wrapper to fold into its child (:data:`FOLD_AUTO`): it has exactly one child
+    and either holds still (:func:`top_is_static`: an exporter's ``Armature``, a still ``joint_Root``) or sits above
+    a hips-like root, a child where the body branches (two or more children: the legs and the spine), moving or not
+    (a ``joint_Root`` or a game rig's ``root`` that carries the locomotion in some takes).  Folding composes the top
+    joint into the child frame by frame, losslessly either way, so every take gets the child-rooted skeleton."""
+    if [j for j, p in enumerate(bvh.parents) if p == 0] != [1]:
+        return False
+    return sum(int(p) == 1 for p in bvh.parents) >= 2 or top_is_static(bvh, tol)
+
+
 def _clip_of(spec: ReadSpec, fname: str, raw: bytes) -> tuple[str, Clip, Skeleton, float | None]:
     bvh = parse_bvh(raw, source=fname)
     stem = fname.rsplit(".", 1)[0]
     top = spec.fold_root
-    if top == FOLD_STATIC:
-        top = bvh.names[0] if top_is_static(bvh) else None
+    if top == FOLD_AUTO:
+        top = bvh.names[0] if top_folds(bvh) else None
     elif top == FOLD_TOP:
         top = bvh.names[0]
     clip, skel = fold_static_root(bvh, stem, top) if top else clip_from_bvh(bvh, stem)

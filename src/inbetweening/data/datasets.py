@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from inbetweening.data import windows as W
-from inbetweening.data.bvh_folder import BVH_DATASET, FolderOptions, derive_spec, source_paths
+from inbetweening.data.bvh_folder import BVH_DATASET, DERIVATION, FolderOptions, derive_spec, source_paths
 from inbetweening.data.cache import CacheCorrupt, default_cache_dir, hash_source, load_entry, save_entry, settings_key
 from inbetweening.data.clips import Clip, MotionData, check_skeleton, clip_from_bvh, fold_static_root, read_workers
 from inbetweening.data.contacts import FootContact
@@ -234,8 +234,8 @@ def load_bvh_folder(path, cache_dir=None, options: FolderOptions | None = None, 
     paths = source_paths(path)
     cache_root = Path(cache_dir) if cache_dir else default_cache_dir()
     digest = hashlib.sha1("".join(hash_source(p, cache_root, "*.bvh") for p in paths).encode()).hexdigest()
-    settings = {"v": CACHE_VERSION, "name": BVH_DATASET, "options": options.settings(), "split": split,
-                "train": (W.TRAIN_WINDOW, W.TRAIN_OFFSET), "test": (W.TEST_WINDOW, W.TEST_OFFSET)}
+    settings = {"v": CACHE_VERSION, "derivation": DERIVATION, "name": BVH_DATASET, "options": options.settings(),
+                "split": split, "train": (W.TRAIN_WINDOW, W.TRAIN_OFFSET), "test": (W.TEST_WINDOW, W.TEST_OFFSET)}
     cache_file = cache_root / "prepared" / f"{BVH_DATASET}-{digest[:16]}-{settings_key(settings)}"
     if use_cache and (cache_file / "meta.json").exists():
         try:
