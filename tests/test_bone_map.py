@@ -542,6 +542,63 @@ def test_makehuman():
     assert set(bm.how.values()) == {"name (MakeHuman)"}
 
 
+def biped_name(role, side):
+    S = side.upper() if isinstance(side, str) else ""
+    if role == "spine":
+        return "Bip01 Spine" + (str(side) if side else "")
+    return {"root": "Bip01", "hips": "Bip01 Pelvis", "neck": "Bip01 Neck", "head": "Bip01 Head",
+            "clavicle": f"Bip01 {S} Clavicle", "upperarm": f"Bip01 {S} UpperArm", "lowerarm": f"Bip01 {S} Forearm",
+            "hand": f"Bip01 {S} Hand", "thigh": f"Bip01 {S} Thigh", "calf": f"Bip01 {S} Calf", "foot": f"Bip01 {S} Foot",
+            "ball": f"Bip01 {S} Toe0"}[role]
+
+
+def cc_name(role, side):
+    S = side.upper() if isinstance(side, str) else ""
+    if role == "spine":
+        return "CC_Base_" + ("Waist", "Spine01", "Spine02")[side]
+    return "CC_Base_" + {
+        "hips": "Hip", "neck": "NeckTwist01", "head": "Head", "clavicle": f"{S}_Clavicle", "upperarm": f"{S}_Upperarm",
+        "lowerarm": f"{S}_Forearm", "hand": f"{S}_Hand", "thigh": f"{S}_Thigh", "calf": f"{S}_Calf", "foot": f"{S}_Foot",
+        "ball": f"{S}_ToeBase", "upperarm_twist": f"{S}_UpperarmTwist01", "lowerarm_twist": f"{S}_ForearmTwist01",
+        "thigh_twist": f"{S}_ThighTwist01", "calf_twist": f"{S}_CalfTwist01"}[role]
+
+
+def daz_name(role, side):
+    if role == "spine":
+        return ("abdomenLower", "abdomenUpper", "chestLower", "chestUpper")[side]
+    if role == "neck":
+        return ("neckLower", "neckUpper")[side]
+    return {"hips": "hip", "head": "head", "clavicle": "{}Collar", "upperarm": "{}ShldrBend", "lowerarm": "{}ForearmBend",
+            "hand": "{}Hand", "thigh": "{}ThighBend", "calf": "{}Shin", "foot": "{}Foot", "ball": "{}Toe",
+            "upperarm_twist": "{}ShldrTwist", "lowerarm_twist": "{}ForearmTwist", "thigh_twist": "{}ThighTwist",
+            "calf_twist": "{}ShinTwist"}[role].format(side)
+
+
+@pytest.mark.parametrize("preset, rig, truth", [
+    ("3ds Max Biped", lambda: humanoid(biped_name, root=True),
+     {"Hips": "Bip01 Pelvis", "Spine": "Bip01 Spine", "Chest": "Bip01 Spine2", "Neck": "Bip01 Neck", "Head": "Bip01 Head",
+      **both(Shoulder="Bip01 {S} Clavicle", UpperArm="Bip01 {S} UpperArm", LowerArm="Bip01 {S} Forearm",
+             Hand="Bip01 {S} Hand", UpperLeg="Bip01 {S} Thigh", LowerLeg="Bip01 {S} Calf", Foot="Bip01 {S} Foot",
+             Toes="Bip01 {S} Toe0")}),
+    ("Character Creator", lambda: humanoid(cc_name, twist="child"),
+     {"Hips": "CC_Base_Hip", "Spine": "CC_Base_Waist", "Chest": "CC_Base_Spine02", "Neck": "CC_Base_NeckTwist01",
+      "Head": "CC_Base_Head",
+      **both(Shoulder="CC_Base_{S}_Clavicle", UpperArm="CC_Base_{S}_Upperarm", LowerArm="CC_Base_{S}_Forearm",
+             Hand="CC_Base_{S}_Hand", UpperLeg="CC_Base_{S}_Thigh", LowerLeg="CC_Base_{S}_Calf", Foot="CC_Base_{S}_Foot",
+             Toes="CC_Base_{S}_ToeBase")}),
+    ("DAZ", lambda: humanoid(daz_name, spine=4, neck=2, twist="chain"),
+     {"Hips": "hip", "Spine": "abdomenLower", "Chest": "chestUpper", "Neck": "neckLower", "Head": "head",
+      **both(Shoulder="{s}Collar", UpperArm="{s}ShldrBend", LowerArm="{s}ForearmBend", Hand="{s}Hand",
+             UpperLeg="{s}ThighBend", LowerLeg="{s}Shin", Foot="{s}Foot", Toes="{s}Toe")}),
+])
+def test_biped_character_creator_daz(preset, rig, truth):
+    """3ds Max Biped ("Bip01 L Thigh"), Character Creator (CC_Base_, twist bones), DAZ Genesis (lShldrBend with
+    lShldrTwist in the chain, abdomenLower..chestUpper, neckLower/Upper)."""
+    bm = detect(rig())
+    assert bm.slots == truth
+    assert set(bm.how.values()) == {f"name ({preset})"}
+
+
 def test_mmd_japanese_names():
     """MMD (PMX) names: the side as 左/右, the hips the deepest of 腰/グルーブ/センター that holds the upper body and the
     legs (上半身 and 下半身 are siblings), IK bones without a slot."""
