@@ -104,6 +104,19 @@ def _chains(parents, slot_of: dict[str, int]) -> _Chains:
     return _Chains(aim, direction, paths)
 
 
+def _aims(ch: _Chains, rest: np.ndarray) -> dict[int, int]:
+    """Per chain joint the joint it points at: the next joint along its chain that does not sit on it (a zero-length
+    bone, such as CMU's ``LowerBack`` on ``Hips``, points nowhere; the bone before it points past it)."""
+    scale = max(float(np.ptp(rest, axis=0).max()), 1e-9)
+    aim = {}
+    for path in ch.paths.values():
+        for i, a in enumerate(path[:-1]):
+            nxt = next((b for b in path[i + 1 :] if np.linalg.norm(rest[b] - rest[a]) > 1e-6 * scale), None)
+            if nxt is not None and a in ch.aim:
+                aim[a] = nxt
+    return aim
+
+
 def _below(parents, j: int, top: int) -> bool:
     """Whether ``j`` is ``top`` or below it."""
     while j >= 0:
@@ -139,13 +152,14 @@ def tpose(skeleton: Skeleton, slot_of: dict[str, int], basis: np.ndarray | None 
     lateral_hips = rest[slot_of["UpperLeg_L"]] - rest[slot_of["UpperLeg_R"]]
     lateral_arms = rest[ch.paths["Shoulder_L"][0]] - rest[ch.paths["Shoulder_R"][0]]
     full = {hips: lateral_hips, arm_root: lateral_arms}
+    aim = _aims(ch, rest)
     t = rq.copy()
     for j in range(len(parents)):
         p = parents[j]
         if p >= 0:
             t[j] = qmul(t[p], qmul(qinv(rq[p]), rq[j]))  # the parent's T-pose turn, the rest's local rotation
-        if j in ch.aim:
-            d = rest[ch.aim[j]] - rest[j]  # the rest direction (world)
+        if j in aim:
+            d = rest[aim[j]] - rest[j]  # the rest direction (world)
             want = basis @ ch.direction[j]
             if j in full:
                 t[j] = qmul(qframe(d, full[j], want, basis @ LEFT), rq[j])
@@ -198,6 +212,7 @@ class Retarget:
             _hip_height(rig, self.t_rig, self.rig_slot, basis[:, 1])
         self._plan_model()
         self._plan_rig()
+        self._plan_aims(reference)
 
     # ------------------------------------------------------------------ where each joint's rotation comes from
     def _fractions(self, skeleton: Skeleton, path: list[int]) -> np.ndarray:
@@ -219,7 +234,7 @@ class Retarget:
                 continue
             lo = max(k for k in range(i) if body[k] in src)
             hi = min(k for k in range(i + 1, len(body)) if body[k] in src)
-            f = (pos[i] - pos[lo]) / (pos[hi] - pos[lo])
+            f = (pos[i] - pos[lo]) / (pos[hi] - pos[lo]) if pos[hi] > pos[lo] else 0.0
             src[j] = (src[body[lo]][0], src[body[hi]][0], float(f))
         for j in range(m.num_joints):  # a missing clavicle follows the chest, missing toes the foot
             if j not in src:
@@ -227,8 +242,9 @@ class Retarget:
         self.model_source = [src[j] for j in range(m.num_joints)]
 
     def _plan_rig(self) -> None:
-        """Per rig bone: ``("slot", model joint)``, ``("body", model a, model b, f)``, ``("limb", model joint)`` or
-        ``("free",)`` (keeps its local values)."""
+        """Per rig bone: ``("slot", model joint)``; inside a chain between mapped bones ``("body" | "limb", model joint,
+        rig bone)``: rigid with the mapped bone below it (the model's segment there is one bone); or ``("free",)``
+        (keeps its local values)."""
         r = self.rig
         mapped = {b: self.model_slot[s] for s, b in self.rig_slot.items()}
         plan: list[tuple] = [("free",)] * r.num_joints
@@ -236,23 +252,47 @@ class Retarget:
             plan[b] = ("slot", j)
         ch = _chains(r.parents, self.rig_slot)
         body = ch.paths["body"]
-        pos = self._fractions(r, body)
         for i, b in enumerate(body):
-            if b in mapped:
-                continue
-            lo = max(k for k in range(i) if body[k] in mapped)
-            hi = min(k for k in range(i + 1, len(body)) if body[k] in mapped)
-            plan[b] = ("body", mapped[body[lo]], mapped[body[hi]], float((pos[i] - pos[lo]) / (pos[hi] - pos[lo])))
+            if b not in mapped:
+                lo = max(k for k in range(i) if body[k] in mapped)
+                plan[b] = ("body", mapped[body[lo]], body[lo])
         for key, path in ch.paths.items():
             if key == "body":
                 continue
             last = None
             for b in path:
                 if b in mapped:
-                    last = mapped[b]
+                    last = b
                 elif last is not None:
-                    plan[b] = ("limb", last)
+                    plan[b] = ("limb", mapped[last], last)
         self.rig_plan = plan
+
+    def _plan_aims(self, reference) -> None:
+        """The bones whose direction is matched: per mapped model joint with a chain child mapped too, the pair of rig
+        joints it spans (``model_aims``: ``(model joint, model child, rig joint, rig joint)``); per mapped rig bone, the
+        next mapped joint along its chain (``rig_aims``: ``(rig bone, rig joint, model joint, model joint, rest
+        direction in the bone's frame)``)."""
+        m, r = self.model, self.rig
+        m_ch = _chains(m.parents, self.model_slot)
+        m_rest = rest_pose(m, self.model_slot)[1]
+        rq, rest = rest_pose(r, self.rig_slot, reference)
+        tiny = 1e-6 * max(float(np.ptp(rest, axis=0).max()), 1e-9)
+        model_aims = []
+        for j, c in _aims(m_ch, m_rest).items():
+            if m.parents[c] == j and m.names[j] in self.rig_slot and m.names[c] in self.rig_slot:
+                rj, rc = self.rig_slot[m.names[j]], self.rig_slot[m.names[c]]
+                if np.linalg.norm(rest[rc] - rest[rj]) > tiny:  # (CMU's Spine and Chest slots sit on other joints)
+                    model_aims.append((j, c, rj, rc))
+        self.model_aims = model_aims
+        mapped = {b: self.model_slot[s] for s, b in self.rig_slot.items()}
+        r_ch = _chains(r.parents, self.rig_slot)
+        rig_aims = []
+        for path in r_ch.paths.values():
+            for i, b in enumerate(path[:-1]):
+                nxt = next((c for c in path[i + 1 :] if c in mapped), None)
+                if b in mapped and nxt is not None and np.linalg.norm(rest[nxt] - rest[b]) > tiny:
+                    rig_aims.append((b, nxt, mapped[b], mapped[nxt], qrot(qinv(rq[b]), rest[nxt] - rest[b])))
+        self.rig_aims = rig_aims
 
     # ------------------------------------------------------------------ the two directions
     def _to_model_world(self, w: np.ndarray) -> np.ndarray:
@@ -271,6 +311,10 @@ class Retarget:
         f = np.array([s[2] for s in self.model_source])
         w = np.where((f > 0)[None, :, None], slerp_np(w_rig[:, a], w_rig[:, b], f[None, :]), w_rig[:, a])
         g = qmul(self._to_model_world(w), self.t_model[None])
+        turn = np.broadcast_to(self.world, gp.shape[:-1] + (4,))
+        for j, c, rj, rc in self.model_aims:  # each bone points where the rig's does (bones between them included)
+            want = qrot(turn[:, 0], gp[:, rc] - gp[:, rj])
+            g[:, j] = qmul(qswing(qrot(g[:, j], np.broadcast_to(self.model.offsets[c], want.shape)), want), g[:, j])
         par = list(self.model.parents[1:])
         lq = np.concatenate([g[:, :1], qmul(qinv(g[:, par]), g[:, 1:])], axis=1)
         lq[:1] = euler_sign(lq[:1])  # as a file's frames are: the first frame's Euler sign, then continuous in time
@@ -284,8 +328,15 @@ class Retarget:
         ``free_q``/``free_p`` give the local values of the bones without a slot (and every local translation but the
         one that carries the hips).  ``movers``: rig joints with position channels (the hips' translation goes to the
         nearest of them at or above the hips; default: the rig's root)."""
-        gm = fk(np.asarray(local_q, np.float64), np.repeat(self.model.offsets[None], len(root), 0), self.model.parents)[0]
+        gm, pm = fk(np.asarray(local_q, np.float64), np.repeat(self.model.offsets[None], len(root), 0),
+                    self.model.parents)
         w = self._to_rig_world(qmul(gm, qinv(self.t_model)[None]))  # (F, Jm, 4) in the rig's world
+        back = np.broadcast_to(qinv(self.world), pm.shape[:-1] + (4,))
+        turn = {}  # per mapped rig bone: the swing that points it (and the bones it carries) where the model's points
+        for b, _, j, k, rest_dir in self.rig_aims:
+            want = qrot(back[:, 0], pm[:, k] - pm[:, j])
+            have = qrot(qmul(w[:, j], self.t_rig[b]), np.broadcast_to(rest_dir, want.shape))
+            turn[b] = qswing(have, want)
         r = self.rig
         f = len(root)
         gq = np.zeros((f, r.num_joints, 4))
@@ -295,10 +346,12 @@ class Retarget:
             kind = plan[0]
             if kind == "slot":
                 gq[:, b] = qmul(w[:, plan[1]], self.t_rig[b])
-            elif kind == "body":
-                gq[:, b] = qmul(slerp_np(w[:, plan[1]], w[:, plan[2]], plan[3]), self.t_rig[b])
-            elif kind == "limb":
+                if b in turn:
+                    gq[:, b] = qmul(turn[b], gq[:, b])
+            elif kind in ("body", "limb"):  # inside a chain: rigid with the mapped bone below it
                 gq[:, b] = qmul(w[:, plan[1]], self.t_rig[b])
+                if plan[-1] in turn:
+                    gq[:, b] = qmul(turn[plan[-1]], gq[:, b])
             else:
                 gq[:, b] = lq[:, b] if p < 0 else qmul(gq[:, p], lq[:, b])
             if kind != "free":
