@@ -10,7 +10,9 @@ retargeting (``python -m inbetweening.predict`` and the Python API fill them so)
    keys on the same character (rotations slerped, translations linear), against the same ratio of the same clips on
    the model's own skeleton.
 2. Real BVH of other skeletons from Debian's assimp-testmodels (CMU ``01_01.bvh``, ``01_03.bvh`` at 120 fps, Poser
-   ``Boxing_Toes.bvh`` at 100 fps): keys every 0.5 s and 1 s and at the motion's extremes, the same ratio.
+   ``Boxing_Toes.bvh`` at 100 fps): keys every 0.5 s and 1 s and at the motion's extremes, the same ratio; and the
+   retargeting alone: the same fill with the do-no-harm blend at 0 (the model's skeleton interpolated, carried there
+   and back) against the interpolation on the rig.
 3. The fill time of a 300-frame character clip with 10 keys (one thread), median of 5 after a warm-up.
 
 Writes ``<out>/characters.json`` and prints the tables of RESULTS.md's "Any humanoid character" section.
@@ -83,12 +85,19 @@ def errors(truth, filled, interp, keys, scale: float = 1.0) -> tuple[float, floa
             float(np.linalg.norm(interp[gen] - t, axis=-1).mean() * scale))
 
 
-def score(ib, bvh, keys, unit_cm: float) -> tuple[float, float]:
-    out = ib.fill(bvh, keyframes=keys)
+def score(ib, bvh, keys, unit_cm: float) -> dict:
+    """``{"mapped": (fill, interp), "all": (fill, interp)}``: the mean errors on the bones the model fills (a
+    character's bones with a slot; every joint of the model's own skeleton) and on every bone (those without a slot
+    are interpolated between the keys by the fill too, so they add the same error to both)."""
+    res = ib.fill_detailed(bvh, keyframes=keys)
     truth = fk_positions(bvh)
-    filled = fk_positions(out)
+    filled = fk_positions(res.bvh)
     iq, ip = interpolation(bvh, keys)
-    return errors(truth, filled, fk_positions(bvh, iq, ip), keys, unit_cm)
+    interp = fk_positions(bvh, iq, ip)
+    idx = (list(range(bvh.num_joints)) if res.bone_map is None
+           else [bvh.names.index(b) for b in res.bone_map.slots.values()])
+    return {"mapped": errors(truth[:, idx], filled[:, idx], interp[:, idx], keys, unit_cm),
+            "all": errors(truth, filled, interp, keys, unit_cm)}
 
 
 def main() -> None:
@@ -102,7 +111,6 @@ def main() -> None:
 
     torch.set_num_threads(1)
     from characters import character
-
     from inbetweening.api.inbetweener import Inbetweener
     from inbetweening.data.bvh import read_bvh
     from inbetweening.data.bvh_writer import write_bvh
@@ -111,6 +119,11 @@ def main() -> None:
 
     ib = Inbetweener.from_checkpoint(ROOT / "models" / "bn2_reference" / "model.ckpt")
     sk = ib.skeleton
+    from inbetweening.predictor.checkpoint import load_predictor
+
+    carrier = load_predictor(ROOT / "models" / "bn2_reference" / "model.ckpt")
+    carrier.blend = (0.0,)  # the blend at 0: the model's skeleton interpolated - the retargeting alone
+    ib_carry = Inbetweener(carrier, foot_lock=False)
     res: dict = {"date": time.strftime("%Y-%m-%d"), "model": "models/bn2_reference", "bn2": {}, "real": {}}
     with tempfile.TemporaryDirectory() as tmp, zipfile.ZipFile(args.data) as zf:
         tmp = Path(tmp)
@@ -133,14 +146,16 @@ def main() -> None:
                     rig_path = tmp / f"character_{every}.bvh"
                     write_bvh(rig, rig_path)
                     rows[label] = score(ib, read_bvh(rig_path), keys, 1.0 / kw.get("unit", 0.01))
-                for label, (m, i) in rows.items():
-                    s = sums.setdefault(f"{label}@{every}", [0.0, 0.0, 0])
-                    s[0] += m
-                    s[1] += i
-                    s[2] += 1
-                res["bn2"].setdefault(Path(n).stem, {})[every] = {k: {"fill_cm": m, "interp_cm": i, "ratio": m / i}
-                                                                   for k, (m, i) in rows.items()}
-            print(f"{Path(n).stem}: " + ", ".join(f"{k}={v['native skeleton']['ratio']:.3f}"
+                for label, r in rows.items():
+                    for part, (m, i) in r.items():
+                        s = sums.setdefault(f"{label}@{every}@{part}", [0.0, 0.0, 0])
+                        s[0] += m
+                        s[1] += i
+                        s[2] += 1
+                res["bn2"].setdefault(Path(n).stem, {})[every] = {
+                    k: {part: {"fill_cm": m, "interp_cm": i, "ratio": m / i} for part, (m, i) in r.items()}
+                    for k, r in rows.items()}
+            print(f"{Path(n).stem}: " + ", ".join(f"{k}={v['native skeleton']['mapped']['ratio']:.3f}"
                                                   for k, v in res["bn2"][Path(n).stem].items()), flush=True)
         res["bn2_pooled"] = {k: {"fill_cm": v[0] / v[2], "interp_cm": v[1] / v[2], "ratio": v[0] / v[1], "clips": v[2]}
                              for k, v in sums.items()}
@@ -158,11 +173,14 @@ def main() -> None:
                          "extremes": extreme_keyframes(truth, min_gap=round(8 * fps / 30), max_gap=round(45 * fps / 30))}
             out = {}
             for sched, keys in schedules.items():
-                m, i = score(ib, bvh, keys, unit)
-                out[sched] = {"fill": m, "interp": i, "ratio": m / i, "keys": len(keys)}
+                r = score(ib, bvh, keys, unit)
+                out[sched] = {part: {"fill": m, "interp": i, "ratio": m / i} for part, (m, i) in r.items()}
+                m, i = score(ib_carry, bvh, keys, unit)["mapped"]
+                out[sched]["carried_interpolation"] = {"fill": m, "interp": i, "ratio": m / i}
+                out[sched]["keys"] = len(keys)
             res["real"][label] = {"fps": fps, "frames": bvh.num_frames, "joints": bvh.num_joints, "note": note,
                                   "bone_map": ib.fill_detailed(bvh, keyframes=schedules["1 s"]).bone_map.slots, **out}
-            print(f"{label}: " + ", ".join(f"{k} {v['ratio']:.3f}" for k, v in out.items()), flush=True)
+            print(f"{label}: " + ", ".join(f"{k} {v['mapped']['ratio']:.3f}" for k, v in out.items()), flush=True)
         # timing: 300 frames, 10 keys, a character with extra bones
         _, root, q = clip_in_skeleton(read_bvh(tmp / Path(names[0]).name), sk)
         reps = int(np.ceil(300 / len(root)))
@@ -180,18 +198,25 @@ def main() -> None:
     out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "characters.json").write_text(json.dumps(res, indent=1))
-    print("\n| clips played by | keys every 15: fill / interp (cm) | ratio | keys every 30: fill / interp (cm) | ratio |")
-    print("|---|---:|---:|---:|---:|")
+    pooled = res["bn2_pooled"]
+    print("\n| clips played by | keys every 15: fill / interp (cm) | ratio | every bone | keys every 30: fill / interp "
+          "(cm) | ratio | every bone |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
     for label in ["native skeleton", *CHARACTERS]:
-        a, b = res["bn2_pooled"][f"{label}@15"], res["bn2_pooled"][f"{label}@30"]
+        a, b = pooled[f"{label}@15@mapped"], pooled[f"{label}@30@mapped"]
         print(f"| {label} | {a['fill_cm']:.2f} / {a['interp_cm']:.2f} | {a['ratio']:.3f} | "
-              f"{b['fill_cm']:.2f} / {b['interp_cm']:.2f} | {b['ratio']:.3f} |")
-    print(f"\n({res['bn2_pooled']['native skeleton@15']['clips']} clips)\n")
-    print("| rig | fps | joints | 0.5 s | 1 s | extremes |")
-    print("|---|---:|---:|---:|---:|---:|")
+              f"{pooled[f'{label}@15@all']['ratio']:.3f} | {b['fill_cm']:.2f} / {b['interp_cm']:.2f} | {b['ratio']:.3f} | "
+              f"{pooled[f'{label}@30@all']['ratio']:.3f} |")
+    print(f"\n({pooled['native skeleton@15@mapped']['clips']} clips)\n")
+    print("| rig | fps | joints | 0.5 s | 1 s | extremes | every bone (0.5 s / 1 s / extremes) | the retargeting alone "
+          "(0.5 s / 1 s / extremes) |")
+    print("|---|---:|---:|---:|---:|---:|---|---|")
     for label, r in res["real"].items():
-        print(f"| {label} | {r['fps']:.0f} | {r['joints']} | {r['0.5 s']['ratio']:.3f} | {r['1 s']['ratio']:.3f} | "
-              f"{r['extremes']['ratio']:.3f} |")
+        alone = " / ".join(f"{r[k]['carried_interpolation']['ratio']:.3f}" for k in ("0.5 s", "1 s", "extremes"))
+        print(f"| {label} | {r['fps']:.0f} | {r['joints']} | {r['0.5 s']['mapped']['ratio']:.3f} | "
+              f"{r['1 s']['mapped']['ratio']:.3f} | {r['extremes']['mapped']['ratio']:.3f} | "
+              f"{r['0.5 s']['all']['ratio']:.3f} / {r['1 s']['all']['ratio']:.3f} / {r['extremes']['all']['ratio']:.3f} | "
+              f"{alone} |")
     t = res["timing"]
     print(f"\nfill of {t['frames']} frames, {t['keys']} keys, {t['joints']} joints: median {t['seconds_median']:.3f} s "
           "(one thread)")
