@@ -136,6 +136,14 @@ class Inbetweener:
         return self.predictor.device
 
     @property
+    def retargets(self) -> bool:
+        """Whether the model's joints are the humanoid slots (:data:`~inbetweening.runtime.bone_map.SLOTS`), so a clip
+        of another humanoid can be retargeted onto them (the shipped models' skeleton)."""
+        from inbetweening.runtime.bone_map import SLOTS
+
+        return set(self.skeleton.names) == set(SLOTS)
+
+    @property
     def max_gap(self) -> int:
         return self.runtime.max_gap
 
@@ -234,7 +242,10 @@ class Inbetweener:
         kw = {"max_gap": max_gap, "segment": segment, "foot_lock": foot_lock}
         try:
             fold, root_in, q_in = clip_in_skeleton(bvh, self.skeleton)
-        except DatasetError:
+        except DatasetError as e:
+            if not self.retargets:  # a model of another skeleton than the humanoid slots: its own skeleton only
+                raise InbetweenError(f"{e} (this model fills its own skeleton only; retargeting another character "
+                                     "needs a model of the humanoid slots, such as the shipped ones)") from None
             return self._fill_character(bvh, src, out_pos, bone_map, kw)
         if bvh.frame_time > 0 and abs(1.0 / bvh.frame_time - self.fps) > 0.5:
             warnings.warn(f"{bvh.source}: {1.0 / bvh.frame_time:.3g} fps, the model was trained at {self.fps:.3g} "
