@@ -106,7 +106,11 @@ def main() -> None:
                                                      str(ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip")))
     ap.add_argument("--clip-step", type=int, default=8)
     ap.add_argument("--out", default=str(ROOT / "results" / "characters"))
+    ap.add_argument("--properties", action="store_true",
+                    help="one property of the generated character at a time (every 16th test clip, keys every 15)")
     args = ap.parse_args()
+    if args.properties:
+        return properties(args.data)
     import torch
 
     torch.set_num_threads(1)
@@ -220,6 +224,46 @@ def main() -> None:
     t = res["timing"]
     print(f"\nfill of {t['frames']} frames, {t['keys']} keys, {t['joints']} joints: median {t['seconds_median']:.3f} s "
           "(one thread)")
+
+
+def properties(data: str) -> None:
+    """The ratio on the mapped bones with one property of the generated character at a time."""
+    import torch
+
+    torch.set_num_threads(1)
+    from characters import character
+    from inbetweening.api.inbetweener import Inbetweener
+    from inbetweening.data.bvh import read_bvh
+    from inbetweening.data.bvh_writer import write_bvh
+    from inbetweening.data.clips import clip_in_skeleton
+    from inbetweening.evaluation.schedules import keyframe_indices
+
+    ib = Inbetweener.from_checkpoint(ROOT / "models" / "bn2_reference" / "model.ckpt")
+    flat = dict(extras=False, z_up=False, unit=1.0)
+    variants = {"A-pose (35 degrees)": {**flat, "a_pose": 35.0}, "proportions": {**flat, "scale": SCALE},
+                "extra bones": dict(z_up=False, unit=1.0), "metres, Z up": dict(extras=False),
+                "all of them": dict(a_pose=35.0, scale=SCALE)}
+    sums: dict = {}
+    with tempfile.TemporaryDirectory() as tmp, zipfile.ZipFile(data) as zf:
+        tmp = Path(tmp)
+        names = sorted(n for n in zf.namelist() if n.endswith(".bvh") and int(Path(n).stem[-3:]) % 10 == 0)[::16]
+        for n in names:
+            (tmp / "clip.bvh").write_bytes(zf.read(n))
+            bvh = read_bvh(tmp / "clip.bvh")
+            _, root, q = clip_in_skeleton(bvh, ib.skeleton)
+            keys = keyframe_indices(bvh.num_frames, 15)
+            rows = {"native skeleton": score(ib, bvh, keys, 1.0)["mapped"]}
+            for label, kw in variants.items():
+                rig, _ = character(ib.skeleton, root, q, **kw)
+                write_bvh(rig, tmp / "rig.bvh")
+                rows[label] = score(ib, read_bvh(tmp / "rig.bvh"), keys, 1.0)["mapped"]
+            for label, (m, i) in rows.items():
+                s = sums.setdefault(label, [0.0, 0.0])
+                s[0] += m
+                s[1] += i
+    print(f"{len(names)} clips, keys every 15, ratio on the bones the model fills:")
+    for label, (m, i) in sums.items():
+        print(f"  {label}: {m / i:.3f}")
 
 
 if __name__ == "__main__":
