@@ -165,3 +165,20 @@ def test_a_static_top_bone_that_turns_the_character_is_part_of_its_world(backend
     up = sk.pose(*rest)[1][:, head] - sk.pose(*rest)[1][:, 0]
     assert np.abs(up[:, 1]).mean() < 0.5 * np.linalg.norm(up, axis=-1).mean()  # lying down: why the key is used
     assert qrot is not None and fk is not None
+
+
+def test_a_rig_whose_scale_cannot_be_found_is_refused(backend, motion):
+    """A rig whose legs have no length (the ankles at the hips' height): one line naming it, before anything."""
+    sk = backend.info.skeleton
+    rig, slots = character(sk, *motion, **VARIANTS["renamed"])
+    flat = rig.skeleton()
+    offsets = flat.offsets.copy()
+    for s in ("LowerLeg_L", "Foot_L", "LowerLeg_R", "Foot_R"):
+        offsets[flat.names.index(slots[s])] = 0.0
+    for s, side in (("UpperLeg_L", 1.0), ("UpperLeg_R", -1.0)):
+        offsets[flat.names.index(slots[s])] = [10.0 * side, 0.0, 0.0]
+    from inbetweening.geometry.skeleton import Skeleton
+
+    broken = Skeleton(flat.names, flat.parents, offsets)
+    with pytest.raises(InbetweenError, match=r"rig 'x.bvh': its scale cannot be found: in its T-pose the hips are not"):
+        Retarget(broken, sk, types.SimpleNamespace(slots=slots), where="rig 'x.bvh'")

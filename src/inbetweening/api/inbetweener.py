@@ -272,7 +272,7 @@ class Inbetweener:
         lp = np.full((n_out, bvh.num_joints, 3), np.nan)
         lq[out_pos], lp[out_pos] = lq_in[src], lp_in[src]
         movers = [j for j, ch in enumerate(bvh.channels) if any(c.lower().endswith("position") for c in ch)]
-        retarget = Retarget(bvh.skeleton(), self.skeleton, bm, reference=lq_in[src[0]])
+        retarget = Retarget(bvh.skeleton(), self.skeleton, bm, reference=lq_in[src[0]], where=f"rig '{bvh.source}'")
         fps = 1.0 / bvh.frame_time if bvh.frame_time > 0 else None
         out = self.runtime.fill_rig(retarget, lq, lp, out_pos, movers=movers, fps=fps, **kw)
         clip = bvh.with_motion(out.local_q, out.local_p)

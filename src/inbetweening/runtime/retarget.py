@@ -36,6 +36,8 @@ from inbetweening.geometry.quaternion import (
 )
 from inbetweening.geometry.skeleton import Skeleton, fk
 
+from .model import InbetweenError
+
 if TYPE_CHECKING:
     from .bone_map import BoneMap
 
@@ -200,16 +202,28 @@ class Retarget:
     in the reference pose); ``scale``: model lengths per rig length (hip heights); ``world``: the rotation from the
     rig's world to the model's (wxyz)."""
 
-    def __init__(self, rig: Skeleton, model: Skeleton, bone_map: BoneMap, reference: np.ndarray | None = None):
+    def __init__(self, rig: Skeleton, model: Skeleton, bone_map: BoneMap, reference: np.ndarray | None = None,
+                 where: str = "rig"):
         self.rig, self.model, self.map = rig, model, bone_map
         self.rig_slot = {s: rig.names.index(b) for s, b in bone_map.slots.items()}
         self.model_slot = {s: model.names.index(s) for s in model.names}
+        rest = rest_pose(rig, self.rig_slot, reference)[1]
+        slot = self.rig_slot
+        size = float(np.ptp(rest, axis=0).max())
+        up = np.linalg.norm(rest[slot["Head"]] - rest[slot["Hips"]])
+        across = np.linalg.norm(rest[slot["UpperLeg_L"]] - rest[slot["UpperLeg_R"]])
+        if not (np.isfinite(size) and size > 0 and up > 1e-3 * size and across > 1e-3 * size):
+            raise InbetweenError(f"{where}: its scale and up direction cannot be found from its rest pose (the head "
+                                 f"{up:.3g} from the hips, the thighs {across:.3g} apart, the rig {size:.3g} across)")
         basis = _body_basis(rig, self.rig_slot, reference)
         self.world = qinv(_quat_of(basis))  # rig world -> model world
         self.t_rig = tpose(rig, self.rig_slot, basis, reference)
         self.t_model = tpose(model, self.model_slot)
-        self.scale = _hip_height(model, self.t_model, self.model_slot, UP) / \
-            _hip_height(rig, self.t_rig, self.rig_slot, basis[:, 1])
+        rig_height = _hip_height(rig, self.t_rig, self.rig_slot, basis[:, 1])
+        if not rig_height > 1e-3 * size:
+            raise InbetweenError(f"{where}: its scale cannot be found: in its T-pose the hips are not above the ankles "
+                                 f"(hip height {rig_height:.3g}, the rig {size:.3g} across)")
+        self.scale = _hip_height(model, self.t_model, self.model_slot, UP) / rig_height
         self._plan_model()
         self._plan_rig()
         self._plan_aims(reference)
