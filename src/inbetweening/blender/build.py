@@ -121,7 +121,8 @@ def runtime_modules() -> dict[str, Path]:
     those guarded by ``except ImportError`` are not followed)."""
     found: dict[str, Path] = {}
     package = _module_file(RUNTIME).parent
-    todo = [RUNTIME, *(f"{RUNTIME}.{f.stem}" for f in sorted(package.glob("*.py")) if f.stem != "__init__")]
+    todo = [RUNTIME, *(f"{RUNTIME}.{f.stem}" for f in sorted(package.glob("*.py")) if f.stem != "__init__"),
+            *(f"{RUNTIME}.{f.parent.name}" for f in sorted(package.glob("*/__init__.py")))]  # and its subpackages
     while todo:
         name = todo.pop()
         if name in found or name in RUNTIME_LEFT_OUT:
