@@ -323,3 +323,194 @@ def write_curve(fc, frames: np.ndarray, values: np.ndarray, spans, interp: str, 
     for name, _ in POINT_SCALARS:
         kp.foreach_set(name, np.ascontiguousarray(allp[name]))
     fc.update()
+
+
+# ---------------------------------------------------------------------------------------------- any humanoid
+VIRTUAL_ROOT = "(armature)"  # the joint above an armature's several root bones (the armature's origin)
+
+
+def stored_override(obj) -> dict | None:
+    """The bone-map override saved on the armature (``obj.data.inbetween_bone_map``: rows of bone and slot; the
+    sidebar's Bone Map panel edits it) as ``{bone: slot or None}``; ``None`` when there is none."""
+    rows = getattr(obj.data, "inbetween_bone_map", None) if obj is not None and obj.type == "ARMATURE" else None
+    out = {r.bone: (None if r.slot == "NONE" else r.slot) for r in (rows or ()) if r.bone.strip()}
+    return out or None
+
+
+def is_model_skeleton(obj, model: ModelInfo) -> bool:
+    """Whether the armature has every bone of the model's skeleton (by name): the model's own path (:class:`Rig`)."""
+    bones = obj.data.bones
+    return all(bones.get(n) is not None for n in model.skeleton.names)
+
+
+def armature_skeleton(obj):
+    """``(names, parents, offsets, bones)`` of the armature's rest pose in the BVH convention (parents first; offsets:
+    head to head in armature space, a root's its head; ``bones[j]``: the Bone, ``None`` for :data:`VIRTUAL_ROOT`, the
+    joint added at the origin above an armature with several root bones)."""
+    roots = [b for b in obj.data.bones if b.parent is None]
+    order: list = []
+    stack = list(reversed(roots))
+    while stack:
+        b = stack.pop()
+        order.append(b)
+        stack += list(reversed(b.children))
+    bones = ([None] if len(roots) > 1 else []) + order
+    index = {b.name: j for j, b in enumerate(bones) if b is not None}
+    names, parents, offsets = [], [], []
+    for b in bones:
+        if b is None:
+            names.append(VIRTUAL_ROOT), parents.append(-1), offsets.append((0.0, 0.0, 0.0))
+            continue
+        names.append(b.name)
+        if b.parent is None:
+            parents.append(0 if len(roots) > 1 else -1)
+            offsets.append(tuple(b.head_local))
+        else:
+            parents.append(index[b.parent.name])
+            offsets.append(tuple(b.head_local - b.parent.head_local))
+    return names, parents, np.array(offsets, dtype=np.float64), bones
+
+
+class HumanoidRig:
+    """Any humanoid armature (not the model's skeleton): its bones mapped to the model's slots
+    (:func:`inbetweening.runtime.bone_map.detect_bone_map`, with the override saved on the armature), its motion read
+    and written in the BVH convention the runtime's :class:`~inbetweening.runtime.retarget.Retarget` takes.
+
+    With ``R_b`` a bone's rest rotation (``bone.matrix_local``) and ``B_b`` its channels (``matrix_basis``), its
+    armature-space pose is ``M_b = M_parent R_parent^-1 R_b B_b``; the BVH convention's global rotation
+    ``G_b = rot(M_b) R_b^-1`` (identity at rest) makes the local rotation a conjugation per bone,
+    ``L_b = G_parent^-1 G_b = R_b rot(B_b) R_b^-1``, and the local translation ``offset_b + R_b loc(B_b)`` (a
+    connected bone's location is ignored, as Blender does).  Bone scale, constraints and drivers are not read.
+    """
+
+    def __init__(self, obj, model: ModelInfo, override: dict | None = None):
+        from inbetweening.geometry.skeleton import Skeleton
+        from inbetweening.runtime.bone_map import detect_bone_map
+
+        if obj is None or obj.type != "ARMATURE":
+            raise RigError("select an armature (the active object is not one)")
+        self.obj, self.model = obj, model
+        names, parents, offsets, bones = armature_skeleton(obj)
+        self.names, self.parents, self.offsets, self.bones = names, parents, offsets, bones
+        self.skeleton = Skeleton(names, parents, offsets)
+        self.map = detect_bone_map(names, parents, offsets, override, where=f"armature '{obj.name}'")
+        self.pbones = [obj.pose.bones[b.name] if b is not None else None for b in bones]
+        self.r = np.array([_to_np(b.matrix_local.to_quaternion()) if b is not None else [1.0, 0, 0, 0]
+                           for b in bones])
+        self.connected = [b is not None and b.use_connect for b in bones]
+        self.fcurves = channelbag(obj)
+        self.retarget = None
+        self.rot_bones: list[int] = []
+        self.movers: list[int] = []
+
+    def fcurve(self, path: str, index: int):
+        return self.fcurves.fcurves.find(path, index=index) if self.fcurves is not None else None
+
+    def _has_location_curve(self, j: int) -> bool:
+        pb = self.pbones[j]
+        return pb is not None and any(self.fcurve(bone_path(pb.name, "location"), i) is not None for i in range(3))
+
+    def plan(self, reference: np.ndarray):
+        """The :class:`Retarget` (``reference``: the local rotations at the first key), the bones whose rotation the
+        fill writes (a slot or between slots in a chain) and ``movers``: the bone that carries the hips' translation
+        (the nearest unconnected bone at or above the hips with location curves, else the hips when unconnected)."""
+        from inbetweening.runtime.retarget import Retarget
+
+        self.retarget = Retarget(self.skeleton, self.model.skeleton, self.map, reference=reference)
+        self.rot_bones = [j for j, p in enumerate(self.retarget.rig_plan) if p[0] != "free" and self.pbones[j]]
+        hips = self.names.index(self.map.slots["Hips"])
+        chain = [hips]
+        while self.parents[chain[-1]] >= 0:
+            chain.append(self.parents[chain[-1]])
+        free = [j for j in chain if self.pbones[j] is not None and not self.connected[j]]
+        keyed = [j for j in free if self._has_location_curve(j)]
+        self.movers = keyed[:1] or ([hips] if hips in free else [])
+        return self.retarget
+
+    def channels(self):
+        """``[(joint, data_path, index)]`` of every channel the fill writes (after :meth:`plan`)."""
+        out = []
+        for j in self.rot_bones:
+            pb = self.pbones[j]
+            path, n = rot_path(pb)
+            out += [(j, bone_path(pb.name, path), i) for i in range(n)]
+        for j in self.movers:
+            out += [(j, bone_path(self.pbones[j].name, "location"), i) for i in range(3)]
+        return out
+
+    def read_channels(self, frames, reading=None):
+        """The raw rotation values ``[F][J]`` and locations ``(F, J, 3)`` of the bones at ``frames`` (F-curves
+        evaluated; the current value where a channel has no curve)."""
+        f, j = len(frames), len(self.pbones)
+        raw = [[None] * j for _ in range(f)]
+        loc = np.zeros((f, j, 3))
+        for k, pb in enumerate(self.pbones):
+            if pb is None:
+                raw_k = [[1.0, 0.0, 0.0, 0.0]] * f
+            else:
+                path, n = rot_path(pb)
+                curves = [self.fcurve(bone_path(pb.name, path), i) for i in range(n)]
+                cur = list(getattr(pb, path))
+                raw_k = [[c.evaluate(fr) if c is not None and not c.mute else cur[i] for i, c in enumerate(curves)]
+                         for fr in frames]
+                if not self.connected[k]:
+                    lcur = list(pb.location)
+                    lc = [self.fcurve(bone_path(pb.name, "location"), i) for i in range(3)]
+                    loc[:, k] = [[c.evaluate(fr) if c is not None and not c.mute else lcur[i] for i, c in enumerate(lc)]
+                                 for fr in frames]
+            for t in range(f):
+                raw[t][k] = raw_k[t]
+        return raw, loc
+
+    def read(self, frames):
+        """BVH-convention ``local_q (F, J, 4)``, ``local_p (F, J, 3)`` at ``frames`` and the raw rotation values."""
+        raw, loc = self.read_channels(frames)
+        f, j = len(frames), len(self.pbones)
+        qb = np.zeros((f, j, 4))
+        for k, pb in enumerate(self.pbones):
+            for t in range(f):
+                qb[t, k] = [1.0, 0, 0, 0] if pb is None else _to_np(_rot_quat(pb, raw[t][k]))
+        from inbetweening.geometry.quaternion import qrot
+
+        r = self.r[None]
+        lq = qnormalize(qmul(qmul(r, qb), qinv(r)), 0.0)
+        lp = self.offsets[None] + qrot(np.broadcast_to(r, loc.shape[:-1] + (4,)), loc)
+        return lq, lp, raw
+
+    def basis_values(self, frames, local_q, local_p, raw_prev):
+        """Channel values ``{(joint, path, index): array over frames}`` of :meth:`channels` posing the armature as the
+        BVH-convention ``local_q``, ``local_p`` at ``frames`` (Euler and quaternion values continuous with
+        ``raw_prev``, as :meth:`Rig.basis_values`)."""
+        from inbetweening.geometry.quaternion import qrot
+
+        r = self.r[None]
+        qb = qmul(qmul(qinv(r), local_q), r)
+        loc = qrot(np.broadcast_to(qinv(r), local_p.shape[:-1] + (4,)), local_p - self.offsets[None])
+        out = {}
+        for k in self.rot_bones:
+            pb = self.pbones[k]
+            path, n = rot_path(pb)
+            vals = np.zeros((len(frames), n))
+            prev = None
+            for t, fr in enumerate(frames):
+                if fr - 1 in raw_prev:
+                    prev = raw_prev[fr - 1][k]
+                q = Quaternion(qb[t, k])
+                if pb.rotation_mode == "QUATERNION":
+                    if prev is not None and np.dot(qb[t, k], prev) < 0:
+                        q.negate()
+                    v = list(q)
+                elif pb.rotation_mode == "AXIS_ANGLE":
+                    axis, angle = q.to_axis_angle()
+                    v = [angle, *axis]
+                else:
+                    v = list(q.to_euler(pb.rotation_mode, Euler(prev, pb.rotation_mode)) if prev is not None
+                             else q.to_euler(pb.rotation_mode))
+                vals[t] = v
+                prev = v
+            for i in range(n):
+                out[(k, bone_path(pb.name, path), i)] = vals[:, i]
+        for k in self.movers:
+            for i in range(3):
+                out[(k, bone_path(self.pbones[k].name, "location"), i)] = loc[:, k, i]
+        return out
