@@ -206,9 +206,10 @@ def scenario(sc: dict, out_dir: str) -> dict:
         res["mapped_order"] = mapped
     if sc.get("blend"):  # the override survives a save and reload
         path = os.path.join(out_dir, f"{sc['name']}.blend")
+        name = obj.name
         bpy.ops.wm.save_as_mainfile(filepath=path)
         bpy.ops.wm.open_mainfile(filepath=path)
-        o = bpy.data.objects[obj.name]
+        o = bpy.data.objects[name]
         res["reloaded_override"] = [(r.bone, r.slot) for r in o.data.inbetween_bone_map]
         obj = o
     if sc.get("undo"):
