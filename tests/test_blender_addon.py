@@ -323,3 +323,4 @@ def test_fill_any_humanoid_in_blender(bpy_exe, built, tmp_path):
         r = res[name]
         assert r["result"] == ["CANCELLED"] and needle in r["error"], (name, r["error"])
         assert r["n_lost_keys"] == 0 and r["changed_curves"] == 0 and not r["gained"], name
+    assert "Bone Map panel's override" in res["wolf"]["error"] and "template" not in res["wolf"]["error"]

@@ -208,7 +208,7 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
             model = load_model(self.model_path)
             info = fill_range(context, obj, model, self.only_selected_range, foot_lock=self.foot_lock)
         except (rig.RigError, BoneMapError, ModelError, InbetweenError) as e:
-            self.report({"ERROR"}, str(e))
+            self.report({"ERROR"}, bone_map_message(e) if isinstance(e, BoneMapError) else str(e))
             return {"CANCELLED"}
         context.view_layer.update()
         fps = context.scene.render.fps / context.scene.render.fps_base
@@ -283,6 +283,13 @@ class InbetweenBoneOverride(bpy.types.PropertyGroup):
 _MAP_CACHE: dict = {}
 
 
+def bone_map_message(e: BoneMapError) -> str:
+    """The runtime's bone-map error with Blender's way to fix it (the Bone Map panel's override, not a file)."""
+    text = str(e)
+    cut = text.find("; map them in an override file")
+    return text if cut < 0 else text[:cut] + "; map them in the Bone Map panel's override (sidebar, In-between tab)"
+
+
 def detected_map(obj, info):
     """``(BoneMap or None, error line or None)`` of the armature with its saved override (cached by its bones and
     the override)."""
@@ -296,7 +303,7 @@ def detected_map(obj, info):
         try:
             _MAP_CACHE[key] = (detect_bone_map(names, parents, offsets, override, where=f"armature '{obj.name}'"), None)
         except BoneMapError as e:
-            _MAP_CACHE[key] = (None, str(e))
+            _MAP_CACHE[key] = (None, bone_map_message(e))
     return _MAP_CACHE[key]
 
 
