@@ -279,7 +279,7 @@ def test_fill_any_humanoid_in_blender(bpy_exe, built, tmp_path):
     save and reload; wrong overrides, an animal meta-rig and a generated Rigify rig are refused, nothing changed."""
     zip_path = next(built.glob("*-linux-x64.zip"))
     scenarios = [
-        {"name": "human", "rig": "human", "undo": True, "roundtrip": True},
+        {"name": "human", "rig": "human", "undo": True, "roundtrip": True, "dump": True},
         {"name": "override", "rig": "human", "override": {"spine.002": "Chest"}, "blend": True},
         {"name": "override_missing_bone", "rig": "human", "override": {"no_such_bone": "Hips"}},
         {"name": "override_two_bones", "rig": "human", "override": {"spine.001": "Spine", "spine.002": "Spine"}},
@@ -312,6 +312,27 @@ def test_fill_any_humanoid_in_blender(bpy_exe, built, tmp_path):
         reach = np.linalg.norm(after[:, 2 * names.index(bone) + 1] - hips, axis=-1)
         assert reach.max() < 1.3 * np.linalg.norm(before[:, 2 * names.index(bone) + 1] - before[:, 0], axis=-1).max()
     assert np.abs(after - before).max() > 0.05  # not Blender's curves
+    # the poses Blender ends up with are the runtime's fill_rig of the armature's keys (PyTorch here, ONNX there)
+    from inbetweening.api.inbetweener import Inbetweener
+    from inbetweening.geometry.skeleton import Skeleton, fk
+    from inbetweening.runtime.bone_map import BoneMap
+    from inbetweening.runtime.retarget import Retarget
+
+    d, filled = np.load(tmp_path / "human_dump.npz"), np.load(tmp_path / "human_filled.npz")
+    frames, names_all = list(d["frames"]), list(d["names"])
+    sk = Skeleton(names_all, d["parents"], d["offsets"])
+    keys = [frames.index(k) for k in (1, 31, 61)]
+    lq, lp = d["lq"].copy(), d["lp"].copy()
+    unknown = [t for t in range(keys[0], len(frames)) if t not in keys]
+    lq[unknown], lp[unknown] = np.nan, np.nan
+    ib = Inbetweener.from_checkpoint(CKPT)
+    rt = Retarget(sk, ib.skeleton, BoneMap(h["fill"]["bone_map"], h["fill"]["how"]), reference=lq[keys[0]])
+    out = ib.runtime.fill_rig(rt, lq, lp, keys, movers=[names_all.index(m) for m in h["fill"]["movers"]])
+    span = slice(keys[0], None)
+    rig_keyed = [names_all.index(b) for b in keyed]
+    ours = fk(filled["lq"][span], filled["lp"][span], sk.parents)[1][:, rig_keyed]
+    theirs = fk(out.local_q[span], out.local_p[span], sk.parents)[1][:, rig_keyed]
+    assert np.abs(ours - theirs).max() < 1e-4, np.abs(ours - theirs).max()  # metres
 
     o = res["override"]
     assert o["detected"]["Chest"] == "spine.002" and o["detected_how"]["Chest"] == "override"

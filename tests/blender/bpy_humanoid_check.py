@@ -161,6 +161,16 @@ def scenario(sc: dict, out_dir: str) -> dict:
             err = max(err, float(np.abs(np.asarray(cur) - v).max()))
         res["roundtrip_error"] = err
         res["roundtrip_channels"] = len(vals)
+    if sc.get("dump"):  # the armature's motion in the BVH convention, for the same fill outside Blender
+        import importlib
+
+        rigmod = importlib.import_module("bl_ext.user_default.inbetweening.rig")
+        hr = rigmod.HumanoidRig(obj, mod.load_model("").info, rigmod.stored_override(obj))
+        p = mod.load_model("").info.n_past
+        dump_frames = list(range(KEYS[0] - (p - 1), KEYS[-1] + 1))
+        lq, lp, _ = hr.read(dump_frames)
+        np.savez(os.path.join(out_dir, f"{sc['name']}_dump.npz"), lq=lq, lp=lp, frames=dump_frames,
+                 names=np.array(hr.names), parents=np.array(hr.parents), offsets=hr.offsets)
     before = snapshot(obj)
     grid = np.arange(KEYS[0] - 3, KEYS[-1] + 3.01, 0.5)
     values_before = {k: np.array([v[2].evaluate(f) for f in grid]) for k, v in before.items()}
@@ -175,7 +185,8 @@ def scenario(sc: dict, out_dir: str) -> dict:
     res.update({"result": result, "error": error, "seconds": seconds})
     res["undo_poll_after"] = bpy.ops.ed.undo.poll()
     info = dict(mod.LAST_FILL)
-    res["fill"] = {k: info.get(k) for k in ("humanoid", "keyed_bones", "movers", "bone_map", "frames", "keys")}
+    res["fill"] = {k: info.get(k) for k in ("humanoid", "keyed_bones", "movers", "bone_map", "how", "frames", "keys",
+                                            "range")}
     after = snapshot(obj)
     lost = []
     for key, (co, _, _) in before.items():
@@ -204,6 +215,9 @@ def scenario(sc: dict, out_dir: str) -> dict:
     if result == ["FINISHED"] and mapped:
         np.save(os.path.join(out_dir, f"{sc['name']}_after.npy"), track(obj, mapped, frames))
         res["mapped_order"] = mapped
+    if sc.get("dump") and result == ["FINISHED"]:
+        lq, lp, _ = hr.read(dump_frames)
+        np.savez(os.path.join(out_dir, f"{sc['name']}_filled.npz"), lq=lq, lp=lp)
     if sc.get("blend"):  # the override survives a save and reload
         path = os.path.join(out_dir, f"{sc['name']}.blend")
         name = obj.name
