@@ -280,11 +280,12 @@ def test_fill_any_humanoid_in_blender(bpy_exe, built, tmp_path):
     zip_path = next(built.glob("*-linux-x64.zip"))
     scenarios = [
         {"name": "human", "rig": "human", "undo": True, "roundtrip": True, "dump": True},
-        {"name": "override", "rig": "human", "override": {"spine.002": "Chest"}, "blend": True},
+        {"name": "override", "rig": "human", "override": {"spine.002": "Chest"}, "blend": True, "panel": True,
+         "extra_root": "prop"},
         {"name": "override_missing_bone", "rig": "human", "override": {"no_such_bone": "Hips"}},
         {"name": "override_two_bones", "rig": "human", "override": {"spine.001": "Spine", "spine.002": "Spine"}},
         {"name": "quadruped", "rig": "quadruped"},
-        {"name": "wolf", "rig": "wolf"},
+        {"name": "wolf", "rig": "wolf", "panel": True},
         {"name": "generated", "rig": "generated"},
     ]
     res = run_humanoid(bpy_exe, zip_path, scenarios, tmp_path)
@@ -294,6 +295,7 @@ def test_fill_any_humanoid_in_blender(bpy_exe, built, tmp_path):
     assert set(h["detected_how"].values()) == {"name (Rigify)"} and len(h["detected"]) == 21
     assert h["roundtrip_error"] < 1e-5  # reading the channels in the BVH convention and writing them back: the same
     assert h["result"] == ["FINISHED"] and h["fill"]["humanoid"] and h["fill"]["movers"] == ["spine"]
+    assert h["fill"]["rig_root"] == "spine"
     assert h["n_lost_keys"] == 0 and h["max_change_outside"] == 0.0
     between = [f for f in range(2, 61) if f != 31]
     keyed = set(h["fill"]["keyed_bones"])
@@ -337,6 +339,13 @@ def test_fill_any_humanoid_in_blender(bpy_exe, built, tmp_path):
     o = res["override"]
     assert o["detected"]["Chest"] == "spine.002" and o["detected_how"]["Chest"] == "override"
     assert o["result"] == ["FINISHED"] and o["n_lost_keys"] == 0 and o["reloaded_override"] == [["spine.002", "Chest"]]
+    assert o["fill"]["movers"] == ["spine"] and o["fill"]["rig_root"] == "(armature)"  # two roots: a joint above
+    labels = [x[1] for x in o["panel"] if x[0] == "label"]  # the Bone Map panel: each slot, its bone, how found
+    assert "21 of 21 slots mapped" in labels and "spine.002" in labels and "override" in labels and "(Rigify)" in labels
+    assert ["prop_search", "bone", "bones"] in o["panel"] and ["prop", "slot"] in o["panel"]
+    assert ["operator", "anim.inbetween_bone_map_add"] in o["panel"]
+    wolf_labels = " ".join(x[1] for x in res["wolf"]["panel"] if x[0] == "label")
+    assert "is not a humanoid" in " ".join(wolf_labels.split()) and "Bone Map panel" in wolf_labels
     for name, needle in (("override_missing_bone", "does not have"), ("override_two_bones", "two bones claim slot Spine"),
                          ("quadruped", "is not a humanoid the model can fill: no bone found for"),
                          ("wolf", "is not a humanoid the model can fill: no bone found for"),

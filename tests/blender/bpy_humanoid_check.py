@@ -87,6 +87,39 @@ def add_rig(kind: str):
     return obj
 
 
+class MockLayout:
+    """Records what a panel's ``draw`` puts in its layout (headless Blender draws no UI)."""
+
+    def __init__(self, log=None):
+        self.log = [] if log is None else log
+
+    def _child(self, *a, **k):
+        return MockLayout(self.log)
+
+    column = row = box = split = _child
+
+    def label(self, text="", **k):
+        self.log.append(("label", text))
+
+    def prop(self, data, prop, **k):
+        assert hasattr(data, prop), prop
+        self.log.append(("prop", prop))
+
+    def prop_search(self, data, prop, search_data, search_prop, **k):
+        assert hasattr(data, prop) and hasattr(search_data, search_prop), (prop, search_prop)
+        self.log.append(("prop_search", prop, search_prop))
+
+    def operator(self, idname, **k):
+        self.log.append(("operator", idname))
+        return type("Props", (), {})()
+
+
+def draw_panel(mod) -> list:
+    panel = type("P", (), {"layout": MockLayout()})()
+    mod._BoneMapPanel.draw(panel, bpy.context)
+    return [list(x) for x in panel.layout.log]
+
+
 def ext_module():
     import importlib
 
@@ -135,6 +168,13 @@ def scenario(sc: dict, out_dir: str) -> dict:
     for bone, slot in (sc.get("override") or {}).items():
         row = obj.data.inbetween_bone_map.add()
         row.bone, row.slot = bone, slot or "NONE"
+    if sc.get("extra_root"):  # a second root bone (a prop): the armature gets a joint at its origin above both
+        bpy.ops.object.mode_set(mode="EDIT")
+        eb = obj.data.edit_bones.new(sc["extra_root"])
+        eb.head, eb.tail = (0.5, 0.0, 0.0), (0.5, 0.0, 0.3)
+        bpy.ops.object.mode_set(mode="OBJECT")
+    if sc.get("panel"):
+        res["panel"] = draw_panel(mod)
     try:
         bm, err = mod.detected_map(obj, mod.load_model("").info)
         res["detected"] = dict(bm.slots) if bm else None
@@ -186,7 +226,7 @@ def scenario(sc: dict, out_dir: str) -> dict:
     res["undo_poll_after"] = bpy.ops.ed.undo.poll()
     info = dict(mod.LAST_FILL)
     res["fill"] = {k: info.get(k) for k in ("humanoid", "keyed_bones", "movers", "bone_map", "how", "frames", "keys",
-                                            "range")}
+                                            "range", "rig_root")}
     after = snapshot(obj)
     lost = []
     for key, (co, _, _) in before.items():

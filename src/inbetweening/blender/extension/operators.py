@@ -158,7 +158,7 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
                "network_share": [w for _, _, w in filled.segments], "humanoid": humanoid}
     if humanoid:
         summary.update(bone_map=dict(r.map.slots), how=dict(r.map.how), keyed_bones=[r.names[j] for j in r.rot_bones],
-                       movers=[r.names[j] for j in r.movers])
+                       movers=[r.names[j] for j in r.movers], rig_root=r.names[0])
     return summary
 
 
