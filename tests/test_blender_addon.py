@@ -282,6 +282,8 @@ def test_fill_any_humanoid_in_blender(bpy_exe, built, tmp_path):
         {"name": "human", "rig": "human", "undo": True, "roundtrip": True, "dump": True},
         {"name": "override", "rig": "human", "override": {"spine.002": "Chest"}, "blend": True, "panel": True,
          "extra_root": "prop"},
+        {"name": "euler", "rig": "human", "rotation_mode": "YXZ", "roundtrip": True},
+        {"name": "axis_angle", "rig": "human", "rotation_mode": "AXIS_ANGLE", "roundtrip": True},
         {"name": "override_missing_bone", "rig": "human", "override": {"no_such_bone": "Hips"}},
         {"name": "override_two_bones", "rig": "human", "override": {"spine.001": "Spine", "spine.002": "Spine"}},
         {"name": "quadruped", "rig": "quadruped"},
@@ -335,6 +337,19 @@ def test_fill_any_humanoid_in_blender(bpy_exe, built, tmp_path):
     ours = fk(filled["lq"][span], filled["lp"][span], sk.parents)[1][:, rig_keyed]
     theirs = fk(out.local_q[span], out.local_p[span], sk.parents)[1][:, rig_keyed]
     assert np.abs(ours - theirs).max() < 1e-4, np.abs(ours - theirs).max()  # metres
+
+    for name, prop in (("euler", "rotation_euler"), ("axis_angle", "rotation_axis_angle")):  # other rotation modes
+        e = res[name]
+        assert e["result"] == ["FINISHED"] and e["n_lost_keys"] == 0 and e["max_change_outside"] == 0.0, name
+        assert e["roundtrip_error"] < 1e-5, (name, e["roundtrip_error"])
+        chans = [k for k in e["gained"] if ".rotation" in k]
+        assert len(chans) == (3 if prop == "rotation_euler" else 4) * 23 and all(prop in k for k in chans), name
+        assert all(e["gained"][k] in (between, list(range(1, 62))) for k in chans), name
+        assert e["bezier_diff"] > 0.05
+    # the same fill whatever the rotation mode: the hands' and feet's paths agree
+    for name in ("euler", "axis_angle"):
+        other = np.load(tmp_path / f"{name}_after.npy")
+        assert np.abs(other - after).max() < 1e-3, (name, np.abs(other - after).max())
 
     o = res["override"]
     assert o["detected"]["Chest"] == "spine.002" and o["detected_how"]["Chest"] == "override"

@@ -63,6 +63,10 @@ def key_poses(obj, poses, loc_bone=None) -> None:
             if pb.rotation_mode == "QUATERNION":
                 pb.rotation_quaternion = e.to_quaternion()
                 pb.keyframe_insert("rotation_quaternion", frame=frame)
+            elif pb.rotation_mode == "AXIS_ANGLE":
+                axis, angle = e.to_quaternion().to_axis_angle()
+                pb.rotation_axis_angle = (angle, *axis)
+                pb.keyframe_insert("rotation_axis_angle", frame=frame)
             else:
                 pb.rotation_euler = e.to_quaternion().to_euler(pb.rotation_mode)
                 pb.keyframe_insert("rotation_euler", frame=frame)
@@ -161,6 +165,9 @@ def scenario(sc: dict, out_dir: str) -> dict:
         res["fk_bones"] = sorted(fk)
         key_poses(obj, fk, loc_bone="torso" if "torso" in obj.pose.bones else None)
     elif sc["rig"] == "human":
+        if sc.get("rotation_mode"):  # every bone in this rotation mode (Euler orders, axis-angle)
+            for pb in obj.pose.bones:
+                pb.rotation_mode = sc["rotation_mode"]
         key_poses(obj, POSES, loc_bone="spine")
     else:
         bones = [b.name for b in obj.data.bones][:8]
