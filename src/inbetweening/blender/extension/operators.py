@@ -42,6 +42,8 @@ def make_rig(obj, info):
         raise rig.RigError("select an armature (the active object is not one)")
     if rig.is_model_skeleton(obj, info):
         return rig.Rig(obj, info)
+    if obj.data.get("rig_id") is not None:
+        raise rig.RigError(rig.GENERATED_RIGIFY.format(name=obj.name))
     return rig.HumanoidRig(obj, info, rig.stored_override(obj))
 
 
@@ -373,6 +375,8 @@ class _BoneMapPanel:
             layout.label(text="The model's own skeleton: no map needed", icon="CHECKMARK")
             return
         bm, error = detected_map(obj, info)
+        if obj.data.get("rig_id") is not None:
+            bm, error = None, rig.GENERATED_RIGIFY.format(name=obj.name)
         col = layout.column(align=True)
         if bm is None:
             lines, line = [], ""
@@ -382,7 +386,7 @@ class _BoneMapPanel:
                     line = ""
                 line += w + " "
             for i, text in enumerate(lines + [line]):
-                col.label(text=text, icon="ERROR" if i == 0 else "BLANK1")
+                col.label(text=text.strip(), icon="ERROR" if i == 0 else "BLANK1")
         else:
             col.label(text=f"{len(bm.slots)} of {len(SLOTS)} slots mapped", icon="ARMATURE_DATA")
             for s in SLOTS:
