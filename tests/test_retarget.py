@@ -12,10 +12,10 @@ import pytest
 
 from characters import character
 from inbetweening.geometry.interp import interpolate_keyframes
-from inbetweening.geometry.quaternion import qrot
+from inbetweening.geometry.quaternion import qrot, remove_discontinuities
 from inbetweening.geometry.skeleton import fk
 from inbetweening.runtime import FillRuntime, InbetweenError
-from inbetweening.runtime.retarget import Retarget, tpose
+from inbetweening.runtime.retarget import Retarget, euler_sign, tpose
 from inbetweening.runtime.torch_backend import TorchBackend
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "bn2_reference" / "model.ckpt"
@@ -54,7 +54,8 @@ def motion(backend):
     yaw = np.stack([np.cos(t[:, 0, 0] / 80), 0 * t[:, 0, 0], np.sin(t[:, 0, 0] / 80), 0 * t[:, 0, 0]], -1)
     q[:, 0] = qmul(yaw, q[:, 0])
     root = np.stack([40 * np.sin(t[:, 0, 0] / 30), 95 + 2 * np.sin(t[:, 0, 0] / 4), 2.5 * t[:, 0, 0]], -1)
-    return root, q
+    q[:1] = euler_sign(q[:1])  # the signs a file's Euler angles give (the network reads q and -q differently)
+    return root, remove_discontinuities(q, axis=0)
 
 
 def _local(g, parents, j):
@@ -182,3 +183,24 @@ def test_a_rig_whose_scale_cannot_be_found_is_refused(backend, motion):
     broken = Skeleton(flat.names, flat.parents, offsets)
     with pytest.raises(InbetweenError, match=r"rig 'x.bvh': its scale cannot be found: in its T-pose the hips are not"):
         Retarget(broken, sk, types.SimpleNamespace(slots=slots), where="rig 'x.bvh'")
+
+
+@pytest.mark.parametrize(("axis", "degrees"), [([1.0, 0.0, 0.0], 90.0), ([0.3, 0.5, 0.8], 30.0), ([0.0, 0.6, 0.8], 75.0)])
+def test_the_rigs_world_orientation_does_not_matter(backend, motion, axis, degrees):
+    """The model's own skeleton as a rig (its degenerate zero pose as the rest: legs along the spine) turned as a whole
+    (offsets turned, every rotation conjugated, as Blender's Z-up import does): the same motion on the model's side."""
+    from inbetweening.geometry.quaternion import qinv, qmul
+
+    sk = backend.info.skeleton
+    root, q = motion
+    half = np.radians(degrees) / 2
+    w = np.concatenate([[np.cos(half)], np.sin(half) * np.asarray(axis) / np.linalg.norm(axis)])
+    slots = types.SimpleNamespace(slots={n: n for n in sk.names})
+    turned = type(sk)(sk.names, sk.parents, qrot(np.broadcast_to(w, sk.offsets.shape[:-1] + (4,)), sk.offsets))
+    lp = np.repeat(sk.offsets[None], len(root), 0)
+    lp[:, 0] = root
+    a = Retarget(sk, sk, slots, reference=q[0]).to_model(q, lp)
+    lq_t = qmul(qmul(w, q), qinv(w))
+    lp_t = qrot(np.broadcast_to(w, lp.shape[:-1] + (4,)), lp)
+    b = Retarget(turned, sk, slots, reference=lq_t[0]).to_model(lq_t, lp_t)
+    assert np.abs(sk.pose(*a)[1] - sk.pose(*b)[1]).max() < 1e-6

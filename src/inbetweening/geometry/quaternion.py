@@ -95,21 +95,26 @@ def qbetween(a: Array, b: Array) -> Array:
     return _stack([w, c[..., 0], c[..., 1], c[..., 2]])
 
 
-def qswing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Unit quaternion of the shortest rotation taking direction ``a`` onto ``b`` (numpy); where they are opposite, a
-    half turn about an axis perpendicular to ``a``.  ``(..., 3), (..., 3) -> (..., 4)``."""
+def qswing(a: np.ndarray, b: np.ndarray, axis: np.ndarray | None = None, opposite: float = 1e-9) -> np.ndarray:
+    """Unit quaternion of the shortest rotation taking direction ``a`` onto ``b`` (numpy).  Where they are (nearly)
+    opposite (``1 + cos`` below ``opposite``) the shortest arc is undecided: a half turn about ``axis`` (made
+    perpendicular to ``a``; default: any perpendicular axis).  ``(..., 3), (..., 3) -> (..., 4)``."""
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-12)
     b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-12)
     q = qbetween(a, b)
-    opposite = q[..., 0] < 1e-9
-    if np.any(opposite):
+    flip = q[..., 0] < opposite  # w = 1 + cos(angle) for unit vectors
+    if np.any(flip):
         helper = np.where((np.abs(a[..., :1]) < 0.9), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
-        axis = _cross(a, helper)
-        axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
-        half = np.concatenate([np.zeros(axis.shape[:-1] + (1,)), axis], axis=-1)
-        q = np.where(opposite[..., None], half, q)
+        perp = _cross(a, helper)
+        if axis is not None:
+            given = np.asarray(axis, dtype=np.float64) - (np.asarray(axis, dtype=np.float64) * a).sum(-1, keepdims=True) * a
+            ok = np.linalg.norm(given, axis=-1, keepdims=True) > 1e-6
+            perp = np.where(ok, given, perp)
+        perp = perp / np.linalg.norm(perp, axis=-1, keepdims=True)
+        half = np.concatenate([np.zeros(perp.shape[:-1] + (1,)), perp], axis=-1)
+        q = np.where(flip[..., None], half, q)
     return qnormalize(q, 0.0)
 
 

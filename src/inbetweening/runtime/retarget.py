@@ -166,7 +166,9 @@ def tpose(skeleton: Skeleton, slot_of: dict[str, int], basis: np.ndarray | None 
             if j in full:
                 t[j] = qmul(qframe(d, full[j], want, basis @ LEFT), rq[j])
             else:
-                t[j] = qmul(qswing(qrot(qmul(t[j], qinv(rq[j])), d), want), t[j])
+                # a bone pointing (nearly) opposite its T-pose direction turns about the body's forward axis, not about
+                # whichever axis rounding picks (the model's zero pose has such bones: its legs along its spine)
+                t[j] = qmul(qswing(qrot(qmul(t[j], qinv(rq[j])), d), want, basis @ FORWARD, 1e-4), t[j])
     return t
 
 
