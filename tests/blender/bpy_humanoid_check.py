@@ -192,7 +192,7 @@ def scenario(sc: dict, out_dir: str) -> dict:
     if sc.get("roundtrip"):  # the BVH-convention reading and the channel writing are inverse
         import importlib
 
-        rigmod = importlib.import_module("bl_ext.user_default.inbetweening.rig")
+        rigmod = importlib.import_module("bl_ext.user_default.inbetweening.humanoid")
         hr = rigmod.HumanoidRig(obj, mod.load_model("").info, rigmod.stored_override(obj))
         lq, lp, raw = hr.read(list(KEYS))
         hr.plan(lq[0])
@@ -211,7 +211,7 @@ def scenario(sc: dict, out_dir: str) -> dict:
     if sc.get("dump"):  # the armature's motion in the BVH convention, for the same fill outside Blender
         import importlib
 
-        rigmod = importlib.import_module("bl_ext.user_default.inbetweening.rig")
+        rigmod = importlib.import_module("bl_ext.user_default.inbetweening.humanoid")
         hr = rigmod.HumanoidRig(obj, mod.load_model("").info, rigmod.stored_override(obj))
         p = mod.load_model("").info.n_past
         dump_frames = list(range(KEYS[0] - (p - 1), KEYS[-1] + 1))

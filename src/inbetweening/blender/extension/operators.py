@@ -6,13 +6,22 @@ import time
 
 import bpy
 import numpy as np
-from bpy.props import BoolProperty, CollectionProperty, EnumProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, CollectionProperty, PointerProperty, StringProperty
 
 from inbetweening.runtime import FillRuntime, InbetweenError, ModelError
-from inbetweening.runtime.bone_map import SLOTS, BoneMapError, detect_bone_map
+from inbetweening.runtime.bone_map import BoneMapError
 from inbetweening.runtime.onnx_backend import OnnxBackend
 
-from . import rig
+from . import humanoid, rig
+from .bone_map_panel import (
+    INBETWEEN_OT_bone_map_add,
+    INBETWEEN_OT_bone_map_remove,
+    INBETWEEN_PT_bone_map_dopesheet,
+    INBETWEEN_PT_bone_map_graph,
+    INBETWEEN_PT_bone_map_view3d,
+    InbetweenBoneOverride,
+    bone_map_message,
+)
 
 MODEL_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "model")
 LICENCE = ("The bundled model is trained on Bandai-Namco-Research-Motiondataset-2 (CC BY-NC 4.0): "
@@ -36,15 +45,15 @@ def load_model(path: str) -> OnnxBackend:
 
 
 def make_rig(obj, info):
-    """:class:`rig.Rig` for an armature with every bone of the model's skeleton, else :class:`rig.HumanoidRig` (the
+    """:class:`rig.Rig` for an armature with every bone of the model's skeleton, else :class:`humanoid.HumanoidRig` (the
     bone map detected, with the override saved on the armature; ``BoneMapError`` when it is no humanoid)."""
     if obj is None or obj.type != "ARMATURE":
         raise rig.RigError("select an armature (the active object is not one)")
-    if rig.is_model_skeleton(obj, info):
+    if humanoid.is_model_skeleton(obj, info):
         return rig.Rig(obj, info)
     if obj.data.get("rig_id") is not None:
-        raise rig.RigError(rig.GENERATED_RIGIFY.format(name=obj.name))
-    return rig.HumanoidRig(obj, info, rig.stored_override(obj))
+        raise rig.RigError(humanoid.GENERATED_RIGIFY.format(name=obj.name))
+    return humanoid.HumanoidRig(obj, info, humanoid.stored_override(obj))
 
 
 def fill_range(context, obj, model, only_selected: bool, report_progress=True, foot_lock: bool = True) -> dict:
@@ -52,17 +61,17 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     dict.  Raises ``rig.RigError`` / ``BoneMapError`` / ``ModelError`` / ``InbetweenError`` before changing anything.
 
     The model's own skeleton is filled directly (:class:`rig.Rig`); any other humanoid armature through the bone map
-    and :meth:`FillRuntime.fill_rig` (:class:`rig.HumanoidRig`): the rotation channels of the bones with a slot or
+    and :meth:`FillRuntime.fill_rig` (:class:`humanoid.HumanoidRig`): the rotation channels of the bones with a slot or
     between slots, and the location of the bone carrying the hips, are keyed; bones without a slot (fingers, face,
     twist leaves, props) keep their own curves."""
     info = model.info
     r = make_rig(obj, info)
-    humanoid = isinstance(r, rig.HumanoidRig)
+    any_rig = isinstance(r, humanoid.HumanoidRig)
     if r.fcurves is None:
         raise rig.RigError(f"armature '{obj.name}' has no animation: key at least two poses first")
     scene = context.scene
     lo, hi = scene.frame_start, scene.frame_end
-    if humanoid:  # the key frames: any key on a rotation or location curve of a mapped bone (or one between)
+    if any_rig:  # the key frames: any key on a rotation or location curve of a mapped bone (or one between)
         mapped = {r.names.index(b) for b in r.map.slots.values()}
         curves = [fc for fc in r.fcurves.fcurves
                   if any(fc.data_path.startswith(rig.bone_path(r.names[j], "")[:-1]) for j in mapped)
@@ -95,7 +104,7 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     gen = np.array([f for a, b in gaps for f in range(a + 1, b)])
     idx = np.array([pos[int(f)] for f in gen])
     progress = None
-    if humanoid:
+    if any_rig:
         lq_k, lp_k, raw = r.read(read_frames)
         lq = np.full((len(frames),) + lq_k.shape[1:], np.nan)
         lp = np.full((len(frames),) + lp_k.shape[1:], np.nan)
@@ -121,7 +130,7 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     try:
         keys_idx = [pos[k] for k in keys]
         runtime = FillRuntime(model, foot_lock=foot_lock)
-        if humanoid:
+        if any_rig:
             out = runtime.fill_rig(retarget, lq, lp, keys_idx, movers=r.movers, progress=progress)
             filled = out.model
         else:
@@ -132,7 +141,7 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
             wm.progress_end()
     t_model = time.perf_counter() - t0
     raw_prev = {f: raw[t] for t, f in enumerate(read_frames)}
-    if humanoid:
+    if any_rig:
         values = r.basis_values([int(f) for f in gen], out.local_q[idx], out.local_p[idx], raw_prev)
         if not all(np.isfinite(v).all() for v in values.values()):
             raise InbetweenError("the fill of the armature came out with non-finite values; nothing was changed")
@@ -157,8 +166,8 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
         rig.write_curve(fc, fr, val, spans, prefs.keyframe_new_interpolation_type, prefs.keyframe_new_handle_type)
     summary = {"gaps": len(gaps), "frames": total_frames, "keys": len(keys), "range": (first, last),
                "model_seconds": t_model, "windows": model.calls, "feet_locked": filled.locked,
-               "network_share": [w for _, _, w in filled.segments], "humanoid": humanoid}
-    if humanoid:
+               "network_share": [w for _, _, w in filled.segments], "humanoid": any_rig}
+    if any_rig:
         summary.update(bone_map=dict(r.map.slots), how=dict(r.map.how), keyed_bones=[r.names[j] for j in r.rot_bones],
                        movers=[r.names[j] for j in r.movers], rig_root=r.names[0])
     return summary
@@ -274,157 +283,6 @@ class INBETWEEN_PT_view3d(_Panel, bpy.types.Panel):
 
 
 # ---------------------------------------------------------------------------------------------- bone map
-class InbetweenBoneOverride(bpy.types.PropertyGroup):
-    """One row of an armature's bone-map override: ``bone`` plays ``slot`` (``NONE``: no slot)."""
-
-    bone: StringProperty(name="Bone", description="A bone of this armature")
-    slot: EnumProperty(name="Slot", description="The model's joint the bone plays",
-                       items=[("NONE", "(no slot)", "The bone plays no slot")] + [(s, s, "") for s in SLOTS])
-
-
-_MAP_CACHE: dict = {}
-
-
-def bone_map_message(e: BoneMapError) -> str:
-    """The runtime's bone-map error with Blender's way to fix it (the Bone Map panel's override, not a file)."""
-    text = str(e)
-    cut = text.find("; map them in an override file")
-    return text if cut < 0 else text[:cut] + "; map them in the Bone Map panel's override (sidebar, In-between tab)"
-
-
-def detected_map(obj, info):
-    """``(BoneMap or None, error line or None)`` of the armature with its saved override (cached by its bones and
-    the override)."""
-    names, parents, offsets, _ = rig.armature_skeleton(obj)
-    override = rig.stored_override(obj)
-    key = (obj.name, tuple(names), tuple(parents), offsets.round(5).tobytes(), tuple(sorted((override or {}).items(),
-                                                                                       key=str)))
-    if key not in _MAP_CACHE:
-        if len(_MAP_CACHE) > 16:
-            _MAP_CACHE.clear()
-        try:
-            _MAP_CACHE[key] = (detect_bone_map(names, parents, offsets, override, where=f"armature '{obj.name}'"), None)
-        except BoneMapError as e:
-            _MAP_CACHE[key] = (None, bone_map_message(e))
-    return _MAP_CACHE[key]
-
-
-class INBETWEEN_OT_bone_map_add(bpy.types.Operator):
-    """Add a row to the active armature's bone-map override (a bone and the model's joint it plays)"""
-
-    bl_idname = "anim.inbetween_bone_map_add"
-    bl_label = "Add Bone Map Override"
-    bl_options = {"REGISTER", "UNDO"}
-
-    bone: StringProperty(default="")
-    slot: StringProperty(default="NONE")
-
-    @classmethod
-    def poll(cls, context):
-        return context.active_object is not None and context.active_object.type == "ARMATURE"
-
-    def execute(self, context):
-        row = context.active_object.data.inbetween_bone_map.add()
-        row.bone = self.bone
-        if self.slot in SLOTS:
-            row.slot = self.slot
-        return {"FINISHED"}
-
-
-class INBETWEEN_OT_bone_map_remove(bpy.types.Operator):
-    """Remove a row of the active armature's bone-map override"""
-
-    bl_idname = "anim.inbetween_bone_map_remove"
-    bl_label = "Remove Bone Map Override"
-    bl_options = {"REGISTER", "UNDO"}
-
-    index: IntProperty(default=-1)
-
-    @classmethod
-    def poll(cls, context):
-        return context.active_object is not None and context.active_object.type == "ARMATURE"
-
-    def execute(self, context):
-        rows = context.active_object.data.inbetween_bone_map
-        if 0 <= self.index < len(rows):
-            rows.remove(self.index)
-        return {"FINISHED"}
-
-
-class _BoneMapPanel:
-    bl_region_type = "UI"
-    bl_category = "In-between"
-    bl_label = "Bone Map"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        return obj is not None and obj.type == "ARMATURE"
-
-    def draw(self, context):
-        layout = self.layout
-        obj = context.active_object
-        settings = context.scene.inbetween_settings
-        try:
-            info = load_model(settings.model_path).info
-        except (ModelError, OSError) as e:
-            layout.label(text=f"model: {e}"[:80], icon="ERROR")
-            return
-        if rig.is_model_skeleton(obj, info):
-            layout.label(text="The model's own skeleton: no map needed", icon="CHECKMARK")
-            return
-        bm, error = detected_map(obj, info)
-        if obj.data.get("rig_id") is not None:
-            bm, error = None, rig.GENERATED_RIGIFY.format(name=obj.name)
-        col = layout.column(align=True)
-        if bm is None:
-            lines, line = [], ""
-            for w in error.split():  # wrapped
-                if line and len(line) + len(w) > 42:
-                    lines.append(line)
-                    line = ""
-                line += w + " "
-            for i, text in enumerate(lines + [line]):
-                col.label(text=text.strip(), icon="ERROR" if i == 0 else "BLANK1")
-        else:
-            col.label(text=f"{len(bm.slots)} of {len(SLOTS)} slots mapped", icon="ARMATURE_DATA")
-            for s in SLOTS:
-                row = col.row(align=True)
-                row.label(text=s)
-                bone = bm.slots.get(s)
-                how = bm.how.get(s, "")
-                row.label(text=f"{bone}" if bone else "-", icon="BONE_DATA" if bone else "BLANK1")
-                row.label(text=how.replace("name ", ""))
-        box = layout.box()
-        box.label(text="Override (saved with the .blend)")
-        rows = obj.data.inbetween_bone_map
-        for i, item in enumerate(rows):
-            row = box.row(align=True)
-            row.prop_search(item, "bone", obj.data, "bones", text="")
-            row.prop(item, "slot", text="")
-            row.operator(INBETWEEN_OT_bone_map_remove.bl_idname, text="", icon="X").index = i
-        box.operator(INBETWEEN_OT_bone_map_add.bl_idname, text="Add Override", icon="ADD")
-
-
-class INBETWEEN_PT_bone_map_dopesheet(_BoneMapPanel, bpy.types.Panel):
-    bl_space_type = "DOPESHEET_EDITOR"
-    bl_idname = "INBETWEEN_PT_bone_map_dopesheet"
-    bl_parent_id = "INBETWEEN_PT_dopesheet"
-
-
-class INBETWEEN_PT_bone_map_graph(_BoneMapPanel, bpy.types.Panel):
-    bl_space_type = "GRAPH_EDITOR"
-    bl_idname = "INBETWEEN_PT_bone_map_graph"
-    bl_parent_id = "INBETWEEN_PT_graph"
-
-
-class INBETWEEN_PT_bone_map_view3d(_BoneMapPanel, bpy.types.Panel):
-    bl_space_type = "VIEW_3D"
-    bl_idname = "INBETWEEN_PT_bone_map_view3d"
-    bl_parent_id = "INBETWEEN_PT_view3d"
-
-
 CLASSES = (InbetweenSettings, InbetweenBoneOverride, INBETWEEN_OT_fill, INBETWEEN_OT_bone_map_add,
            INBETWEEN_OT_bone_map_remove, INBETWEEN_PT_dopesheet, INBETWEEN_PT_graph, INBETWEEN_PT_view3d,
            INBETWEEN_PT_bone_map_dopesheet, INBETWEEN_PT_bone_map_graph, INBETWEEN_PT_bone_map_view3d)

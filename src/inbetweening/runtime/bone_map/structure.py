@@ -26,17 +26,9 @@ class _Shape:
         self.rig = rig
         ends = {j for j in range(rig.J) if not rig.children[j] and _END_WORDS & set(rig.canon[j].tokens)}
         self.children = [[c for c in ch if c not in ends] for ch in rig.children]
-        self.sub = [self._subtree(j) for j in range(rig.J)]
+        self.sub = [rig.subtree(j) for j in range(rig.J)]
         ext = rig.pos.max(0) - rig.pos.min(0) if rig.J else np.zeros(3)
         self.size = float(np.linalg.norm(ext))
-
-    def _subtree(self, j):
-        out, todo = [], [j]
-        while todo:
-            k = todo.pop()
-            out.append(k)
-            todo += self.children[k]
-        return out
 
     def reach(self, c: int, p: int) -> float:
         """How far the subtree of ``c`` gets from joint ``p``."""
