@@ -66,7 +66,7 @@ def key_motion(root, lq_model, frame0: int = 1):
         pb = hr.pbones[j]
         pb.keyframe_insert(path.rsplit(".", 1)[1], index=i, frame=frame0, group=pb.name)
     bag = rig.channelbag(obj)
-    for (j, path, i), v in values.items():
+    for (_, path, i), v in values.items():
         fc = bag.fcurves.find(path, index=i)
         kp = fc.keyframe_points
         if len(kp) < n:
