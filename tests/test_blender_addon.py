@@ -374,3 +374,32 @@ def test_fill_any_humanoid_in_blender(bpy_exe, built, tmp_path):
         assert r["result"] == ["CANCELLED"] and needle in r["error"], (name, r["error"])
         assert r["n_lost_keys"] == 0 and r["changed_curves"] == 0 and not r["gained"], name
     assert "Bone Map panel's override" in res["wolf"]["error"] and "template" not in res["wolf"]["error"]
+
+
+def test_fill_vrm_humanoid_in_blender(bpy_exe, built, tmp_path):
+    """A VRM humanoid (the basic armature of the VRM add-on, pip package ``bpy-vrm-format``, in the bpy venv: nothing
+    downloaded at test time) keyed at frames 1, 31, 61: the bone map is found from the VRM humanoid bone names, every
+    key is kept and every in-between of the mapped bones keyed (the hips' location too); undo restores it."""
+    probe = subprocess.run([str(bpy_exe), "-c", "import importlib.util as u; print(u.find_spec('io_scene_vrm') is not None)"],
+                           capture_output=True, text=True)
+    if probe.stdout.strip() != "True":
+        pytest.skip("the VRM add-on (pip install bpy-vrm-format into the bpy venv) is not installed")
+    zip_path = next(built.glob("*-linux-x64.zip"))
+    v = run_humanoid(bpy_exe, zip_path, [{"name": "vrm", "rig": "vrm", "undo": True}], tmp_path)["vrm"]
+    assert v["detect_error"] is None and len(v["detected"]) == 21
+    assert set(v["detected_how"].values()) == {"name (VRM)"}
+    assert v["detected"]["Hips"] == "hips" and v["detected"]["LowerArm_L"] == "lower_arm.L"
+    assert v["detected"]["UpperLeg_R"] == "upper_leg.R" and v["detected"]["Toes_L"] == "toes.L"
+    assert v["result"] == ["FINISHED"] and v["fill"]["humanoid"] and v["fill"]["movers"] == ["hips"]
+    assert v["n_lost_keys"] == 0 and v["max_change_outside"] == 0.0 and v["undo_equal"]
+    between = [f for f in range(2, 61) if f != 31]
+    keyed = set(v["fill"]["keyed_bones"])
+    assert keyed == set(v["detected"].values())
+    for bone in keyed:
+        chans = [k for k in v["gained"] if k.startswith(f'pose.bones["{bone}"].rotation')]
+        assert chans and all(v["gained"][k] in (between, list(range(1, 62))) for k in chans), bone
+    assert all(v["gained"][f'pose.bones["hips"].location[{i}]'] == between for i in range(3))
+    assert not any(k.startswith(('pose.bones["index_', 'pose.bones["thumb_', 'pose.bones["eye')) for k in v["gained"])
+    before, after = np.load(tmp_path / "vrm_before.npy"), np.load(tmp_path / "vrm_after.npy")
+    assert np.isfinite(after).all() and np.abs(after[[0, 30, 60]] - before[[0, 30, 60]]).max() < 1e-5
+    assert np.abs(after - before).max() > 0.05  # not Blender's curves

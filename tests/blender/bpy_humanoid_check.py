@@ -4,7 +4,7 @@ tests/test_blender_addon.py:
 
     python bpy_humanoid_check.py CONFIG.json   (the bpy venv's python; BLENDER_USER_RESOURCES set to a temp dir)
 
-CONFIG: {"zip": path, "out": folder, "scenarios": [{"name", "rig": "human" | "quadruped" | "wolf" | "generated",
+CONFIG: {"zip": path, "out": folder, "scenarios": [{"name", "rig": "human" | "quadruped" | "wolf" | "generated" | "vrm",
 "override": {bone: slot}, "undo": bool}]}.  Writes ``out/results.json`` and ``out/<name>_heads.npy`` (pose-bone heads
 and tails of the mapped bones, every frame of the filled range, armature space; before and after the fill).
 """
@@ -34,6 +34,19 @@ POSES = {
     "upper_arm.R": ("Z", (0, -40, 10)), "forearm.R": ("X", (0, 30, 80)), "hand.R": ("Z", (0, -20, 20)),
     "shoulder.L": ("Y", (0, 10, 0)), "f_index.01.L": ("X", (0, 40, 0)),
 }
+# the same poses on a VRM humanoid (the VRM add-on's basic armature, bpy-vrm-format): meta-rig bone -> VRM bone
+VRM_NAMES = {"spine": "hips", "spine.001": "spine", "spine.003": "chest", "spine.004": "neck", "spine.006": "head",
+             "thigh": "upper_leg", "shin": "lower_leg", "foot": "foot", "upper_arm": "upper_arm",
+             "forearm": "lower_arm", "hand": "hand", "shoulder": "shoulder", "f_index.01": "index_proximal"}
+
+
+def vrm_name(name: str) -> str:
+    if name.endswith((".L", ".R")):
+        base, side = name[:-2], name[-1]
+        return f"{VRM_NAMES[base]}.{side}"
+    return VRM_NAMES[name]
+
+
 SPINE_LOC = ((0, 0, 0), (0.1, 0.25, -0.1), (0.05, 0.6, 0.05))  # the hips bone's location channels (bone space)
 
 
@@ -83,6 +96,11 @@ def add_rig(kind: str):
         bpy.ops.object.armature_basic_quadruped_metarig_add()
     elif kind == "wolf":
         bpy.ops.object.armature_wolf_metarig_add()
+    elif kind == "vrm":  # the VRM add-on (pip package bpy-vrm-format, module io_scene_vrm): its basic humanoid
+        import addon_utils
+
+        addon_utils.enable("io_scene_vrm", default_set=True)
+        bpy.ops.icyp.make_basic_armature()
     elif kind == "generated":
         bpy.ops.object.armature_human_metarig_add()
         bpy.ops.pose.rigify_generate()
@@ -169,6 +187,8 @@ def scenario(sc: dict, out_dir: str) -> dict:
             for pb in obj.pose.bones:
                 pb.rotation_mode = sc["rotation_mode"]
         key_poses(obj, POSES, loc_bone="spine")
+    elif sc["rig"] == "vrm":
+        key_poses(obj, {vrm_name(k): v for k, v in POSES.items()}, loc_bone="hips")
     else:
         bones = [b.name for b in obj.data.bones][:8]
         key_poses(obj, {b: ("X", (0, 20, -10)) for b in bones})
