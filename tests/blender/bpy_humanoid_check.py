@@ -10,6 +10,7 @@ and tails of the mapped bones, every frame of the filled range, armature space; 
 """
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import os
@@ -138,13 +139,11 @@ class MockLayout:
 
 def draw_panel(mod) -> list:
     panel = type("P", (), {"layout": MockLayout()})()
-    mod._BoneMapPanel.draw(panel, bpy.context)
+    importlib.import_module("bl_ext.user_default.inbetweening.bone_map_panel")._BoneMapPanel.draw(panel, bpy.context)
     return [list(x) for x in panel.layout.log]
 
 
 def ext_module():
-    import importlib
-
     return importlib.import_module("bl_ext.user_default.inbetweening.operators")
 
 
@@ -203,14 +202,14 @@ def scenario(sc: dict, out_dir: str) -> dict:
     if sc.get("panel"):
         res["panel"] = draw_panel(mod)
     try:
-        bm, err = mod.detected_map(obj, mod.load_model("").info)
+        panel_mod = importlib.import_module("bl_ext.user_default.inbetweening.bone_map_panel")
+        bm, err = panel_mod.detected_map(obj, mod.load_model("").info)
         res["detected"] = dict(bm.slots) if bm else None
         res["detected_how"] = dict(bm.how) if bm else None
         res["detect_error"] = err
     except Exception:
         res["detect_crash"] = traceback.format_exc()
     if sc.get("roundtrip"):  # the BVH-convention reading and the channel writing are inverse
-        import importlib
 
         rigmod = importlib.import_module("bl_ext.user_default.inbetweening.humanoid")
         hr = rigmod.HumanoidRig(obj, mod.load_model("").info, rigmod.stored_override(obj))
@@ -229,7 +228,6 @@ def scenario(sc: dict, out_dir: str) -> dict:
         res["roundtrip_error"] = err
         res["roundtrip_channels"] = len(vals)
     if sc.get("dump"):  # the armature's motion in the BVH convention, for the same fill outside Blender
-        import importlib
 
         rigmod = importlib.import_module("bl_ext.user_default.inbetweening.humanoid")
         hr = rigmod.HumanoidRig(obj, mod.load_model("").info, rigmod.stored_override(obj))
