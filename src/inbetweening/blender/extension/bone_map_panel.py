@@ -9,6 +9,7 @@ from inbetweening.runtime import ModelError
 from inbetweening.runtime.bone_map import SLOTS, BoneMapError, detect_bone_map
 
 from . import humanoid
+from .model import load_model
 
 
 class InbetweenBoneOverride(bpy.types.PropertyGroup):
@@ -104,8 +105,6 @@ class _BoneMapPanel:
         obj = context.active_object
         settings = context.scene.inbetween_settings
         try:
-            from .operators import load_model  # (operators registers this panel)
-
             info = load_model(settings.model_path).info
         except (ModelError, OSError) as e:
             layout.label(text=f"model: {e}"[:80], icon="ERROR")

@@ -1,7 +1,6 @@
 """The operator ``anim.inbetween_fill`` and the sidebar panels."""
 from __future__ import annotations
 
-import os
 import time
 
 import bpy
@@ -10,7 +9,6 @@ from bpy.props import BoolProperty, CollectionProperty, PointerProperty, StringP
 
 from inbetweening.runtime import FillRuntime, InbetweenError, ModelError
 from inbetweening.runtime.bone_map import BoneMapError
-from inbetweening.runtime.onnx_backend import OnnxBackend
 
 from . import humanoid, rig
 from .bone_map_panel import (
@@ -22,26 +20,9 @@ from .bone_map_panel import (
     InbetweenBoneOverride,
     bone_map_message,
 )
+from .model import LICENCE, MODEL_DIR, bundled_model, load_model  # noqa: F401  (the extension's API)
 
-MODEL_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "model")
-LICENCE = ("The bundled model is trained on Bandai-Namco-Research-Motiondataset-2 (CC BY-NC 4.0): "
-           "non-commercial use only.")
-_MODELS: dict = {}
 LAST_FILL: dict = {}  # the summary of the last fill (for benchmarks)
-
-
-def bundled_model() -> str:
-    return os.path.join(MODEL_DIR, "model.onnx")
-
-
-def load_model(path: str) -> OnnxBackend:
-    """The model at ``path`` (default: the bundled one), cached by path and modification time."""
-    path = bpy.path.abspath(path) if path else bundled_model()
-    key = (path, os.path.getmtime(path) if os.path.isfile(path) else None)
-    if key not in _MODELS:
-        _MODELS.clear()
-        _MODELS[key] = OnnxBackend(path)
-    return _MODELS[key]
 
 
 def make_rig(obj, info):
