@@ -286,8 +286,8 @@ class Retarget:
     def _plan_aims(self, reference) -> None:
         """The bones whose direction is matched: per mapped model joint with a chain child mapped too, the pair of rig
         joints it spans (``model_aims``: ``(model joint, model child, rig joint, rig joint)``); per mapped rig bone, the
-        next mapped joint along its chain (``rig_aims``: ``(rig bone, rig joint, model joint, model joint, rest
-        direction in the bone's frame)``)."""
+        next mapped joint along its chain (``rig_aims``: ``(rig bone, rig joint, model joint, model joint, the
+        direction to that joint in the bone's T-pose frame)``: the bones in between move with it, as in the T-pose)."""
         m, r = self.model, self.rig
         m_ch = _chains(m.parents, self.model_slot)
         m_rest = rest_pose(m, self.model_slot)[1]
@@ -302,12 +302,15 @@ class Retarget:
         self.model_aims = model_aims
         mapped = {b: self.model_slot[s] for s, b in self.rig_slot.items()}
         r_ch = _chains(r.parents, self.rig_slot)
+        t = self.t_rig
+        t_local = np.array([t[0]] + [qmul(qinv(t[r.parents[j]]), t[j]) for j in range(1, r.num_joints)])
+        t_pos = fk(t_local, r.offsets, r.parents)[1]  # the T-pose: a chain's bones between mapped ones are straight there
         rig_aims = []
         for path in r_ch.paths.values():
             for i, b in enumerate(path[:-1]):
                 nxt = next((c for c in path[i + 1 :] if c in mapped), None)
                 if b in mapped and nxt is not None and np.linalg.norm(rest[nxt] - rest[b]) > tiny:
-                    rig_aims.append((b, nxt, mapped[b], mapped[nxt], qrot(qinv(rq[b]), rest[nxt] - rest[b])))
+                    rig_aims.append((b, nxt, mapped[b], mapped[nxt], qrot(qinv(self.t_rig[b]), t_pos[nxt] - t_pos[b])))
         self.rig_aims = rig_aims
 
     # ------------------------------------------------------------------ the two directions
