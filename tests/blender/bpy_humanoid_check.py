@@ -318,7 +318,10 @@ def main() -> None:
             r = {"name": sc["name"], "crash": traceback.format_exc()}
         r["wall"] = time.perf_counter() - t0
         results.append(r)
-    json.dump(results, open(os.path.join(out_dir, "results.json"), "w"), indent=1)
+        with open(os.path.join(out_dir, "results.json"), "w") as f:  # after every scenario: a crash keeps the rest
+            json.dump(results, f, indent=1)
+    sys.stdout.flush()
+    os._exit(0)  # Blender 4.2's module teardown can crash after Rigify has generated a rig: nothing is left to do
 
 
 if __name__ == "__main__":
