@@ -20,16 +20,8 @@ import torch
 from conftest import TINY, compose_cfg
 from inbetweening.training.builders import make_datamodule, make_module
 from inbetweening.training.figures import HEIGHT_PX, WIDTH_PX, frames_to_draw, per_joint_figure, transition_figure
-from inbetweening.training.tb_logging import (
-    BASELINE,
-    curated_hparams,
-    custom_scalars_layout,
-    hparams_metrics,
-    resumed_run,
-    run_label,
-    run_version,
-    tb_scalars,
-)
+from inbetweening.training.tb_logging import BASELINE, custom_scalars_layout, hparams_metrics, tb_scalars
+from inbetweening.training.tb_runs import curated_hparams, resumed_run, run_label, run_version
 from inbetweening.training.train import train
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -228,7 +220,7 @@ def test_a_resumed_fit_continues_its_tensorboard_run(tmp_path):
     assert resumed_run(cfg) is None  # nothing logged yet
     events = tmp_path / "logs/tensorboard/depth=2 - graph_transformer/2026-01-01_00-00-00"
     events.mkdir(parents=True)
-    from inbetweening.training.tb_logging import link_run
+    from inbetweening.training.tb_runs import link_run
 
     link_run(run, events)
     assert (run / "tensorboard").is_symlink()

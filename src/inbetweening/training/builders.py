@@ -17,9 +17,8 @@ from inbetweening.training.callbacks import AtomicCheckpointIO, InterruptCheckpo
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.module import InbetweenModule
 from inbetweening.training.sampling import rank_world
-from inbetweening.training.tb_logging import (
-    HParamsSession,
-    TrainStats,
+from inbetweening.training.tb_logging import HParamsSession, TrainStats
+from inbetweening.training.tb_runs import (
     curated_hparams,
     link_run,
     resumed_run,
@@ -73,8 +72,8 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule, init: dict | None = No
 
 def _make_logger(cfg: DictConfig, node: DictConfig):
     """A logger from its config.  A :class:`RunLogger` without a ``name`` writes under
-    :func:`~inbetweening.training.tb_logging.tensorboard_root` (``save_dir: null``) to
-    ``<label>/<start time>`` (:func:`~inbetweening.training.tb_logging.run_label`, ``run_version``), or continues
+    :func:`~inbetweening.training.tb_runs.tensorboard_root` (``save_dir: null``) to
+    ``<label>/<start time>`` (:func:`~inbetweening.training.tb_runs.run_label`, ``run_version``), or continues
     the run a resumed fit was logging to; the run directory gets a ``tensorboard`` link to it."""
     if not str(node.get("_target_", "")).endswith("RunLogger") or node.get("name") is not None:
         return instantiate(node)
