@@ -10,6 +10,15 @@ from hydra.core.global_hydra import GlobalHydra
 from omegaconf import open_dict
 
 CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")
+# the start of a script run in a subprocess that must work without PyTorch (the fill runtime, as Blender bundles it)
+BLOCK_TORCH = """
+import importlib.abc, sys
+class NoTorch(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name == "torch" or name.startswith("torch."):
+            raise ImportError("no torch here")
+sys.meta_path.insert(0, NoTorch())
+"""
 
 
 def model_overrides(name: str) -> list[str]:

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import BLOCK_TORCH
 from inbetweening.runtime.bone_map import (
     OPTIONAL,
     REQUIRED,
@@ -864,13 +865,7 @@ def test_summary_and_bone():
 # --------------------------------------------------------------------------------------------
 # Bundled without PyTorch
 # --------------------------------------------------------------------------------------------
-NO_TORCH = """
-import importlib.abc, sys
-class NoTorch(importlib.abc.MetaPathFinder):
-    def find_spec(self, name, path, target=None):
-        if name == "torch" or name.startswith("torch."):
-            raise ImportError("no torch here")
-sys.meta_path.insert(0, NoTorch())
+NO_TORCH = BLOCK_TORCH + """
 from inbetweening.runtime.bone_map import detect_bone_map
 names = ["Hips", "Spine", "Head", "LeftUpLeg", "LeftLeg", "LeftFoot", "RightUpLeg", "RightLeg", "RightFoot",
          "LeftArm", "LeftForeArm", "LeftHand", "RightArm", "RightForeArm", "RightHand"]

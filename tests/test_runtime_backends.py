@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import torch
 
+from conftest import BLOCK_TORCH
 from inbetweening.api.export import export_onnx, export_window_onnx, window_example
 from inbetweening.runtime import FillRuntime, ModelError
 from inbetweening.runtime.onnx_backend import OnnxBackend
@@ -90,13 +91,8 @@ def test_onnx_backend_errors(tmp_path):
         OnnxBackend(str(tmp_path / "net.onnx"))
 
 
-NO_TORCH = """
-import importlib.abc, json, sys
-class NoTorch(importlib.abc.MetaPathFinder):
-    def find_spec(self, name, path, target=None):
-        if name == "torch" or name.startswith("torch."):
-            raise ImportError("no torch here")
-sys.meta_path.insert(0, NoTorch())
+NO_TORCH = BLOCK_TORCH + """
+import json
 import numpy as np
 import inbetweening
 from inbetweening.runtime import FillRuntime
