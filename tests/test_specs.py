@@ -14,7 +14,7 @@ from inbetweening.data.clips import Clip
 from inbetweening.data.datasets import load_dataset, resolve_path
 from inbetweening.data.errors import DatasetError
 from inbetweening.data.mirror import side_pairs
-from inbetweening.data.specs import DATASETS, DatasetSpec, get_spec, lafan_split, register
+from inbetweening.data.specs import BN_CONTENTS, DATASETS, DatasetSpec, get_spec, lafan_split, register
 from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip, make_bvh
 from inbetweening.geometry.skeleton import Skeleton
 
@@ -177,8 +177,11 @@ def test_named_splits(tmp_path, registry):
     single = DatasetSpec("one", lafan_split, (0, 1, 0))
     assert single.splits == {"standard": lafan_split} and single.split is lafan_split  # one rule: the standard split
     bn = get_spec("bandai_namco")
-    assert list(bn.splits) == ["standard", "content"] and bn.split is bn.split_rule("standard")
+    assert list(bn.splits)[:2] == ["standard", "content"] and bn.split is bn.split_rule("standard")
     assert bn.split_rule("content")("dataset-2_run_normal_001.bvh") == "test"
+    assert sorted(list(bn.splits)[2:]) == sorted(f"holdout-{c}" for c in BN_CONTENTS) and len(BN_CONTENTS) == 10
+    walk = bn.split_rule("holdout-walk")  # leave-one-content-out: that content alone is the test set
+    assert [walk(f"dataset-2_{c}_normal_001.bvh") for c in ("walk", "walk-turn-left", "run")] == ["test", "train", "train"]
     with pytest.raises(DatasetError, match=r"^dataset 'one' has no split 'content'; its splits are \['standard'\]$"):
         single.split_rule("content")
     with pytest.raises(ValueError, match=r"splits must map names to split rules and include 'standard', got \['b'\]"):

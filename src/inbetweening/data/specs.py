@@ -14,7 +14,8 @@ reader (the BVH reader by default; a non-BVH source plugs in its own).  A new BV
                      ``joint_Root`` is folded into ``Hips``, which becomes the root; test = takes whose
                      3-digit take number is divisible by 10, train = the rest (split ``standard``), or
                      test = every take of the contents ``run`` and ``wave-both-hands``, train = the other
-                     contents (split ``content``: motions never seen in training); forward = root local +Z
+                     contents (split ``content``: motions never seen in training), or one content held out
+                     (split ``holdout-<content>``, leave-one-content-out); forward = root local +Z
                      (measured on walk clips, see docs/datasets.md).
 * ``synthetic``    - procedurally generated LAFAN-format BVH files (see :mod:`inbetweening.data.synthetic`),
                      read back through the same BVH reader; test = subject5; forward = root local +Z.
@@ -40,7 +41,7 @@ Reader = Callable[["DatasetSpec", Path], Iterable[tuple[str, Clip, Skeleton, "fl
 DEFAULT_SPLIT = "standard"
 
 __all__ = [
-    "BN_TEST_CONTENTS", "DATASETS", "DEFAULT_SPLIT", "DatasetSpec", "bandai_namco_content_split", "bandai_namco_split",
+    "BN_CONTENTS", "BN_TEST_CONTENTS", "DATASETS", "DEFAULT_SPLIT", "DatasetSpec", "bandai_namco_content_split", "bandai_namco_split",
     "get_spec", "lafan_split", "register",
 ]
 
@@ -142,6 +143,9 @@ def bandai_namco_split(fname: str):
 
 
 BN_TEST_CONTENTS = ("run", "wave-both-hands")  # Bandai-Namco-2 contents held out whole by the content split
+# Bandai-Namco-2's ten contents; split ``holdout-<content>`` holds out that one (the leave-one-content-out check)
+BN_CONTENTS = ("raise-up-both-hands", "raise-up-left-hand", "raise-up-right-hand", "run", "walk", "walk-turn-left",
+               "walk-turn-right", "wave-both-hands", "wave-left-hand", "wave-right-hand")
 
 
 def bandai_namco_content_split(fname: str, test_contents=BN_TEST_CONTENTS):
@@ -151,6 +155,14 @@ def bandai_namco_content_split(fname: str, test_contents=BN_TEST_CONTENTS):
     if not m:
         return None
     return "test" if m.group("content").lower() in test_contents else "train"
+
+
+def bandai_namco_holdout_splits() -> dict[str, SplitRule]:
+    """``holdout-<content>`` for each of :data:`BN_CONTENTS`: test = every take of that one content, train = the nine
+    others (the leave-one-content-out check of motions never seen)."""
+    def rule(content: str) -> SplitRule:
+        return lambda fname: bandai_namco_content_split(fname, (content,))
+    return {f"holdout-{c}": rule(c) for c in BN_CONTENTS}
 
 
 # ------------------------------------------------------------------------------------------
@@ -191,7 +203,8 @@ register(DatasetSpec(
     download=download_lafan1, feet=("LeftFoot", "LeftToe", "RightFoot", "RightToe"), **CONTACT,
 ))  # fmt: skip
 register(DatasetSpec(
-    "bandai_namco", {DEFAULT_SPLIT: bandai_namco_split, "content": bandai_namco_content_split}, (0.0, 0.0, 1.0),
+    "bandai_namco", {DEFAULT_SPLIT: bandai_namco_split, "content": bandai_namco_content_split,
+                     **bandai_namco_holdout_splits()}, (0.0, 0.0, 1.0),
     env_var="BANDAI_NAMCO_PATH",
     default_path="../shared/datasets/bandai-namco-2.zip",
     path_hint="pass the Bandai-Namco-Research-Motiondataset zip or its data/ folder as data.path=...",

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Leave-one-content-out at a short budget (RESULTS.md section 12): for each of Bandai-Namco-2's ten contents, the
+# shipped recipe (experiment=bn2_best) trained on the nine others (data.split=holdout-<content>) for STEPS optimiser
+# steps, one thread, then its do-no-harm blend calibrated on the nine contents' validation windows (checkpoints/
+# calibrated.ckpt).  The held-out content is scored afterwards by benchmarks/loco_eval.sh.  About 6 min per content
+# on the 2-core CPU at 150 steps.
+#   bash benchmarks/loco_train.sh <out dir> [steps]
+set -euo pipefail
+OUT=${1:?out dir}
+STEPS=${2:-150}
+mkdir -p "$OUT"
+CONTENTS=$(python -c "from inbetweening.data.specs import BN_CONTENTS; print(' '.join(BN_CONTENTS))")
+for c in $CONTENTS; do
+  [ -f "$OUT/$c/checkpoints/calibrated.ckpt" ] && continue
+  python train.py experiment=bn2_best data.split=holdout-$c model.checkpoint_layers=false threads=1 \
+    trainer.max_steps=$STEPS trainer.val_check_interval=$STEPS run_test=false callbacks.skeleton_figure=null \
+    hydra.run.dir="$OUT/$c" > "$OUT/$c.log" 2>&1
+done
