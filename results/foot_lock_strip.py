@@ -1,13 +1,13 @@
 """The picture of foot locking: one Bandai-Namco-2 test clip filled from keyframes alone, with the feet locked where
 the model predicts them planted, without, and the ground truth, side by side (a PNG strip of frames).
 
-    python results/foot_lock_strip.py <checkpoint with contact channels> [--clip NAME] [--every 30] \\
-        [--out results/foot_lock.png]
+    python results/foot_lock_strip.py <checkpoint> [--clip NAME] [--every 30] [--out results/foot_lock.png]
 
-The checkpoint's representation must predict foot contact (``representation=global_pos_local_quat_contact``).  Keys
+Any checkpoint whose data names its feet: the contact is the model's prediction where its representation has contact
+channels, else the data's contact rule on the fill (the fill runtime's).  Keys
 every ``--every`` frames, nothing else known, filled through ``Inbetweener.fill_arrays`` with ``foot_lock=True`` and
 ``foot_lock=False`` (the same network output: only the lock differs).  The feet's paths are drawn on the floor,
-thick where a foot is planted (the model's predicted contact; the ground truth: the data's contact rule): a planted
+thick where a foot is planted (the contact the lock used; the ground truth: the data's contact rule): a planted
 foot that holds still is a dot, one that slides a streak.  Prints each motion's foot skating (cm/s of horizontal foot
 speed where the ground truth's feet are planted, as ``eval.py protocol=keyframes`` scores it)."""
 from __future__ import annotations
@@ -35,8 +35,7 @@ def fill_both(ib, root: np.ndarray, q: np.ndarray, keys: list[int]) -> dict[str,
     for label, lock in zip(LABELS[:2], (True, False)):
         out[label] = ib.fill_arrays(root_in, q_in, keys, foot_lock=lock, with_contacts=True)
         if out[label][2] is None:
-            raise SystemExit(f"the checkpoint's representation ({ib.predictor.representation.name}) predicts no "
-                             "foot contact: train one with representation=global_pos_local_quat_contact")
+            raise SystemExit("the checkpoint's data names no feet: nothing to lock")
     out[LABELS[2]] = (root, q, None)
     return out
 

@@ -67,20 +67,22 @@ def test_locked_feet_stand_still_and_keys_stay_exact():
     left = NAMES.index("LeftFoot")
     contact[8:20, left] = 1.0  # a planted left foot the model slid through, no key inside
     contact[25:36, left] = 1.0  # a run holding the key at frame 30
-    out = lock_feet(SK, root, q, known, contact, FEET)
-    assert np.array_equal(out[known], q[known])
+    assert np.array_equal(lock_feet(SK, root, q, known, contact, FEET)[0], root)  # by default the root stays
+    new_root, out = lock_feet(SK, root, q, known, contact, FEET, move_root=True)
+    assert np.array_equal(out[known], q[known]) and np.array_equal(new_root[known], root[known])
     _, gp0 = SK.pose(root, q)
-    _, gp = SK.pose(root, out)
+    _, gp = SK.pose(new_root, out)
     a = gp[:, left]
     assert np.abs(a[8:20] - a[8:20].mean(axis=0)).max() < 1e-3  # held still over the run
     assert np.allclose(a[8:20].mean(axis=0), gp0[8:20, left].mean(axis=0), atol=1e-3)  # at the run's mean position
-    # held where the key puts it: exactly, or (the hip too far for the leg) with the leg straight towards it
-    hip = gp[:, NAMES.index("LeftUpLeg")]
-    at_key = np.linalg.norm(a[25:36] - gp0[30, left], axis=1) < 1e-3
-    straight = np.isclose(np.linalg.norm(a - hip, axis=1), 85.0, atol=1e-3)[25:36]
-    assert (at_key | straight).all() and at_key.sum() >= 5
+    # held where the key puts it (where the hip was too far for the leg, the root moved towards it)
+    at_key = np.linalg.norm(a[25:36] - gp0[30, left], axis=1) < 1e-2
+    assert at_key.all()
+    moved = np.flatnonzero(np.abs(new_root - root).max(axis=1) > 0)
+    assert len(moved) and moved.min() >= 8 - 8 and moved.max() <= 35 + 8  # only around the runs (out of reach)
     right = NAMES.index("RightFoot")
-    assert np.allclose(gp[:, right], gp0[:, right])  # no contact on the right: untouched
+    rel = gp[:, right] - new_root[:, None][:, 0]
+    assert np.allclose(rel, gp0[:, right] - root)  # no contact on the right: its pose untouched (carried by the root)
     changed = np.flatnonzero(np.abs(out - q).max(axis=(1, 2)) > 0)
     assert changed.min() >= 8 - 4 and changed.max() <= 35 + 4  # the run and its blend frames only
     untouched = [j for j in range(len(NAMES)) if j not in (1, 2, 3)]  # only the left hip, knee and ankle turn
@@ -95,15 +97,13 @@ def test_a_run_between_two_keys_moves_from_one_key_to_the_other():
     contact = np.zeros((60, len(NAMES)))
     left = NAMES.index("LeftFoot")
     contact[5:25, left] = 1.0
-    out = lock_feet(SK, root, q, known, contact, FEET)
+    new_root, out = lock_feet(SK, root, q, known, contact, FEET, move_root=True)
     _, gp0 = SK.pose(root, q)
-    a = SK.pose(root, out)[1][:, left]
+    a = SK.pose(new_root, out)[1][:, left]
     w = (np.arange(5, 25) - 10).clip(0, 10) / 10
     want = gp0[10, left] + w[:, None] * (gp0[20, left] - gp0[10, left])
-    hip = SK.pose(root, out)[1][5:25, NAMES.index("LeftUpLeg")]
-    reached = np.linalg.norm(a[5:25] - want, axis=1) < 1e-3
-    straight = np.isclose(np.linalg.norm(a[5:25] - hip, axis=1), 85.0, atol=1e-3)  # out of the leg's reach
-    assert (reached | straight).all() and reached.sum() >= 10 and np.array_equal(out[known], q[known])
+    reached = np.linalg.norm(a[5:25] - want, axis=1) < 1e-2  # (the root moved where the leg could not reach)
+    assert reached.all() and np.array_equal(out[known], q[known])
 
 
 @pytest.mark.parametrize("lock", [True, False])
@@ -128,8 +128,8 @@ def test_inbetweener_locks_feet_with_a_contact_model(tiny_contact_checkpoint, lo
 
 def test_fill_arrays_returns_the_contacts_it_locks_on(tiny_contact_checkpoint, tiny_checkpoint):
     """``with_contacts``: the same motion plus the contact the lock read, the prediction on generated frames and the
-    keys' own (an isolated key: its height under the contact height) on the keys; None for a model without
-    contact channels."""
+    keys' own (an isolated key: its height under the contact height) on the keys; for a model without contact
+    channels, the contact rule on its own fill (0 or 1 on the feet, 0 elsewhere)."""
     from inbetweening.api.inbetweener import Inbetweener
 
     ib = Inbetweener.from_checkpoint(tiny_contact_checkpoint)
@@ -147,7 +147,10 @@ def test_fill_arrays_returns_the_contacts_it_locks_on(tiny_contact_checkpoint, t
     assert np.array_equal(contact[keys][:, feet], low.astype(float))
     assert ib.fill_detailed(_bvh(root, q), keyframes=keys).contact.shape == (80, len(NAMES))
     plain = Inbetweener.from_checkpoint(tiny_checkpoint)
-    assert plain.fill_arrays(nan_r, nan_q, keys, with_contacts=True)[2] is None
+    detected = plain.fill_arrays(nan_r, nan_q, keys, with_contacts=True)[2]
+    others = [j for j in range(len(NAMES)) if j not in feet]
+    assert set(np.unique(detected[:, feet])) <= {0.0, 1.0} and not detected[:, others].any()
+    assert np.array_equal(detected[keys][:, feet], low.astype(float))
 
 
 def _bvh(root, q):
@@ -169,7 +172,8 @@ def _foot_lock_strip():
 
 def test_foot_lock_strip_draws_locked_unlocked_and_truth(tiny_contact_checkpoint, tiny_checkpoint, tmp_path):
     """results/foot_lock_strip.py's picture on a synthetic clip: three panels in its order, each titled with its foot
-    skating, the ground truth's by the evaluation's own numbers; a model without contact channels is refused."""
+    skating, the ground truth's by the evaluation's own numbers; a model without contact channels locks on the
+    contacts detected on its fill."""
     from inbetweening.api.inbetweener import Inbetweener
     from inbetweening.evaluation import keyframes as KF
 
@@ -189,5 +193,5 @@ def test_foot_lock_strip_draws_locked_unlocked_and_truth(tiny_contact_checkpoint
     assert skate["ground truth"] == pytest.approx(total / count if count else 0.0)
     fig.savefig(tmp_path / "strip.png")
     assert (tmp_path / "strip.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    with pytest.raises(SystemExit, match="predicts no foot contact"):
-        strip.draw(Inbetweener.from_checkpoint(tiny_checkpoint), root, q, 30, "x")
+    _, plain = strip.draw(Inbetweener.from_checkpoint(tiny_checkpoint), root, q, 30, "x")
+    assert plain["ground truth"] == skate["ground truth"]

@@ -73,10 +73,10 @@ def test_batched_windows_are_one_at_a_time_and_the_path_by_hand(predictor):
     root[:, 10:40] = np.nan  # the transition frames are never read
     q[:, 10:40] = np.nan
     runtime = FillRuntime(TorchBackend(predictor))
-    br, bq, _, _ = runtime.predict_windows(root, q)
+    br, bq, _ = runtime.predict_windows(root, q)
     assert br.shape == (4, 30, 3) and bq.shape == (4, 30, j, 4)
     for i in range(4):
-        r1, q1, _, _ = runtime.predict_windows(root[i : i + 1], q[i : i + 1])
+        r1, q1, _ = runtime.predict_windows(root[i : i + 1], q[i : i + 1])
         r1, q1 = r1[0], q1[0]
         np.testing.assert_allclose(br[i], r1, atol=1e-4)
         np.testing.assert_allclose(bq[i], q1, atol=1e-5)

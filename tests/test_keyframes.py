@@ -16,6 +16,7 @@ from inbetweening.data.specs import DATASETS, DatasetSpec, lafan_split
 from inbetweening.evaluation import keyframes as KF
 from inbetweening.evaluation import schedules as SCH
 from inbetweening.evaluation.collect import collect, to_markdown
+from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.training.callbacks import NonFiniteError
 from inbetweening.training.config import ConfigError, validate
@@ -25,7 +26,8 @@ from inbetweening.training.job import write_benchmark
 FPS = 30.0
 H, S = 5.0, 60.0  # contact height (cm) and speed (cm/s) of the hand-made cases
 DATA = [o for o in TINY if o.startswith("data.")]
-FIGURES = ("model_cm", "interp_cm", "ratio", "skate_model", "skate_interp", "skate_gt", "n_clips", "n_frames", "mean_gap")
+FIGURES = ("model_cm", "interp_cm", "ratio", "skate_model", "skate_interp", "skate_gt", "n_clips", "n_frames", "mean_gap",
+           "worse_share", "worst", "clip_ratios")
 
 
 def _yaw(deg) -> np.ndarray:
@@ -173,7 +175,8 @@ def test_hold_baseline_stands_still_then_jumps_on_the_ground_truths_contacts():
 def test_short_clips_are_left_out_and_no_feet_means_no_skating():
     res = KF.evaluate_clips([_sliding_clip(20, 6.0), _sliding_clip(40, 6.0)], SKEL, None, [15, 45], FPS, None)
     assert res["15"]["n_clips"] == 2 and "45" not in res  # no clip has 46 frames
-    assert "skate_gt" not in res["15"] and set(res["15"]) == {"model_cm", "interp_cm", "ratio", "n_clips", "n_frames", "mean_gap"}
+    assert "skate_gt" not in res["15"] and set(res["15"]) == {"model_cm", "interp_cm", "ratio", "n_clips", "n_frames",
+                                                              "mean_gap", "worse_share", "worst", "clip_ratios"}
 
 
 def test_foot_spec_from_a_dataset_spec():
@@ -304,3 +307,26 @@ def test_schedules_in_the_config(value, ok, tmp_path):
     else:
         with pytest.raises(ConfigError, match="^keyframe_intervals: "):
             validate(cfg)
+
+
+def test_per_clip_ratios_name_the_clips_worse_than_interpolation():
+    """Each clip's own ratio, the share above 1.05 and the worst by name: a fill that spoils one clip of three."""
+    t = np.arange(40)
+    clips = []
+    for i in range(3):  # a root on a curve: interpolation is not exact
+        c = _sliding_clip(40, 6.0, name=f"clip-{i}")
+        clips.append(Clip(c.name, c.local_q, c.root_pos + np.stack([30 * np.sin(t / 4), 0 * t, 0 * t], -1)))
+
+    def fill(root, q, keys):
+        r, lq = interpolate_keyframes(root, q, keys)
+        if fill.calls == 1:
+            r[1:-1] += np.array([0.0, 30.0, 0.0])  # the second clip: 30 cm off on every generated frame
+        fill.calls += 1
+        return r, lq
+
+    fill.calls = 0
+    res = KF.evaluate_clips(clips, SKEL, fill, [15], FPS, None)["15"]
+    assert set(res["clip_ratios"]) == {"clip-0", "clip-1", "clip-2"}
+    assert res["clip_ratios"]["clip-0"] == 1.0 and res["clip_ratios"]["clip-1"] > 1.05
+    assert res["worse_share"] == pytest.approx(1 / 3) and res["worst"].startswith("clip-1 ")
+    assert "33.3 %" in KF.format_table({"15": res})

@@ -148,19 +148,53 @@ def test_context_before_the_first_key_is_read_and_frames_after_the_last_are_kept
 
 
 # ------------------------------------------------------------------------------------------------ the blend
-def test_blend_weights_per_gap_length_reach_the_backend():
+def test_blend_weights_per_gap_length_scale_the_network_in_the_runtime():
+    """Without the self-check each window keeps the calibrated weight of its gap's length; the runtime blends (the
+    backend is asked for the network alone) and reports the weights."""
     root, q = motion(40, seed=5)
     rec = Recorder(info(blend=(0.0, 0.2, 0.6), trained_gap=12))
-    out = FillRuntime(rec, foot_lock=False).fill(root, q, [0, 2, 5, 15, 39])
+    out = FillRuntime(rec, foot_lock=False, self_check=False).fill(root, q, [0, 2, 5, 15, 39])
     gaps = [int((~known[0, :, 0]).sum()) for _, _, known, _ in rec.seen]
     assert gaps == [1, 2, 9, 11, 11]  # the last gap (23 frames) is split in two
-    for (_, _, known, w), g in zip(rec.seen, gaps):
-        assert w.dtype == np.float32 and np.all(w[known] == 1.0)
-        assert np.all(w[~known] == np.float32((0.0, 0.2, 0.6)[min(g, 3) - 1]))
-    assert [w for _, _, w in out.segments] == [0.0, 0.2, 0.6, 0.6, 0.6]
-    rec_none = Recorder(info())
-    FillRuntime(rec_none, foot_lock=False).fill(root, q, [0, 5, 39])
-    assert all(w is None for *_, w in rec_none.seen)
+    assert all(w is None for *_, w in rec.seen)
+    assert [w for _, _, w in out.segments] == [0.0, 0.2, 0.6, 0.6, 0.6] and out.checks == []
+    interp = interpolate_keyframes(root, q, [0, 2, 5, 15, 39])
+    np.testing.assert_array_equal(out.root[1], interp[0][1])  # weight 0: the interpolation, exactly
+    half = FillRuntime(Recorder(info(blend=(0.6,), trained_gap=12)), foot_lock=False, self_check=False)
+    plain = FillRuntime(Recorder(info(trained_gap=12)), foot_lock=False, self_check=False)
+    a, b, i = half.fill(root, q, [0, 9]), plain.fill(root, q, [0, 9]), interpolate_keyframes(root, q, [0, 9])
+    np.testing.assert_allclose(a.root[1:9], i[0][1:9] + 0.6 * (b.root[1:9] - i[0][1:9]), atol=1e-9)
+
+
+def test_the_self_check_hides_each_interior_key_and_scales_the_gaps_near_it():
+    """A network that misses the hidden keys (the recording backend's fixed pose) is not trusted where it was checked:
+    those gaps come back as the interpolation; a check window longer than the trained gap is not run."""
+    root, q = motion(90, seed=3)
+    keys = [0, 6, 12, 18, 60, 71, 82]
+    rec = Recorder(info(trained_gap=12))
+    out = FillRuntime(rec, foot_lock=False).fill(root, q, keys)
+    assert [(c.a, c.key, c.b) for c in out.checks] == [(0, 6, 12), (6, 12, 18)]  # the others: windows too long
+    assert all(c.net > 1.05 * c.interp for c in out.checks)
+    known = rec.seen[0][2]  # the two checks, one backend call
+    assert known.shape[0] == 2 and (~known[:, :, 0]).sum(1).tolist() == [11, 11]  # the key between is hidden
+    weights = {(a, b): w for a, b, w in out.segments}
+    assert weights[(0, 6)] == weights[(6, 12)] == weights[(12, 18)] == 0.0
+    interp = interpolate_keyframes(root, q, keys)
+    np.testing.assert_allclose(out.root[:19], interp[0][:19], atol=1e-9)
+    assert weights[(71, 82)] == 1.0  # no check within reach: the calibrated weight (1 without a blend)
+
+
+def test_trust_of_the_self_checks():
+    from inbetweening.runtime.trust import X_FULL, X_NONE, Check, checks_of, gap_weights, trust_of
+
+    assert trust_of(X_FULL) == 1.0 and trust_of(X_NONE) == 0.0 and 0.0 < trust_of((X_FULL + X_NONE) / 2) < 1.0
+    assert [c.key for c in checks_of([0, 5, 10, 40, 45, 50], trained_gap=30)] == [5, 45]
+    checks = [Check(0, 5, 10, 1.0, 2.0), Check(40, 45, 50, 3.0, 2.0)]
+    w = gap_weights([(0, 5), (5, 10), (10, 40), (40, 45), (45, 50)], [0, 5, 10, 40, 45, 50], checks,
+                    lambda n: 0.8 if n < 10 else None)
+    assert w[(0, 5)] == w[(5, 10)] == (0.8, 0.5)  # the network beat interpolation well at key 5: the prior kept
+    assert w[(40, 45)] == w[(45, 50)] == (0.0, 1.5)  # worse at key 45: interpolation
+    assert w[(10, 40)] == (trust_of(4.0 / 4.0), 1.0)  # a long gap pools every check within reach of it
 
 
 def hparams(**kw) -> dict:
@@ -182,7 +216,7 @@ def test_a_zero_blend_gives_the_interpolation_back_through_a_real_network():
         pr = Predictor.from_hparams(hparams(model=net, blend=blend)).eval()
         state = pr.state_dict() if state is None else state
         pr.load_state_dict(state)
-        fills[name] = FillRuntime(TorchBackend(pr), foot_lock=False).fill(root, q, keys)
+        fills[name] = FillRuntime(TorchBackend(pr), foot_lock=False, self_check=False).fill(root, q, keys)
     ir, iq = interpolate_keyframes(root, q, keys)
     assert np.abs(fills["zero"].root - ir).max() < 1e-4
     assert np.abs(np.abs((fills["zero"].local_q * iq).sum(-1)) - 1).max() < 1e-6
@@ -194,8 +228,8 @@ def test_the_interpolation_network_is_keyframe_interpolation_and_equivariant():
     p = Predictor.from_hparams(hparams()).eval()
     rt = FillRuntime(TorchBackend(p))
     root, q = motion(16, seed=7)
-    r, lq, c, w = rt.predict_windows(root[None], q[None])  # n_past 10, 5 transition frames, target
-    assert r.shape == (1, 5, 3) and lq.shape == (1, 5, SK.num_joints, 4) and c is None and w == 1.0
+    r, lq, c = rt.predict_windows(root[None], q[None])  # n_past 10, 5 transition frames, target
+    assert r.shape == (1, 5, 3) and lq.shape == (1, 5, SK.num_joints, 4) and c is None
     np.testing.assert_allclose(np.linalg.norm(lq, axis=-1), 1.0, atol=1e-12)
     ir, iq = interpolate_keyframes(root, q, [9, 15])
     np.testing.assert_allclose(r[0], ir[10:15], atol=1e-3)
@@ -203,7 +237,7 @@ def test_the_interpolation_network_is_keyframe_interpolation_and_equivariant():
     y = np.array([np.cos(0.6), 0.0, np.sin(0.6), 0.0])
     moved_q = q.copy()
     moved_q[:, 0] = qmul(y[None], q[:, 0])
-    r2, lq2, _, _ = rt.predict_windows((qrot(y[None], root) + [40.0, 0.0, -7.0])[None], moved_q[None])
+    r2, lq2, _ = rt.predict_windows((qrot(y[None], root) + [40.0, 0.0, -7.0])[None], moved_q[None])
     np.testing.assert_allclose(r2[0], qrot(y[None], r[0]) + [40.0, 0.0, -7.0], atol=1e-3)
     np.testing.assert_allclose(np.abs((lq2[0, :, 1:] * lq[0, :, 1:]).sum(-1)), 1.0, atol=1e-5)
 

@@ -105,12 +105,15 @@ class Inbetweener:
         trained_gap: the longest transition the model saw in training; default ``train_window - n_past - 1``.
         foot_lock: hold the feet where the model predicts contact (:mod:`inbetweening.runtime.foot_lock`; models whose
             representation has contact channels, on data with feet); ``False``: the network's output as it is.
+        self_check: scale the network's share of each gap by how well it predicts the caller's own keys
+            (:mod:`inbetweening.runtime.trust`; default on); ``False``: the calibrated weight per gap length alone.
     """
 
     def __init__(self, model, max_gap: int | None = None, segment: bool = True, trained_gap: int | None = None,
-                 foot_lock: bool = True):
+                 foot_lock: bool = True, self_check: bool = True):
         self.backend = TorchBackend(model, trained_gap)
-        self.runtime = FillRuntime(self.backend, max_gap=max_gap, segment=segment, foot_lock=foot_lock)
+        self.runtime = FillRuntime(self.backend, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
+                                   self_check=self_check)
         self.module, self.predictor = self.backend.module, self.backend.predictor
         info = self.runtime.info
         self.skeleton: Skeleton = info.skeleton
@@ -121,7 +124,7 @@ class Inbetweener:
     def from_checkpoint(cls, path: str | Path, device: str | torch.device = "cpu", **kw) -> Inbetweener:
         """Load a training checkpoint's predictor (``CheckpointError`` for missing or wrong files).
 
-        ``kw`` go to the constructor (``max_gap``, ``segment``, ``foot_lock``); ``trained_gap`` defaults to the data
+        ``kw`` go to the constructor (``max_gap``, ``segment``, ``foot_lock``, ``self_check``); ``trained_gap`` defaults to the data
         module's ``transition_max`` recorded in the checkpoint.
         """
         from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint, trained_gap

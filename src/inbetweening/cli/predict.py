@@ -57,6 +57,9 @@ options:
   segment=true|false    split gaps longer than max_gap (default true; --no-segment = false)
   foot_lock=true|false  hold a foot still where the model predicts it planted, the leg solved by IK (default true,
                         for models that predict contacts; --no-foot-lock = false: the network's output as it is)
+  self_check=true|false scale the network's share of each gap by how well it predicts your own keys when each is
+                        hidden in turn (default true: falls back to interpolation on motions the model does not know;
+                        false: the calibrated weight per gap length alone)
   render=PATH.gif|.png  also write a picture: the result next to plain linear interpolation of the same
                         keyframes, keyframes drawn in red, over a floor with the feet's trails (thick where a foot
                         is planted: a sliding foot draws a streak); .gif an animation following the body, .png a
@@ -77,7 +80,7 @@ examples:
 
 OPTIONS = {
     "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "gap": int, "max_gap": int,
-    "segment": parse_bool, "foot_lock": parse_bool, "render": str, "render_dpi": int, "device": str, "force": parse_bool,
+    "segment": parse_bool, "foot_lock": parse_bool, "self_check": parse_bool, "render": str, "render_dpi": int, "device": str, "force": parse_bool,
     "threads": int, "bone_map": str,
 }
 ALIASES = {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "in": "input", "out": "output", "o": "output",
@@ -188,7 +191,7 @@ def run(argv: Sequence[str]) -> int:
     t0 = time.perf_counter()
     try:
         clip = read_bvh(args["input"])
-        kw = {k: args[k] for k in ("max_gap", "segment", "foot_lock") if k in args}
+        kw = {k: args[k] for k in ("max_gap", "segment", "foot_lock", "self_check") if k in args}
         ib = Inbetweener.from_checkpoint(args["ckpt_path"], device=device, **kw)
         out = Path(args["output"])
         try:

@@ -9,7 +9,7 @@ fill runtime (:class:`inbetweening.runtime.FillRuntime`, what every front end fi
 per-joint slerp (:func:`inbetweening.geometry.interp.interpolate_keyframes`) for the interpolation baseline.
 Unknown frames are NaN when handed to a fill function, so nothing can read the ground truth.
 
-Scores, on the generated (non-key) frames, pooled over all clips:
+Scores, on the generated (non-key) frames, pooled over all clips, and per clip:
 
 * **Position error**: mean over generated frames and joints of the Euclidean distance between predicted and
   true global joint positions (FK by :meth:`~inbetweening.geometry.skeleton.Skeleton.pose`), in the dataset's
@@ -24,6 +24,10 @@ Scores, on the generated (non-key) frames, pooled over all clips:
   The contacts are the ground truth's, not each motion's own: with its own contacts a motion whose feet slide
   faster than ``contact_speed`` would have no contact there and score *less* skating (on Bandai-Namco-2 with a key
   every 30 frames, interpolation scored 0.15 cm/s that way against 1.48 cm/s for the ground truth).
+* **Per clip** (never only pooled: a pooled mean hides the clips a model makes worse): each clip's own ratio (its
+  position error over interpolation's on its generated frames); ``worse_share`` = the share of clips whose ratio is
+  above :data:`WORSE` (worse than interpolation by more than 5 %), ``worst`` = the :data:`N_WORST` highest, by name;
+  ``clip_ratios`` = every clip's.
 
 Shapes: a clip ``root (F, 3)``, ``local_q (F, J, 4)``; global positions ``(F, J, 3)``.
 """
@@ -47,6 +51,8 @@ Fill = Callable[[np.ndarray, np.ndarray, list[int]], tuple[np.ndarray, np.ndarra
 
 # the figures of one interval, in the order they are printed
 COLUMNS = ("model_cm", "interp_cm", "ratio", "skate_model", "skate_interp", "skate_gt")
+WORSE = 1.05  # a clip's ratio above this: worse than interpolation by more than 5 %
+N_WORST = 3  # the worst clips named per schedule
 
 
 # ------------------------------------------------------------------------------------------
@@ -125,10 +131,12 @@ class _Totals:
     skate: dict
     clips: int = 0
     frames: int = 0
+    per_clip: dict = None  # clip name -> its ratio
 
     @classmethod
     def empty(cls) -> _Totals:
-        return cls({k: [0.0, 0] for k in ("model", "interp")}, {k: [0.0, 0] for k in ("model", "interp", "gt")})
+        return cls({k: [0.0, 0] for k in ("model", "interp")}, {k: [0.0, 0] for k in ("model", "interp", "gt")},
+                   per_clip={})
 
     def add(self, table: dict, key: str, value: tuple[float, int]) -> None:
         table[key][0] += value[0]
@@ -144,17 +152,25 @@ class _Totals:
         if with_skate:  # no contact at all: nothing to skate on
             out.update({f"skate_{k}": (s / c if c else 0.0) for k, (s, c) in self.skate.items()})
         mean_gap = (self.frames + self.gaps) / self.gaps if self.gaps else 0.0
-        return {**out, "n_clips": self.clips, "n_frames": self.frames, "mean_gap": mean_gap}
+        ratios = self.per_clip
+        worst = sorted(ratios.items(), key=lambda kv: -kv[1])[:N_WORST]
+        out.update(worse_share=(sum(r > WORSE for r in ratios.values()) / len(ratios)) if ratios else 0.0,
+                   worst=", ".join(f"{n} {r:.2f}" for n, r in worst))
+        return {**out, "n_clips": self.clips, "n_frames": self.frames, "mean_gap": mean_gap, "clip_ratios": ratios}
 
 
 def score_clip(totals: _Totals, skeleton: Skeleton, gt: tuple, pred: tuple, interp: tuple, keys: Sequence[int],
-               fps: float, feet: FootSpec | None) -> None:
-    """Add one filled clip to ``totals``.  ``gt``, ``pred``, ``interp``: ``(root (F, 3), local_q (F, J, 4))``."""
+               fps: float, feet: FootSpec | None, name: str = "") -> None:
+    """Add one filled clip (called ``name``) to ``totals``.  ``gt``, ``pred``, ``interp``: ``(root (F, 3), local_q
+    (F, J, 4))``."""
     gen = generated_frames(len(gt[0]), keys)
     pos = {k: skeleton.pose(np.asarray(r, np.float64), np.asarray(q, np.float64))[1]
            for k, (r, q) in (("gt", gt), ("model", pred), ("interp", interp))}
-    for k in ("model", "interp"):
-        totals.add(totals.err, k, position_error(pos[k], pos["gt"], gen))
+    errs = {k: position_error(pos[k], pos["gt"], gen) for k in ("model", "interp")}
+    for k, e in errs.items():
+        totals.add(totals.err, k, e)
+    if errs["interp"][0] > 0:
+        totals.per_clip[name or f"clip{totals.clips}"] = errs["model"][0] / errs["interp"][0]
     if feet is not None:
         j = list(feet.joints)
         contact = foot_contacts(pos["gt"][:, j], fps, feet.contact_height, feet.contact_speed)
@@ -198,7 +214,7 @@ def evaluate_clips(clips: Sequence, skeleton: Skeleton, fill: Fill | None, inter
             if not (np.isfinite(pred[0]).all() and np.isfinite(pred[1]).all()):
                 raise ValueError(f"keyframes protocol: the fill returned non-finite values (interval {k}, "
                                  f"clip {getattr(clip, 'name', '?')})")
-            score_clip(totals, skeleton, gt, pred, interp, keys, fps, feet)
+            score_clip(totals, skeleton, gt, pred, interp, keys, fps, feet, getattr(clip, "name", f"clip{i}"))
         if totals.clips:
             out[str(k)] = totals.summary(feet is not None)
         if progress is not None:
@@ -209,9 +225,11 @@ def evaluate_clips(clips: Sequence, skeleton: Skeleton, fill: Fill | None, inter
 def format_table(results: dict[str, dict], unit: str = "cm") -> str:
     """Markdown table of :func:`evaluate_clips`'s results: one row per keyframe interval."""
     head = (f"| keyframe every | model ({unit}) | interpolation ({unit}) | ratio | skate model ({unit}/s) "
-            f"| skate interpolation ({unit}/s) | skate ground truth ({unit}/s) | clips | generated frames |")
-    lines = [head, "|---:|" + "---:|" * 8]
+            f"| skate interpolation ({unit}/s) | skate ground truth ({unit}/s) | clips | generated frames "
+            f"| clips worse than interpolation by > 5 % | worst clips (ratio) |")
+    lines = [head, "|---:|" + "---:|" * 10]
     for k, r in results.items():
         cells = [("" if r.get(c) is None else f"{r[c]:.3f}" if c == "ratio" else f"{r[c]:.2f}") for c in COLUMNS]
-        lines.append(f"| {k} | " + " | ".join(cells) + f" | {r['n_clips']} | {r['n_frames']} |")
+        lines.append(f"| {k} | " + " | ".join(cells) + f" | {r['n_clips']} | {r['n_frames']} "
+                     f"| {100 * r.get('worse_share', 0.0):.1f} % | {r.get('worst', '')} |")
     return "\n".join(lines)

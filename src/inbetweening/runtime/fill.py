@@ -10,10 +10,13 @@ How a gap is generated (the conditions the model was trained under):
   (:func:`~inbetweening.geometry.canonical.canonical_frame`: the root's forward axis at the last context frame turned
   to +X about +Y; the origin at the known frames' mean root XZ, or the last context frame's), the backend predicts,
   and the prediction is taken back.
-* The do-no-harm blend: the network's correction to the interpolation is scaled by the model's weight for the gap's
-  length (:meth:`ModelInfo.blend_weight`); the weights used are reported per gap.
-* Foot locking (models that predict contact): where a foot is planted it is held still and the leg bent to reach it
-  (:mod:`.foot_lock`); keys and the root are never changed.
+* The do-no-harm blend (:mod:`.trust`): the network's correction to the interpolation is scaled, per gap, by the
+  model's weight for the gap's length (:meth:`ModelInfo.blend_weight`) times the trust of the self-check on the
+  user's own keys (each interior key hidden and predicted by the network, before the fill); the weights and the
+  checks are reported.
+* Foot locking, for every model whose data names its feet: where a foot is planted (the model's contact channels,
+  else the data's contact rule on the fill itself) it is held still and the leg bent to reach it, the root moved
+  where the foot is out of the leg's reach (:mod:`.foot_lock`); keys are never changed.
 * Keys, and every frame outside ``[first key, last key]``, come back exactly as given (bit for bit).
 
 Arrays are ``root (F, 3)``, ``local_q (F, J, 4)`` (wxyz) in the model's skeleton: in the project's frame (Y up, cm),
@@ -31,9 +34,10 @@ from inbetweening.geometry import canonical
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_pose
 from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities, slerp_np
 
-from .foot_lock import key_contacts, lock_feet
+from .foot_lock import SHORT_GAP, contact_rule, detected_contacts, key_contacts, lock_feet
 from .model import Backend, InbetweenError, ModelInfo
 from .plan import GapPlan, check_keys, plan_gaps
+from .trust import Check, checks_of, gap_weights, scored
 
 __all__ = ["Filled", "FillRuntime", "RigFilled"]
 
@@ -41,10 +45,12 @@ __all__ = ["Filled", "FillRuntime", "RigFilled"]
 @dataclass
 class Filled:
     """One filled clip.  ``root``/``local_q``: float64, keys and frames outside the filled span exactly the input;
-    ``contact (F, J)``: predicted foot contact in [0, 1] on generated frames, the keys' own on keys (NaN elsewhere),
-    ``None`` for a model without contact channels; ``pseudo_keyframes``: split points of long gaps;
-    ``segments``: ``(a, b, weight)`` per generated window (``weight``: the network's share, the do-no-harm blend;
-    1.0 without a blend); ``locked``: whether the feet were locked."""
+    ``contact (F, J)``: foot contact in [0, 1] on generated frames (the model's prediction; for a model without
+    contact channels, the contact rule on the fill), the keys' own on keys, ``None`` for a model whose data names no
+    feet; ``pseudo_keyframes``: split points of long gaps;
+    ``segments``: ``(a, b, weight)`` per generated window (``weight``: the network's share, the do-no-harm blend,
+    :mod:`.trust`); ``checks``: the self-checks on the keys (:class:`~inbetweening.runtime.trust.Check`);
+    ``locked``: whether the feet were locked."""
 
     root: np.ndarray
     local_q: np.ndarray
@@ -52,6 +58,7 @@ class Filled:
     pseudo_keyframes: list[int] = field(default_factory=list)
     segments: list[tuple[int, int, float]] = field(default_factory=list)
     locked: bool = False
+    checks: list[Check] = field(default_factory=list)
 
 
 def _model_frames(times: np.ndarray, ratio: float) -> np.ndarray:
@@ -100,6 +107,7 @@ class _Clip:
         self.exact_root, self.exact_q = exact_root, exact_q
         self.contact = np.full(q.shape[:2], np.nan)
         self.weights: dict[tuple[int, int], float] = {}
+        self.checks: list[Check] = []
 
 
 class FillRuntime:
@@ -111,19 +119,22 @@ class FillRuntime:
         max_gap: longest gap generated in one window; default the model's ``trained_gap``.  May be raised up to
             ``hard_max_gap`` (beyond what it was trained on: quality not guaranteed).
         segment: split longer gaps (default) or refuse them (:class:`InbetweenError`).
-        foot_lock: lock planted feet (models with contact channels; default on).
+        foot_lock: lock planted feet (every model whose data names its feet; default on).
+        self_check: scale the network's share per gap by the self-check on the keys (:mod:`.trust`; default on);
+            off: the calibrated weight per gap length alone.
         batch_size: gaps of the same length generated in one backend call (``fill_many``; about 4 runs fastest per
             gap on a 2-core CPU, BENCHMARKS.md "Inference latency").
     """
 
     def __init__(self, backend: Backend, *, max_gap: int | None = None, segment: bool = True, foot_lock: bool = True,
-                 batch_size: int = 4):
+                 batch_size: int = 4, self_check: bool = True):
         self.backend = backend
         self.info: ModelInfo = backend.info
         self.max_gap = self.check_max_gap(max_gap)
         self.segment = bool(segment)
         self.foot_lock = bool(foot_lock)
         self.batch_size = _check_batch_size(batch_size)
+        self.self_check = bool(self_check)
 
     def check_max_gap(self, max_gap: int | None) -> int:
         """``max_gap`` checked against the network (default: the model's ``trained_gap``)."""
@@ -155,6 +166,7 @@ class FillRuntime:
         size = self.batch_size if batch_size is None else _check_batch_size(batch_size)
         seg = self.segment if segment is None else bool(segment)
         work = [self._prepare(r, q, k, limit, seg, file_frame) for r, q, k in clips]
+        self._weigh(work, size)
         total, done = sum(len(c.plan.segments) for c in work), 0
         for step in range(max((len(c.plan.segments) for c in work), default=0)):
             groups: dict[int, list] = {}
@@ -262,9 +274,9 @@ class FillRuntime:
         known[:, -1] = True
         return known
 
-    def predict_windows(self, wr: np.ndarray, wq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, float]:
-        """Windows in the clip's frame -> the gap's predicted ``root (B, n, 3), local_q (B, n, J, 4)`` (unit), contact
-        ``(B, n, J)`` or ``None``, and the blend weight used: canonical frame, backend, back."""
+    def predict_windows(self, wr: np.ndarray, wq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """Windows in the clip's frame -> the network's prediction of the gap (no blend): ``root (B, n, 3), local_q
+        (B, n, J, 4)`` (unit), contact ``(B, n, J)`` or ``None``: canonical frame, backend, back."""
         info = self.info
         b, t = wr.shape[:2]
         p = info.n_past
@@ -273,25 +285,56 @@ class FillRuntime:
         centre, rot = canonical.canonical_frame(wr, wq, info.forward_axis, p - 1, known[..., 0],
                                                 centre_at_frame=info.centre == "last")
         croot, cq = canonical.canonicalise(wr, wq, centre, rot)
-        w = info.blend_weight(n)
-        weight = None if w is None else np.where(known, np.float32(1.0), np.float32(w)).astype(np.float32)
-        pr, pq, pc = self.backend.predict(croot, cq, known, weight)
+        pr, pq, pc = self.backend.predict(croot, cq, known, None)
         pr, pq = canonical.uncanonicalise(np.asarray(pr, np.float64), np.asarray(pq, np.float64), centre, rot)
         pr, pq = pr[:, p : p + n], pq[:, p : p + n]
         pq = pq / np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit
         pc = None if pc is None else np.asarray(pc, np.float64)[:, p : p + n]
-        return pr, pq, pc, 1.0 if w is None else float(w)
+        return pr, pq, pc
+
+    def _weigh(self, work: list[_Clip], size: int) -> None:
+        """The do-no-harm weight of every window of every clip (:func:`.trust.gap_weights`): the self-checks first
+        (``size`` windows of one length per backend call; context: the keys' interpolation)."""
+        todo = []
+        for c in work:
+            if self.self_check:
+                c.checks = checks_of(c.keys, self.info.trained_gap)
+                known = [t for t in range(c.keys[0])] + list(c.keys)
+                base = interpolate_keyframes(c.root, c.q, known)
+                todo += [(c, base, i) for i in range(len(c.checks))]
+        groups: dict[int, list] = {}
+        for item in todo:
+            ch = item[0].checks[item[2]]
+            groups.setdefault(ch.b - ch.a, []).append(item)
+        for items in groups.values():
+            for s in range(0, len(items), size):
+                part = items[s : s + size]
+                spans = [(c.checks[i].a, c.checks[i].b) for c, _, i in part]
+                wr, wq = self.windows([b[0] for _, b, _ in part], [b[1] for _, b, _ in part], spans)
+                pr, pq, _ = self.predict_windows(wr, wq)
+                for j, (c, base, i) in enumerate(part):
+                    ch = c.checks[i]
+                    t = ch.key - ch.a - 1
+                    c.checks[i] = scored(ch, self.info.skeleton, base[0], base[1], pr[j, t], pq[j, t])
+        for c in work:
+            weights = gap_weights(c.plan.segments, c.keys, c.checks, self.info.blend_weight)
+            c.weights = {k: w for k, (w, _) in weights.items()}
 
     def _generate(self, items) -> None:
-        """Fill frames ``a+1 .. b-1`` of each ``(clip, a, b)`` in place (gaps of one length, one backend call)."""
+        """Fill frames ``a+1 .. b-1`` of each ``(clip, a, b)`` in place (gaps of one length, one backend call): the
+        network's prediction blended with the interpolation by the window's weight."""
         wr, wq = self.windows([c.root for c, _, _ in items], [c.q for c, _, _ in items], [(a, b) for _, a, b in items])
-        pr, pq, pc, w = self.predict_windows(wr, wq)
+        pr, pq, pc = self.predict_windows(wr, wq)
         for i, (c, a, b) in enumerate(items):
-            c.root[a + 1 : b] = pr[i]
-            c.q[a + 1 : b] = remove_discontinuities(np.concatenate([c.q[a : a + 1], pq[i]]), axis=0)[1:]
+            w = c.weights.get((a, b), 1.0)
+            r, q = pr[i], pq[i]
+            if w < 1.0:
+                ir, iq = interpolate_pose(c.root[a], c.q[a], c.root[b], c.q[b], (np.arange(a + 1, b) - a) / (b - a))
+                r, q = ir + w * (r - ir), slerp_np(iq, q, np.full(q.shape[:-1], w))
+            c.root[a + 1 : b] = r
+            c.q[a + 1 : b] = remove_discontinuities(np.concatenate([c.q[a : a + 1], q]), axis=0)[1:]
             if pc is not None:
                 c.contact[a + 1 : b] = pc[i]
-            c.weights[(a, b)] = w
 
     def _finish(self, c: _Clip, lock: bool, file_frame: bool) -> Filled:
         """Keys exact, the keys' own contacts, feet locked, back to the file's frame, keys and outside frames exact."""
@@ -304,12 +347,20 @@ class FillRuntime:
             exact_r, exact_q = c.exact_root[keys], c.exact_q[keys]
         root[keys], q[keys] = exact_r, exact_q
         contact, locked = None, False
-        if info.has_contacts and not np.isnan(c.contact).all():
-            labels = key_contacts(info.skeleton, info.contact, info.fps, root, q, keys)
-            contact = np.where(np.isnan(c.contact), labels, c.contact)
-            feet = info.contact.indices(info.skeleton.names, "the model's feet") if lock else ()
-            if feet:
-                q = lock_feet(info.skeleton, root, q, keys, contact, feet)
+        rule = contact_rule(info.contact, info.skeleton, root, q, keys)
+        if rule.feet:
+            detected = detected_contacts(info.skeleton, rule, info.fps, root, q, keys)
+            if info.has_contacts and not np.isnan(c.contact).all():
+                labels = key_contacts(info.skeleton, rule, info.fps, root, q, keys)
+                contact = np.where(np.isnan(c.contact), labels, c.contact)
+                for a, b in zip(keys, keys[1:]):  # short gaps: what the keys say
+                    if b - a - 1 < SHORT_GAP:
+                        contact[a + 1 : b] = detected[a + 1 : b]
+            else:
+                contact = detected
+            if lock:
+                feet = rule.indices(info.skeleton.names, "the model's feet")
+                root, q = lock_feet(info.skeleton, root, q, keys, contact, feet)
                 locked = True
         if file_frame and not info.convention.is_project:
             root, q = info.convention.to_file(root, q)
@@ -318,4 +369,4 @@ class FillRuntime:
         outside[keys] = True
         root[outside], q[outside] = c.exact_root[outside], c.exact_q[outside]
         segments = [(a, b, c.weights.get((a, b), 1.0)) for a, b in c.plan.segments]
-        return Filled(root, q, contact, c.plan.pseudo_keyframes, segments, locked)
+        return Filled(root, q, contact, c.plan.pseudo_keyframes, segments, locked, c.checks)

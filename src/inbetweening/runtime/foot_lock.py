@@ -1,4 +1,9 @@
-"""Foot locking: where the model says a foot is planted, hold it still and bend the leg to reach it.
+"""Foot locking: where a foot is planted, hold it still and bend the leg to reach it.
+
+Where the foot is planted: the model's contact channels where it has them, else the data's contact rule on the fill
+itself (:func:`detected_contacts`: the foot low and slow).  The feet and the rule are the model's data's; a model that
+recorded none (trained before they were) gets them from its skeleton and the keys (:func:`contact_rule`: the feet by
+name or as the lowest limbs' ends, the built-in rule scaled to the keys' body height).
 
 For each leg (a foot joint of the data's :class:`~inbetweening.data.contacts.FootContact` whose parent and
 grandparent are the knee and the hip; the other foot joints of the leg, e.g. the toes, follow it), the frames where
@@ -7,8 +12,14 @@ position: a keyframe's where the run holds one (so the locked foot meets the key
 it moves straight from one key's position to the other's), else the mean of the generated positions.  The leg is
 solved with a two-bone IK (:func:`inbetweening.geometry.ik.two_bone_ik`) so the
 ankle reaches it, the foot keeping its global rotation; over ``blend`` frames on each side of a run the target is
-blended from the generated position to the locked one.  Keyframes and the root are never changed: only the hip,
-knee and ankle rotations of generated frames.
+blended from the generated position to the locked one.  Optionally (``move_root``), where a locked ankle is out of the
+leg's reach from the generated hip, the root of that frame is moved by the shortfall (the legs' mean, smoothed over
+``blend`` frames either side) before the legs are solved.  Keyframes are never changed: only the hip, knee and ankle
+rotations (and with ``move_root`` the root) of generated frames.
+
+Short gaps (under :data:`SHORT_GAP` frames) of a model with contact channels take the contact the keys say
+(:func:`detected_contacts`) instead of the prediction: with keys every 5 frames the predicted contact raised the joint
+error of the shipped contact model by 3 % (RESULTS.md section 12).
 """
 from __future__ import annotations
 
@@ -16,13 +27,23 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from inbetweening.data.contacts import CONTACT_THRESHOLD, FootContact, planted_frames
+from inbetweening.data.contacts import (
+    CONTACT_THRESHOLD,
+    FootContact,
+    body_height,
+    find_feet,
+    planted_frames,
+    scaled_contact,
+)
+from inbetweening.data.errors import DatasetError
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["BLEND_FRAMES", "key_contacts", "legs", "lock_feet"]
+__all__ = ["BLEND_FRAMES", "MIN_RUN", "SHORT_GAP", "contact_rule", "detected_contacts", "key_contacts", "legs", "lock_feet"]
 
 BLEND_FRAMES = 4  # frames over which a lock is blended in and out
+MIN_RUN = 3  # detected contact: shorter runs (and shorter holes in a run) are dropped (filled)
+SHORT_GAP = 8  # gaps shorter than this take the keys' contact, not a model's prediction
 
 
 def legs(skeleton: Skeleton, feet: Sequence[int]) -> list[tuple[int, int, int]]:
@@ -55,19 +76,43 @@ def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
+def _reach_shift(skeleton: Skeleton, gp: np.ndarray, plans: list, n: int, blend: int) -> np.ndarray:
+    """``(F, 3)``: how far to move the root so that each locked ankle is within its leg's reach from the hip."""
+    total, count = np.zeros((n, 3)), np.zeros(n)
+    for hip, knee, ankle, frames, goal in plans:
+        reach = 0.999 * (np.linalg.norm(skeleton.offsets[knee]) + np.linalg.norm(skeleton.offsets[ankle]))
+        d = goal - gp[frames, hip]
+        length = np.linalg.norm(d, axis=-1)
+        out = length > reach
+        total[frames[out]] += ((length[out] - reach) / length[out])[:, None] * d[out]
+        count[frames[out]] += 1
+    shift = total / np.maximum(count, 1)[:, None]
+    if not count.any():
+        return shift
+    size = np.linalg.norm(shift, axis=-1)  # each frame takes the largest shift within `blend` frames, then smoothed
+    at = np.clip(np.arange(n)[None] + np.arange(-blend, blend + 1)[:, None], 0, n - 1)  # (2 blend + 1, F)
+    wide = shift[at[np.argmax(size[at], axis=0), np.arange(n)]]
+    kernel = np.ones(2 * blend + 1) / (2 * blend + 1)
+    return np.stack([np.convolve(wide[:, i], kernel, mode="same") for i in range(3)], axis=-1)
+
+
 def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_frames: Sequence[int],
-              contact: np.ndarray, feet: Sequence[int], blend: int = BLEND_FRAMES) -> np.ndarray:
-    """``local_q (F, J, 4)`` with the feet locked (module docstring); ``root (F, 3)``, ``contact (F, J)`` (predicted
-    contact in [0, 1]; keyframes: their own), ``feet``: foot joint indices.  Returns a new array; the keyframes' rows
-    are the input's."""
+              contact: np.ndarray, feet: Sequence[int], blend: int = BLEND_FRAMES,
+              move_root: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """``(root (F, 3), local_q (F, J, 4))`` with the feet locked (module docstring); ``contact (F, J)`` (contact in
+    [0, 1]; keyframes: their own), ``feet``: foot joint indices; ``move_root``: move the root where a locked ankle is
+    out of reach (off by default: on Bandai-Namco-2 it raised the joint error at every schedule and did not lower the
+    skating, RESULTS.md section 12).  Returns new arrays; the keyframes' rows are the input's."""
     q = np.array(local_q, dtype=np.float64)
+    root_out = np.array(root, dtype=np.float64)
     n = len(root)
     generated = np.ones(n, dtype=bool)
     generated[list(known_frames)] = False
     keys = np.flatnonzero(~generated)
+    gq, gp = skeleton.pose(root_out, q)
+    plans = []
     for hip, knee, ankle in legs(skeleton, feet):
         planted = np.nan_to_num(contact[:, ankle], nan=0.0) > CONTACT_THRESHOLD
-        gq, gp = skeleton.pose(root, q)
         target = np.full((n, 3), np.nan)
         weight = np.zeros(n)
         for s, e in _runs(planted):
@@ -86,15 +131,60 @@ def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_f
                     if 0 <= t < n and not planted[t] and w > weight[t]:
                         target[t], weight[t] = h, w
         frames = np.flatnonzero(generated & (weight > 0))
-        if len(frames) == 0:
-            continue
-        goal = gp[frames, ankle] + weight[frames, None] * (target[frames] - gp[frames, ankle])
+        if len(frames):
+            goal = gp[frames, ankle] + weight[frames, None] * (target[frames] - gp[frames, ankle])
+            plans.append((hip, knee, ankle, frames, goal))
+    shift = _reach_shift(skeleton, gp, plans, n, blend) if move_root else np.zeros((n, 3))
+    shift[~generated] = 0.0
+    if np.abs(shift).max(initial=0.0) > 0:
+        root_out += shift
+        gq, gp = skeleton.pose(root_out, q)
+    for hip, knee, ankle, frames, goal in plans:
         parent = skeleton.parents[hip]
         h, k, a = two_bone_ik(gp[frames, hip], gp[frames, knee], gp[frames, ankle], goal, gq[frames, hip],
                               gq[frames, knee], gq[frames, ankle], gq[frames, parent])
         q[frames, hip], q[frames, knee], q[frames, ankle] = h, k, a
     q[keys] = local_q[keys]
-    return q
+    root_out[keys] = np.asarray(root)[keys]
+    return root_out, q
+
+
+def _clean_runs(flags: np.ndarray, min_run: int) -> np.ndarray:
+    """``flags (F,)`` with holes shorter than ``min_run`` filled, then runs shorter than ``min_run`` dropped."""
+    out = flags.copy()
+    for s, e in _runs(~out):
+        if e - s < min_run and s > 0 and e < len(out):
+            out[s:e] = True
+    for s, e in _runs(out):
+        if e - s < min_run:
+            out[s:e] = False
+    return out
+
+
+def detected_contacts(skeleton: Skeleton, contact: FootContact, fps: float, root: np.ndarray, local_q: np.ndarray,
+                      known_frames: Sequence[int], min_run: int = MIN_RUN, speed_factor: float = 1.0) -> np.ndarray:
+    """Foot contact ``(F, J)`` for a model without contact channels, 1/0 on the feet and 0 elsewhere:
+
+    * a gap whose two keys both have the foot planted (:func:`key_contacts`) within ``contact.height`` of each other
+      holds it planted throughout (the keys say the foot did not leave the ground between them);
+    * elsewhere the data's rule on the filled motion itself (:func:`~inbetweening.data.contacts.planted_frames`, its
+      speed limit times ``speed_factor``), runs and holes shorter than ``min_run`` frames cleaned;
+    * on the keys, the keys' own."""
+    gp = skeleton.pose(np.asarray(root, np.float64), np.asarray(local_q, np.float64))[1]
+    out = np.zeros(gp.shape[:-1])
+    feet = list(contact.indices(skeleton.names, "the model's feet"))
+    keys = list(known_frames)
+    at_keys = key_contacts(skeleton, contact, fps, root, local_q, keys)
+    if feet:
+        flags = planted_frames(gp[:, feet], fps, contact.height, contact.speed * speed_factor)
+        for i, j in enumerate(feet):
+            f = _clean_runs(flags[:, i], min_run)
+            for a, b in zip(keys, keys[1:]):
+                if at_keys[a, j] > 0.5 and at_keys[b, j] > 0.5 and np.linalg.norm(gp[b, j] - gp[a, j]) < 0.25 * contact.height:
+                    f[a : b + 1] = True
+            out[:, j] = f
+    out[keys] = at_keys[keys]
+    return out
 
 
 def key_contacts(skeleton: Skeleton, contact: FootContact, fps: float, root: np.ndarray, local_q: np.ndarray,
@@ -113,3 +203,20 @@ def key_contacts(skeleton: Skeleton, contact: FootContact, fps: float, root: np.
         out[:, feet] = planted_frames(gp[:, feet], fps, contact.height, contact.speed)
     out[np.isnan(gp[..., 0])] = np.nan
     return out
+
+
+def contact_rule(contact: FootContact, skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray,
+                 known_frames: Sequence[int]) -> FootContact:
+    """``contact`` when it names feet; else the feet found on ``skeleton`` (:func:`~inbetweening.data.contacts.
+    find_feet`, on the keys' median joint heights) with the built-in rule scaled to the keys' body height
+    (:func:`~inbetweening.data.contacts.scaled_contact`); no feet (an empty rule) when none can be found."""
+    if contact.feet:
+        return contact
+    keys = list(known_frames)
+    gp = skeleton.pose(np.asarray(root, np.float64)[keys], np.asarray(local_q, np.float64)[keys])[1]
+    try:
+        feet, _ = find_feet(skeleton.names, skeleton.parents, np.median(gp[..., 1], axis=0))
+    except DatasetError:
+        return contact
+    height = body_height([gp])
+    return scaled_contact(feet, height) if feet and height > 0 else contact

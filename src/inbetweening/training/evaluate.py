@@ -70,15 +70,16 @@ def with_baselines(name: str, metrics: dict, dm: InbetweenDataModule, lengths) -
 
 
 # ------------------------------------------------------------------------------------------ keyframes protocol
-def animator_fill(model, foot_lock: bool = True):
+def animator_fill(model, foot_lock: bool = True, self_check: bool = True):
     """The animator's fill (the fill runtime, :class:`~inbetweening.runtime.FillRuntime`, with the torch backend) of
-    ``model``, a checkpoint path or a predictor (feet locked unless ``foot_lock=False``): ``(fill, predictor)``,
+    ``model``, a checkpoint path or a predictor (feet locked unless ``foot_lock=False``; the self-check of the do-no-harm
+    blend unless ``self_check=False``): ``(fill, predictor)``,
     ``fill(root, local_q, keys) -> (root, local_q)``: what ``predict``, the Python API and Blender fill with."""
     from inbetweening.runtime import FillRuntime
     from inbetweening.runtime.torch_backend import TorchBackend
 
     backend = TorchBackend(model) if isinstance(model, torch.nn.Module) else TorchBackend.from_checkpoint(model)
-    runtime = FillRuntime(backend, foot_lock=foot_lock)
+    runtime = FillRuntime(backend, foot_lock=foot_lock, self_check=self_check)
 
     def fill(root, local_q, keys):
         out = runtime.fill(root, local_q, keys)
@@ -98,7 +99,8 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     data = dm.load_data()
     ckpt_path, name, fill = cfg.get("ckpt_path"), cfg.model.name, None
     if ckpt_path:
-        fill, predictor = animator_fill(ckpt_path, foot_lock=bool(cfg.get("foot_lock", True)))
+        fill, predictor = animator_fill(ckpt_path, foot_lock=bool(cfg.get("foot_lock", True)),
+                                        self_check=bool(cfg.get("self_check", True)))
         check_skeleton(ckpt_path, predictor, data)
         name = predictor.model_cfg.get("name", "model")
     elif name not in B.BASELINES:
@@ -111,18 +113,19 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     print(f"\nKeyframes-only protocol: {data.name}, split {dm.hparams.split}, {len(data.test)} whole test clips, "
           f"{data.fps:g} fps, model {name} -> {out / 'benchmark.json'}")
     print(KF.format_table(res))
-    return {f"{m}@{k}": float(v) for k, row in res.items() for m, v in row.items()}
+    return {f"{m}@{k}": float(v) for k, row in res.items() for m, v in row.items() if not isinstance(v, (str, dict))}
 
 
 def score_keyframes(model, data, intervals: list, seed: int = 0, foot_lock: bool = True,
-                    max_clips: int | None = None) -> dict:
+                    max_clips: int | None = None, self_check: bool = True) -> dict:
     """The keyframes-only figures of ``model`` (a predictor, through the animator path, with its feet locked unless
     ``foot_lock=False``; or a fill function; ``None``: interpolation) on the whole test clips of ``data`` for each
     schedule of ``intervals`` (an interval ``K`` or a keypose schedule name; ``seed`` seeds the random one):
     ``{schedule: {figure: value}}``.  ``max_clips``: score that many test clips, evenly spaced (quick comparisons)."""
     from inbetweening.evaluation import keyframes as KF
 
-    fill = animator_fill(model, foot_lock=foot_lock)[0] if isinstance(model, torch.nn.Module) else model
+    fill = (animator_fill(model, foot_lock=foot_lock, self_check=self_check)[0] if isinstance(model, torch.nn.Module)
+            else model)
     feet = KF.foot_spec(data.skeleton, data.contact)
     clips = data.test
     if max_clips and max_clips < len(clips):

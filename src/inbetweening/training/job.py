@@ -45,7 +45,7 @@ def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metric
     """Write ``benchmark.json`` (strict JSON, atomically); a non-finite metric is an error, never a number.
     ``split``: the dataset's split rule (``data.split``), recorded when given.  ``keyframes``: the
     ``protocol=keyframes`` figures ``{"<K>": {"model_cm": ..., "n_clips": ...}}``, written under the ``keyframes``
-    key (integers stay integers).  ``interpolation``: the interpolation baseline's metrics on the same windows
+    key (integers stay integers; the per-clip ratios and the worst clips' names as they are).  ``interpolation``: the interpolation baseline's metrics on the same windows
     (the reference ratios are taken against), written under ``interpolation``."""
     res = {"dataset": dataset, **({"split": split} if split else {}), "model": model, "n_windows": int(n_windows),
            "metrics": {k: float(v) for k, v in metrics.items()}}
@@ -53,9 +53,10 @@ def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metric
         res["interpolation"] = {k: float(v) for k, v in interpolation.items()}
     checked = {**res["metrics"], **{f"interpolation.{k}": v for k, v in res.get("interpolation", {}).items()}}
     if keyframes is not None:
-        res["keyframes"] = {str(k): {m: (v if isinstance(v, int) else float(v)) for m, v in row.items()}
+        res["keyframes"] = {str(k): {m: (v if isinstance(v, (int, str, dict)) else float(v)) for m, v in row.items()}
                             for k, row in keyframes.items()}
-        checked.update({f"keyframes.{k}.{m}": v for k, row in res["keyframes"].items() for m, v in row.items()})
+        checked.update({f"keyframes.{k}.{m}": v for k, row in res["keyframes"].items() for m, v in row.items()
+                        if not isinstance(v, (str, dict))})
     bad = [k for k, v in checked.items() if not math.isfinite(v)]
     if bad:
         raise NonFiniteError(f"benchmark: {', '.join(bad)} not finite ({checked[bad[0]]}); "

@@ -76,7 +76,8 @@ def train(cfg: DictConfig) -> dict[str, float]:
         kf = None
         if cfg.get("test_keyframes"):  # the keyframes-only protocol on the whole test clips, through the animator path
             kf = score_keyframes(module.predictor, dm.data, list(cfg.test_keyframes), int(cfg.seed),
-                                 bool(cfg.get("foot_lock", True)), cfg.get("keyframe_clips"))
+                                 bool(cfg.get("foot_lock", True)), cfg.get("keyframe_clips"),
+                                 bool(cfg.get("self_check", True)))
         rows = with_baselines(name, metrics, dm, cfg.data.test_lengths)
         write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split,
                         keyframes=kf, interpolation=rows.get("interpolation"))

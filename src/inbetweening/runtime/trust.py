@@ -1,0 +1,89 @@
+"""How much of the network's correction the fill keeps, per gap: the do-no-harm blend.
+
+Every generated frame is ``interpolation + w (network - interpolation)`` (the root linearly, rotations by slerp), with
+one weight ``w`` in [0, 1] per gap, the product of two pieces of evidence:
+
+* **what the model knows about gaps of this length**: its calibrated weight for the gap's length
+  (:meth:`~inbetweening.runtime.model.ModelInfo.blend_weight`, fitted on validation windows; 1 for a model without);
+* **what it knows about this motion: the self-check on the user's own keys.**  For each interior key ``k`` whose
+  neighbours' window fits the length the model was trained on, the key is hidden and the network predicts it across
+  ``(previous key, next key)`` (context: the interpolation of the keys before); ``x`` = the network's mean joint
+  error at ``k`` over interpolation's there, pooled over the checked keys within :data:`REACH` gaps of the gap.  The
+  trust is ``clip((X_NONE - x) / (X_NONE - X_FULL), 0, 1)``: all of the calibrated weight where the network predicts
+  the user's keys at under :data:`X_FULL` of interpolation's error, none where it does no better than
+  :data:`X_NONE` (the keys are ground truth the user gave: a motion the model does not know shows there first).
+
+A gap with no checked key near it (two keys only; keys so far apart that the check's window is longer than the
+model's trained gap) keeps the calibrated weight.  RESULTS.md section 12 measures the rule against its alternatives.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from inbetweening.geometry.interp import interpolate_pose
+from inbetweening.geometry.skeleton import Skeleton
+
+__all__ = ["REACH", "X_FULL", "X_NONE", "Check", "checks_of", "gap_weights", "trust_of"]
+
+X_FULL = 0.65  # the network's error at the hidden keys, as a share of interpolation's, below which it is fully trusted
+X_NONE = 1.05  # ... and above which it is not trusted at all
+REACH = 3  # checked keys within this many gaps (of the gap's own length) either side of a gap decide its trust
+
+
+@dataclass(frozen=True)
+class Check:
+    """One self-check: the key ``key`` hidden in the window ``(a, b)``; ``net``/``interp``: the mean joint position
+    error there of the network and of interpolation (the skeleton's length unit)."""
+
+    a: int
+    key: int
+    b: int
+    net: float = float("nan")
+    interp: float = float("nan")
+
+
+def checks_of(keys: Sequence[int], trained_gap: int) -> list[Check]:
+    """The self-checks of a fill's keys (sorted): every interior key whose neighbours are at most ``trained_gap + 1``
+    frames apart."""
+    return [Check(a, k, b) for a, k, b in zip(keys, keys[1:], keys[2:]) if b - a - 1 <= trained_gap]
+
+
+def scored(check: Check, skeleton: Skeleton, root: np.ndarray, q: np.ndarray, pred_root: np.ndarray,
+           pred_q: np.ndarray) -> Check:
+    """``check`` with its errors: the network's prediction of the hidden key ``pred_root (3,), pred_q (J, 4)`` and the
+    interpolation between ``a`` and ``b``, against the key itself (``root (F, 3)``, ``q (F, J, 4)``: the clip)."""
+    a, k, b = check.a, check.key, check.b
+    ir, iq = interpolate_pose(root[a], q[a], root[b], q[b], np.array((k - a) / (b - a)))
+    poses = skeleton.pose(np.stack([root[k], pred_root, ir]), np.stack([q[k], pred_q, iq]))[1]
+    err = np.linalg.norm(poses[1:] - poses[0], axis=-1).mean(-1)
+    return Check(a, k, b, float(err[0]), float(err[1]))
+
+
+def trust_of(x: float) -> float:
+    """The self-check's trust for an error ratio ``x`` (module docstring)."""
+    return float(np.clip((X_NONE - x) / (X_NONE - X_FULL), 0.0, 1.0))
+
+
+def gap_weights(segments: Sequence[tuple[int, int]], keys: Sequence[int], checks: Sequence[Check],
+                prior) -> dict[tuple[int, int], tuple[float, float | None]]:
+    """``{(a, b): (weight, x)}`` for each generated window ``(a, b)`` of a clip: the calibrated ``prior(gap length)``
+    (``None``: 1) times the trust of the self-checks near the key gap the window lies in (``x``: their pooled error
+    ratio, ``None`` where there is none)."""
+    keys = list(keys)
+    out = {}
+    for a, b in segments:
+        i = int(np.searchsorted(keys, a, side="right")) - 1  # the key gap (keys[i], keys[i + 1]) holding the window
+        lo, hi = keys[i], keys[min(i + 1, len(keys) - 1)]
+        reach = REACH * max(hi - lo, 1)
+        near = [c for c in checks if lo - reach <= c.key <= hi + reach and c.interp > 0]
+        p = prior(b - a - 1)
+        p = 1.0 if p is None else float(p)
+        if not near:
+            out[(a, b)] = (p, None)
+            continue
+        x = sum(c.net for c in near) / sum(c.interp for c in near)
+        out[(a, b)] = (p * trust_of(x), float(x))
+    return out
