@@ -1,20 +1,25 @@
 #!/usr/bin/env bash
-# The self-check of the do-no-harm blend (RESULTS.md section 12): the keyframes-only protocol, per clip, on both
-# Bandai-Namco-2 splits with the shipped v1 models, with the self-check (the default) and without (the calibrated
-# weight per gap length alone, as before), K = 5/15/30/45, random, extremes.  One job at a time, about 10 min per run
+# Never worse than interpolation, planted feet (RESULTS.md section 12): the keyframes-only protocol, per clip, on both
+# Bandai-Namco-2 splits, K = 5/15/30/45, random, extremes, for the shipped models with the fill's defaults (the
+# self-check of the do-no-harm blend, feet locked) and, for the v1 models, as before (self_check=false
+# foot_lock=false: the calibrated weight per gap length alone, no locking).  One job at a time, 5-12 min per run
 # on the 2-core CPU.  Table: python benchmarks/never_worse_table.py <out dir>
-#   bash benchmarks/never_worse.sh <out dir> [self_check values, default "true false"]
+#   bash benchmarks/never_worse.sh <out dir>
 set -euo pipefail
 OUT=${1:?out dir}
-CHECKS=${2:-true false}
 SCHEDULES='keyframe_intervals=[5,15,30,45,random,extremes]'
 mkdir -p "$OUT"
-for check in $CHECKS; do
-  for split in content standard; do
-    ckpt=models/bn2_reference/model.ckpt; [ $split = content ] && ckpt=models/bn2_content/model.ckpt
-    run="$OUT/${split}_check_${check}"
-    [ -f "$run/benchmark.json" ] && continue
-    python eval.py ckpt_path=$ckpt data=bandai_namco data.split=$split protocol=keyframes "$SCHEDULES" \
-      self_check=$check threads=1 hydra.run.dir="$run" > "$run.log" 2>&1
-  done
+runs=(
+  "content_v1      models/bn2_content/model.ckpt     content"
+  "standard_v1     models/bn2_reference/model.ckpt   standard"
+  "standard_v2     models/bn2_v2/model.ckpt          standard"
+  "content_v2      models/bn2_v2_content/model.ckpt  content"
+  "content_v1_before   models/bn2_content/model.ckpt     content   self_check=false foot_lock=false"
+  "standard_v1_before  models/bn2_reference/model.ckpt   standard  self_check=false foot_lock=false"
+)
+for r in "${runs[@]}"; do
+  set -- $r; name=$1; ckpt=$2; split=$3; shift 3
+  [ -f "$OUT/$name/benchmark.json" ] && continue
+  python eval.py ckpt_path=$ckpt data=bandai_namco data.split=$split protocol=keyframes "$SCHEDULES" threads=1 \
+    "$@" hydra.run.dir="$OUT/$name" > "$OUT/$name.log" 2>&1
 done
