@@ -281,7 +281,8 @@ def _points(fc) -> dict:
 def write_curve(fc, frames: np.ndarray, values: np.ndarray, spans, interp: str, handle: str) -> None:
     """Key ``values`` at ``frames`` on ``fc``; generated keys already inside the filled ``spans`` ``[(lo, hi)]`` are
     replaced, every other key is kept with all its properties; the keys at the span ends get frozen (``FREE``)
-    handles so the curve outside the spans keeps its shape."""
+    handles and the keys outside keep theirs (Blender's recalculation is not bit-stable), so the curve outside the
+    spans keeps its shape exactly."""
     old = _points(fc)
     x = old["co"][:, 0]
     gen = _enum_index("type", GENERATED)
@@ -332,3 +333,14 @@ def write_curve(fc, frames: np.ndarray, values: np.ndarray, spans, interp: str, 
     for name, _ in POINT_SCALARS:
         kp.foreach_set(name, np.ascontiguousarray(allp[name]))
     fc.update()
+    x = allp["co"][:, 0]
+    outside = np.ones(total, dtype=bool)
+    for lo, hi in spans:
+        outside &= (x <= lo + 1e-4) | (x >= hi - 1e-4)
+    if len(kp) == total and outside.any():  # the keys outside the spans keep their handles bit for bit
+        for name in ("handle_left", "handle_right"):
+            h = np.zeros(2 * total, dtype=np.float32)
+            kp.foreach_get(name, h)
+            h = h.reshape(total, 2)
+            h[outside] = allp[name][outside]
+            kp.foreach_set(name, h.reshape(-1))
