@@ -18,7 +18,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bpy_fill_check as chk  # noqa: E402
-from bpy_humanoid_check import MockLayout  # noqa: E402
+from bpy_humanoid_check import POSES, MockLayout, add_rig, key_poses  # noqa: E402
 
 EDIT = ('pose.bones["Neck"].rotation_euler', 0)
 
@@ -148,6 +148,22 @@ def scenario(cfg: dict) -> dict:
     obj = bpy.data.objects[name]
     res["redo_curves"] = equal(curves(obj), after)
 
+    # the re-fill against a fill of every gap with the same keys (another setting re-fills every gap, edits kept)
+    res["full"] = fill(mod, foot_lock=False, **kw)
+    full = curves(obj)
+    res["partial_vs_full"] = max(float(np.abs(after[k][0] - full[k][0]).max()) for k in after)
+    res["full_edit_kept"] = float(key_at(obj, EDIT, 100).co[1]) == edited
+    fill(mod, **kw)
+    after = curves(obj)
+
+    # save and reload: the record comes back with the file (nothing to re-fill)
+    path = os.path.join(cfg["out"], "loop.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects[name]
+    res["reloaded"] = fill(mod, **kw)
+    res["reloaded_same"] = equal(curves(obj), after)
+
     # Discard Edits: every gap re-filled, the edit replaced
     res["discard"] = fill(mod, discard_edits=True, **kw)
     k = key_at(obj, EDIT, 100)
@@ -176,11 +192,35 @@ def scenario(cfg: dict) -> dict:
     return res
 
 
+def humanoid() -> dict:
+    """Rigify's Human meta-rig keyed at 1, 31, 61 (the bone map and ``fill_rig``): filled, filled again (nothing
+    changed), a generated key of a mapped bone edited at frame 45 and filled again."""
+    mod, _ = chk.model_names()
+    chk.fresh()
+    obj = add_rig("human")
+    key_poses(obj, POSES, loc_bone="spine")
+    res = {"first": fill(mod)}
+    res["noop"] = fill(mod)
+    chan = ('pose.bones["forearm.L"].rotation_quaternion', 1)
+    k = key_at(obj, chan, 45)
+    res["edit_type_before"] = k.type
+    k.co[1] += 0.2
+    edited = float(k.co[1])
+    first = curves(obj)
+    res["refill"] = fill(mod)
+    k = key_at(obj, chan, 45)
+    res["edit_kept"], res["edit_type_after"] = float(k.co[1]) == edited, k.type
+    res["first_gap_same"] = same_up_to(first, curves(obj), 30)
+    return res
+
+
 def main() -> None:
     cfg = json.load(open(sys.argv[1]))
     chk.install(cfg["zip"])
     try:
         res = scenario(cfg)
+        if cfg.get("human"):
+            res["human"] = humanoid()
     except Exception:
         res = {"crash": traceback.format_exc()}
     json.dump(res, open(os.path.join(cfg["out"], "loop.json"), "w"), indent=1)

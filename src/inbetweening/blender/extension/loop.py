@@ -105,7 +105,7 @@ def summary_lines(meta: dict | None) -> list[tuple[str, str]]:
         lines.append((f"{a}–{b}: network {shares}{mark}", "IPO_EASE_IN_OUT"))
         planted = gi.get("planted")
         if planted is not None:
-            feet = "  ".join(f"{side} {_spans(runs)}" for side, runs in planted.items())
+            feet = " · ".join(f"{side} {_spans(runs)}" for side, runs in planted.items())
             lines.append((f"feet planted: {feet}", "BLANK1"))
     return lines
 

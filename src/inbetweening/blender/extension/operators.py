@@ -154,9 +154,9 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
             pb.keyframe_insert(path.rsplit(".", 1)[1], index=i, frame=first, group=pb.name)
             fc = r.fcurve(path, i)
         x, _, typ, _ = record.scan(fc)  # the animator's keys, and generated ones the write keeps
-        mine = np.round(x[typ != gen_type]).astype(int)
-        have = set(mine.tolist()) | {f for f in np.round(x[typ == gen_type]).astype(int).tolist()
-                                     if not any(a < f < b for a, b in spans)}
+        xr = np.round(x).astype(int)
+        mine = xr[typ != gen_type]
+        have = set(mine.tolist()) | set(xr[(typ == gen_type) & ~record.inside(xr, spans)].tolist())
         missing = [k for k in all_keys if first <= k <= last and k not in have]
         free = ~np.isin(gen, mine)  # never over one of the animator's keys
         fr, val = gen[free].astype(np.float64), values[(j, path, i)][free]

@@ -97,6 +97,14 @@ def settings_digest(model_key: str, foot_lock: bool, chans, fcurves, ancestors) 
     return digest(*[p.encode() if isinstance(p, str) else p for p in parts])
 
 
+def inside(frames: np.ndarray, spans) -> np.ndarray:
+    """Which of ``frames`` lie strictly inside one of ``spans`` ``[(lo, hi)]``."""
+    out = np.zeros(len(frames), dtype=bool)
+    for lo, hi in spans:
+        out |= (frames > lo) & (frames < hi)
+    return out
+
+
 def scan(fc) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """A curve's keys: ``frame, value, type, selected``."""
     kp = fc.keyframe_points
@@ -189,31 +197,35 @@ class Past:
 
     def _channel(self, fc, chan, rec_f, rec_v, old_edits) -> None:
         x, y, typ, _ = scan(fc)
+        order = np.argsort(x, kind="stable")
+
+        def find(frames):
+            """The key index at each of ``frames``, -1 where there is none."""
+            frames = np.asarray(frames, np.float64)
+            if len(x) == 0:
+                return np.full(len(frames), -1)
+            i = np.clip(np.searchsorted(x[order], frames - 1e-4), 0, len(x) - 1)
+            return np.where(np.abs(x[order][i] - frames) < 1e-4, order[i], -1)
+
+        at = find(rec_f)
+        self.broken.update(rec_f[at < 0].tolist())
+        k = at[at >= 0]
+        edited = (typ[k] == self.gen) & (np.abs(y[k].astype(np.float64) - rec_v[at >= 0]) > TOLERANCE)
+        promote = set(k[edited].tolist())
         xi = np.round(x).astype(int)
-        on_frame = np.abs(x - xi) < 1e-4
-        at = {int(f): k for k, f in enumerate(xi) if on_frame[k]}
-        rec = dict(zip(rec_f.tolist(), rec_v.tolist()))
-        promote, edits = [], set()
-        for f, v in rec.items():
-            k = at.get(f)
-            if k is None:
-                self.broken.add(f)
-            elif typ[k] == self.gen and abs(float(y[k]) - v) > TOLERANCE:
-                promote.append(k)
-                edits.add(f)
-        for k in np.flatnonzero(typ == self.gen):  # a generated key where the fill wrote none: moved by hand
-            if not on_frame[k] or int(xi[k]) not in rec:
-                promote.append(int(k))
-                edits.add(int(xi[k]))
-        edits |= {f for f in old_edits if f in at and typ[at[f]] != self.gen}
+        moved = (typ == self.gen) & ((np.abs(x - xi) >= 1e-4) | ~np.isin(xi, rec_f))  # where the fill wrote none
+        promote |= set(np.flatnonzero(moved).tolist())
+        old = find(sorted(old_edits))
+        old = old[old >= 0]
+        mine = sorted(promote | set(old[typ[old] != self.gen].tolist()))
         if self.discard:
-            self.demote[fc] = [at[f] for f in edits if f in at and typ[at[f]] != self.gen]
+            self.demote[fc] = [i for i in mine if typ[i] != self.gen]
             return
         self.new_edits += len(promote)
-        self.promote[fc] = promote
-        if edits:
-            self.edits[chan] = edits
-            self.edit_keys[fc] = sorted(set(promote) | {at[f] for f in edits if f in at})
+        self.promote[fc] = sorted(promote)
+        if mine:
+            self.edit_keys[fc] = mine
+            self.edits[chan] = set(xi[mine].tolist())
 
     # ------------------------------------------------------------------ keys
     def key_frames(self, curves, lo: float, hi: float, selected_only: bool = False) -> set[int]:
