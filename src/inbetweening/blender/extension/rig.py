@@ -241,28 +241,6 @@ class Rig:
 
 
 # ---------------------------------------------------------------------------------------------- keys
-def key_frames(fcurves, lo: float, hi: float, selected_only: bool = False) -> set[int]:
-    """Frames in ``[lo, hi]`` holding a key (not a generated in-between) on any of ``fcurves``."""
-    gen = _enum_index("type", GENERATED)
-    out: set[int] = set()
-    for fc in fcurves:
-        n = len(fc.keyframe_points)
-        if n == 0:
-            continue
-        co = np.zeros(2 * n, dtype=np.float32)
-        fc.keyframe_points.foreach_get("co", co)
-        typ = np.zeros(n, dtype=np.int32)
-        fc.keyframe_points.foreach_get("type", typ)
-        keep = typ != gen
-        if selected_only:
-            sel = np.zeros(n, dtype=np.int32)
-            fc.keyframe_points.foreach_get("select_control_point", sel)
-            keep &= sel.astype(bool)
-        x = np.round(co[0::2][keep]).astype(int)
-        out.update(int(f) for f in x if lo <= f <= hi)
-    return out
-
-
 def _points(fc) -> dict:
     kp = fc.keyframe_points
     n = len(kp)
