@@ -253,6 +253,70 @@ def test_foot_locking_in_blender_gives_the_clis_poses(bpy_exe, built, tmp_path):
         err = fitted_error(ref, heads[name], key_idx)
         assert err <= 1e-3, (name, err)
     assert np.abs(heads["locked"] - heads["unlocked"]).max() > 0.5  # the lock moved the legs
+    # the Last Fill panel: per gap the network's share and the frames each foot is planted
+    panel = run_loop(bpy_exe, zip_path, tmp_path / "clip.bvh", tmp_path / "loop", model_path=model, every=30,
+                     only_panel=True)["panel_first"]
+    assert panel[0] == "Last fill: 4 gap(s) filled, 0 kept" and len(panel) == 1 + 2 * 4
+    assert all(line.startswith(f"{a}–{a + 30}: network ") for line, a in zip(panel[1::2], range(1, 92, 30)))
+    feet = panel[2::2]
+    assert all(line.startswith("feet planted: L ") and " · R " in line for line in feet), feet
+    assert any(c.isdigit() for line in feet for c in line.split("L ", 1)[1]), feet  # a walk: some foot is planted
+
+
+LOOP_SCRIPT = REPO / "tests" / "blender" / "bpy_loop_check.py"
+
+
+def run_loop(bpy_exe, zip_path, bvh_path, out: Path, **cfg) -> dict:
+    out.mkdir(exist_ok=True)
+    (out / "cfg.json").write_text(json.dumps({"zip": str(zip_path), "bvh": str(bvh_path), "out": str(out), **cfg}))
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(out / "user"), "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run([str(bpy_exe), str(LOOP_SCRIPT), str(out / "cfg.json")], capture_output=True, text=True,
+                          env=env, timeout=900)
+    assert proc.returncode == 0, (proc.stdout[-3000:], proc.stderr[-3000:])
+    res = json.loads((out / "loop.json").read_text())
+    assert "crash" not in res, res["crash"]
+    return res
+
+
+def test_animator_loop_in_blender(bpy_exe, built, tmp_path):
+    """Keys every 15 frames filled; a generated key edited (frame 100) and a key moved (46 -> 48), filled again: the
+    edit is kept exactly and becomes a key, the gaps from the moved key on are re-filled and the gaps before it are
+    untouched bit for bit, and the re-fill is what a fill of every gap gives; a fill with nothing changed writes
+    nothing; undo and redo restore the curves and the record, and so does saving and reloading the file; Discard Edits replaces the edit; Auto Re-fill re-fills once
+    after a key changes, not after its own write or an undo; the Last Fill panel lists each gap's network share.  The
+    same on Rigify's Human meta-rig (the bone map and ``fill_rig``)."""
+    model_skeleton_bvh(tmp_path / "clip.bvh")
+    r = run_loop(bpy_exe, next(built.glob("*-linux-x64.zip")), tmp_path / "clip.bvh", tmp_path / "loop", human=True)
+    assert r["first"]["result"] == ["FINISHED"] and (r["first"]["gaps"], r["first"]["kept"]) == (8, 0)
+    assert r["panel_first"][0] == "Last fill: 8 gap(s) filled, 0 kept"
+    assert r["panel_first"][1:] == [f"{a}–{a + 15}: network 95 %" for a in range(1, 107, 15)]  # no feet: no contacts
+    assert r["noop"]["result"] == ["CANCELLED"] and (r["noop"]["gaps"], r["noop"]["kept"]) == (0, 8) and r["noop_same"]
+
+    refill = r["refill"]
+    assert refill["result"] == ["FINISHED"] and refill["kept"] == 2 and refill["edits"] == 1
+    assert refill["refilled"] == [[31, 48], [48, 61], [61, 76], [76, 91], [91, 100], [100, 106], [106, 121]]
+    assert r["edit_type_before"] == "GENERATED" and r["edit_kept"] and r["edit_type_after"] == "KEYFRAME"
+    assert r["far_keys_same"] and r["far_values_same"] and r["far_key_values_as_first_fill"] and r["near_changed"]
+    assert "1 hand edit(s) kept as keys" in r["panel"] and "1–16: network 95 %  (kept)" in r["panel"]
+    assert "91–100: network 85 %" in r["panel"] and "31–48: network 100 %" in r["panel"]
+    assert r["again"]["result"] == ["CANCELLED"] and r["again_same"]
+    assert r["undo_curves"] and r["undo_record"] and r["redo_curves"]
+    assert r["full"]["gaps"] == 9 and r["full_edit_kept"]  # a fill of every gap with the same keys and edits:
+    assert r["partial_vs_full"] < 1e-3  # the re-fill is the same up to float32 rounding of the context read back
+    assert r["reloaded"]["result"] == ["CANCELLED"] and r["reloaded"]["kept"] == 9 and r["reloaded_same"]
+
+    assert r["discard"]["result"] == ["FINISHED"] and (r["discard"]["gaps"], r["discard"]["kept"]) == (8, 0)
+    assert r["discard_type"] == "GENERATED" and r["discard_value_changed"]
+
+    assert r["auto_idle"] == {} and r["auto_armed"]
+    assert r["auto_fill"] == {"gaps": 2, "kept": 6, "refilled": [[91, 106], [106, 121]]}
+    assert r["auto_after_own_write"] == {} and r["auto_after_undo"] == {}
+
+    h = r["human"]
+    assert h["first"]["result"] == ["FINISHED"] and h["noop"]["result"] == ["CANCELLED"] and h["noop"]["kept"] == 2
+    assert h["refill"]["refilled"] == [[31, 45], [45, 61]] and h["refill"]["kept"] == 1 and h["refill"]["edits"] == 1
+    assert h["edit_type_before"] == "GENERATED" and h["edit_kept"] and h["edit_type_after"] == "KEYFRAME"
+    assert h["first_gap_same"]
 
 
 HUMANOID_SCRIPT = REPO / "tests" / "blender" / "bpy_humanoid_check.py"

@@ -5,12 +5,14 @@ The model runs with ONNX Runtime (bundled as wheels); no PyTorch.  See README.md
 
 
 def register():
-    from . import operators
+    from . import loop, operators
 
     operators.register()
+    loop.register()
 
 
 def unregister():
-    from . import operators
+    from . import loop, operators
 
+    loop.unregister()
     operators.unregister()

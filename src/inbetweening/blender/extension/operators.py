@@ -10,7 +10,7 @@ from bpy.props import BoolProperty, CollectionProperty, PointerProperty, StringP
 from inbetweening.runtime import FillRuntime, InbetweenError, ModelError
 from inbetweening.runtime.bone_map import BoneMapError
 
-from . import humanoid, rig
+from . import humanoid, loop, record, rig
 from .bone_map_panel import (
     INBETWEEN_OT_bone_map_add,
     INBETWEEN_OT_bone_map_remove,
@@ -37,9 +37,12 @@ def make_rig(obj, info):
     return humanoid.HumanoidRig(obj, info, humanoid.stored_override(obj))
 
 
-def fill_range(context, obj, model, only_selected: bool, report_progress=True, foot_lock: bool = True) -> dict:
+def fill_range(context, obj, model, only_selected: bool, report_progress=True, foot_lock: bool = True,
+               discard_edits: bool = False) -> dict:
     """Fill the armature ``obj``'s in-betweens with the fill runtime (``model``: its ONNX backend); returns a summary
     dict.  Raises ``rig.RigError`` / ``BoneMapError`` / ``ModelError`` / ``InbetweenError`` before changing anything.
+    Only the gaps that changed since the last fill are re-filled, and generated keys edited by hand are kept as keys
+    (:mod:`.record`; ``discard_edits``: every gap re-filled, the edits replaced).
 
     The model's own skeleton is filled directly (:class:`rig.Rig`); any other humanoid armature through the bone map
     and :meth:`FillRuntime.fill_rig` (:class:`humanoid.HumanoidRig`): the rotation channels of the bones with a slot or
@@ -62,23 +65,37 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     else:
         chans = r.channels()
         curves = [c for c in (r.fcurve(p, i) for _, p, i in chans) if c is not None]
+    past = record.Past(obj, r.fcurves, discard_edits)
     if only_selected:
-        sel = rig.key_frames(curves, lo, hi, selected_only=True)
+        sel = past.key_frames(curves, lo, hi, selected_only=True)
         if sel:
             lo, hi = min(sel), max(sel)
         elif scene.use_preview_range:
             lo, hi = max(lo, scene.frame_preview_start), min(hi, scene.frame_preview_end)
         else:
             raise rig.RigError("only selected range: no keys are selected and there is no preview range")
-    keys = sorted(rig.key_frames(curves, lo, hi))
-    gaps = [(a, b) for a, b in zip(keys, keys[1:]) if b - a > 1]
-    if not gaps:
-        raise rig.RigError(f"nothing to fill: frames {lo}..{hi} hold {len(keys)} key(s) and no gap between two keys")
-    first, last = keys[0], keys[-1]
+    all_keys = sorted(past.key_frames(curves, lo, hi))
+    all_gaps = [(a, b) for a, b in zip(all_keys, all_keys[1:]) if b - a > 1]
+    if not all_gaps:
+        raise rig.RigError(f"nothing to fill: frames {lo}..{hi} hold {len(all_keys)} key(s) and no gap between two keys")
     p = info.n_past
+    reader = record.Reader(r)
+    seen = list(range(all_keys[0] - (p - 1), all_keys[0])) + all_keys
+    reader.read(seen)
+    if any_rig:
+        retarget = r.plan(reader.a[all_keys[0]])
+        chans = r.channels()
+    settings = record.settings_digest(record.model_key(model), foot_lock, chans, r.fcurves,
+                                      getattr(r, "ancestors", ()))
+    plan = past.plan(all_keys, all_gaps, p, reader.digests(seen), settings)
+    summary = {"gaps": len(plan.gaps), "kept": len(all_gaps) - len(plan.gaps), "edits": past.new_edits,
+               "keys": len(all_keys), "range": (all_keys[0], all_keys[-1]), "humanoid": any_rig, "model_seconds": 0.0,
+               "windows": 0, "frames": 0, "feet_locked": False, "network_share": [], "refilled": []}
+    if not plan.gaps:
+        return summary
+    gaps, keys, first, last = plan.gaps, plan.fixed, plan.first, plan.last
     frames = np.arange(first - (p - 1), last + 1)
-    known = set(range(first - (p - 1), first)) | set(keys)
-    read_frames = [int(f) for f in frames if f in known]
+    read_frames = [int(f) for f in frames if f < first] + keys
     pos = {int(f): i for i, f in enumerate(frames)}
     wm = context.window_manager
     total_frames = sum(b - a - 1 for a, b in gaps)
@@ -86,15 +103,13 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     idx = np.array([pos[int(f)] for f in gen])
     progress = None
     if any_rig:
-        lq_k, lp_k, raw = r.read(read_frames)
+        lq_k, lp_k, raw = reader.read(read_frames)
         lq = np.full((len(frames),) + lq_k.shape[1:], np.nan)
         lp = np.full((len(frames),) + lp_k.shape[1:], np.nan)
         for t, f in enumerate(read_frames):
             lq[pos[f]], lp[pos[f]] = lq_k[t], lp_k[t]
-        retarget = r.plan(lq[pos[first]])
-        chans = r.channels()
     else:
-        root_k, q_k, raw = r.read(read_frames)
+        root_k, q_k, raw = reader.read(read_frames)
         root = np.zeros((len(frames), 3))
         q = np.zeros((len(frames), info.skeleton.num_joints, 4))
         q[..., 0] = 1.0
@@ -129,25 +144,31 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     else:
         values = r.basis_values([int(f) for f in gen], out_r[idx], out_q[idx], raw_prev)
     prefs = context.preferences.edit
-    spans = [(first, last)]
+    spans = plan.spans
+    past.apply()
+    gen_type = rig._enum_index("type", rig.GENERATED)
     for j, path, i in chans:
         fc = r.fcurve(path, i)
         if fc is None:
             pb = r.pbones[j]
             pb.keyframe_insert(path.rsplit(".", 1)[1], index=i, frame=first, group=pb.name)
             fc = r.fcurve(path, i)
-        co = np.zeros(2 * len(fc.keyframe_points), dtype=np.float32)
-        fc.keyframe_points.foreach_get("co", co)
-        have = set(np.round(co[0::2]).astype(int).tolist())
-        missing = [k for k in keys if k not in have]
-        fr, val = gen.astype(np.float64), values[(j, path, i)]
+        x, _, typ, _ = record.scan(fc)  # the animator's keys, and generated ones the write keeps
+        xr = np.round(x).astype(int)
+        mine = xr[typ != gen_type]
+        have = set(mine.tolist()) | set(xr[(typ == gen_type) & ~record.inside(xr, spans)].tolist())
+        missing = [k for k in all_keys if first <= k <= last and k not in have]
+        free = ~np.isin(gen, mine)  # never over one of the animator's keys
+        fr, val = gen[free].astype(np.float64), values[(j, path, i)][free]
         if missing:  # a key frame this channel has no key at: key its current value
             extra = np.array([fc.evaluate(k) for k in missing])
             fr, val = np.concatenate([fr, missing]), np.concatenate([val, extra])
         rig.write_curve(fc, fr, val, spans, prefs.keyframe_new_interpolation_type, prefs.keyframe_new_handle_type)
-    summary = {"gaps": len(gaps), "frames": total_frames, "keys": len(keys), "range": (first, last),
-               "model_seconds": t_model, "windows": model.calls, "feet_locked": filled.locked,
-               "network_share": [w for _, _, w in filled.segments], "humanoid": any_rig}
+    summary.update(frames=total_frames, model_seconds=t_model, windows=model.calls, feet_locked=filled.locked,
+                   network_share=[w for _, _, w in filled.segments], refilled=[list(g) for g in gaps])
+    past.commit(r.fcurves, chans, all_keys, all_gaps, p, reader.digests(seen), settings,
+                loop.gap_info(frames, gaps, filled, info),
+                {k: summary[k] for k in ("gaps", "kept", "edits", "refilled")})
     if any_rig:
         summary.update(bone_map=dict(r.map.slots), how=dict(r.map.how), keyed_bones=[r.names[j] for j in r.rot_bones],
                        movers=[r.names[j] for j in r.movers], rig_root=r.names[0])
@@ -188,6 +209,7 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
     only_selected_range: only_selected_range_property()
     model_path: model_path_property()
     foot_lock: foot_lock_property()
+    discard_edits: loop.discard_edits_property()
 
     @classmethod
     def poll(cls, context):
@@ -198,9 +220,16 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
         t0 = time.perf_counter()
         try:
             model = load_model(self.model_path)
-            info = fill_range(context, obj, model, self.only_selected_range, foot_lock=self.foot_lock)
+            info = fill_range(context, obj, model, self.only_selected_range, foot_lock=self.foot_lock,
+                              discard_edits=self.discard_edits)
         except (rig.RigError, BoneMapError, ModelError, InbetweenError) as e:
             self.report({"ERROR"}, bone_map_message(e) if isinstance(e, BoneMapError) else str(e))
+            return {"CANCELLED"}
+        LAST_FILL.clear()
+        LAST_FILL.update(info, seconds=time.perf_counter() - t0)
+        loop.adopt(obj)
+        if not info["gaps"]:
+            self.report({"INFO"}, f"In-between: nothing changed since the last fill ({info['kept']} gap(s) kept)")
             return {"CANCELLED"}
         context.view_layer.update()
         fps = context.scene.render.fps / context.scene.render.fps_base
@@ -208,10 +237,11 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
         if abs(fps - model_fps) > 0.5:
             self.report({"WARNING"}, f"the scene runs at {fps:.3g} fps, the model was trained at {model_fps:.3g} fps; "
                                      "gaps are counted in frames")
-        LAST_FILL.clear()
-        LAST_FILL.update(info, seconds=time.perf_counter() - t0)
+        LAST_FILL["seconds"] = time.perf_counter() - t0
+        kept = f", {info['kept']} unchanged gap(s) kept" if info["kept"] else ""
+        edits = f", {info['edits']} edited key(s) kept" if info["edits"] else ""
         self.report({"INFO"}, f"In-between: {info['frames']} frames in {info['gaps']} gap(s) between "
-                              f"{info['keys']} keys ({time.perf_counter() - t0:.2f} s)")
+                              f"{info['keys']} keys{kept}{edits} ({time.perf_counter() - t0:.2f} s)")
         return {"FINISHED"}
 
 
@@ -219,6 +249,8 @@ class InbetweenSettings(bpy.types.PropertyGroup):
     only_selected_range: only_selected_range_property()
     model_path: model_path_property()
     foot_lock: foot_lock_property()
+    discard_edits: loop.discard_edits_property()
+    auto_refill: loop.auto_refill_property()
 
 
 class _Panel:
@@ -232,11 +264,14 @@ class _Panel:
         col = layout.column()
         col.prop(settings, "only_selected_range")
         col.prop(settings, "foot_lock")
+        col.prop(settings, "discard_edits")
+        col.prop(settings, "auto_refill")
         col.prop(settings, "model_path", text="Model")
         op = col.operator(INBETWEEN_OT_fill.bl_idname, icon="IPO_BEZIER")
         op.only_selected_range = settings.only_selected_range
         op.model_path = settings.model_path
         op.foot_lock = settings.foot_lock
+        op.discard_edits = settings.discard_edits
         obj = context.active_object
         box = layout.box()
         box.scale_y = 0.7

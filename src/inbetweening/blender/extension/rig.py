@@ -241,28 +241,6 @@ class Rig:
 
 
 # ---------------------------------------------------------------------------------------------- keys
-def key_frames(fcurves, lo: float, hi: float, selected_only: bool = False) -> set[int]:
-    """Frames in ``[lo, hi]`` holding a key (not a generated in-between) on any of ``fcurves``."""
-    gen = _enum_index("type", GENERATED)
-    out: set[int] = set()
-    for fc in fcurves:
-        n = len(fc.keyframe_points)
-        if n == 0:
-            continue
-        co = np.zeros(2 * n, dtype=np.float32)
-        fc.keyframe_points.foreach_get("co", co)
-        typ = np.zeros(n, dtype=np.int32)
-        fc.keyframe_points.foreach_get("type", typ)
-        keep = typ != gen
-        if selected_only:
-            sel = np.zeros(n, dtype=np.int32)
-            fc.keyframe_points.foreach_get("select_control_point", sel)
-            keep &= sel.astype(bool)
-        x = np.round(co[0::2][keep]).astype(int)
-        out.update(int(f) for f in x if lo <= f <= hi)
-    return out
-
-
 def _points(fc) -> dict:
     kp = fc.keyframe_points
     n = len(kp)
@@ -281,7 +259,8 @@ def _points(fc) -> dict:
 def write_curve(fc, frames: np.ndarray, values: np.ndarray, spans, interp: str, handle: str) -> None:
     """Key ``values`` at ``frames`` on ``fc``; generated keys already inside the filled ``spans`` ``[(lo, hi)]`` are
     replaced, every other key is kept with all its properties; the keys at the span ends get frozen (``FREE``)
-    handles so the curve outside the spans keeps its shape."""
+    handles and the keys outside keep theirs (Blender's recalculation is not bit-stable), so the curve outside the
+    spans keeps its shape exactly."""
     old = _points(fc)
     x = old["co"][:, 0]
     gen = _enum_index("type", GENERATED)
@@ -332,3 +311,14 @@ def write_curve(fc, frames: np.ndarray, values: np.ndarray, spans, interp: str, 
     for name, _ in POINT_SCALARS:
         kp.foreach_set(name, np.ascontiguousarray(allp[name]))
     fc.update()
+    x = allp["co"][:, 0]
+    outside = np.ones(total, dtype=bool)
+    for lo, hi in spans:
+        outside &= (x <= lo + 1e-4) | (x >= hi - 1e-4)
+    if len(kp) == total and outside.any():  # the keys outside the spans keep their handles bit for bit
+        for name in ("handle_left", "handle_right"):
+            h = np.zeros(2 * total, dtype=np.float32)
+            kp.foreach_get(name, h)
+            h = h.reshape(total, 2)
+            h[outside] = allp[name][outside]
+            kp.foreach_set(name, h.reshape(-1))
