@@ -76,7 +76,7 @@ def test_torch_and_onnx_fills_agree(backends, keys):
     sk = tb.info.skeleton
     err = np.abs(sk.pose(a.root, a.local_q)[1] - sk.pose(b.root, b.local_q)[1]).max()
     assert err <= 1e-3, err
-    assert a.locked == b.locked == tb.info.has_contacts
+    assert a.locked and b.locked  # every model locks its feet (a model without contact channels: detected on the fill)
     assert np.array_equal(b.root[keys], root[keys]) and np.array_equal(b.local_q[keys], q[keys])
 
 

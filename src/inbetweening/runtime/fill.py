@@ -348,19 +348,23 @@ class FillRuntime:
         root[keys], q[keys] = exact_r, exact_q
         contact, locked = None, False
         rule = contact_rule(info.contact, info.skeleton, root, q, keys)
-        if rule.feet:
-            detected = detected_contacts(info.skeleton, rule, info.fps, root, q, keys)
+        if rule.feet:  # on the filled span alone: frames before the first key are context, never feet to lock
+            s, e = keys[0], keys[-1] + 1
+            span = [k - s for k in keys]
+            detected = detected_contacts(info.skeleton, rule, info.fps, root[s:e], q[s:e], span)
+            contact = np.full(c.contact.shape, np.nan)
             if info.has_contacts and not np.isnan(c.contact).all():
                 labels = key_contacts(info.skeleton, rule, info.fps, root, q, keys)
                 contact = np.where(np.isnan(c.contact), labels, c.contact)
                 for a, b in zip(keys, keys[1:]):  # short gaps: what the keys say
                     if b - a - 1 < SHORT_GAP:
-                        contact[a + 1 : b] = detected[a + 1 : b]
+                        contact[a + 1 : b] = detected[a + 1 - s : b - s]
             else:
-                contact = detected
+                contact[s:e] = detected
             if lock:
                 feet = rule.indices(info.skeleton.names, "the model's feet")
-                root, q = lock_feet(info.skeleton, root, q, keys, contact, feet)
+                root, q = root.copy(), q.copy()
+                root[s:e], q[s:e] = lock_feet(info.skeleton, root[s:e], q[s:e], span, contact[s:e], feet)
                 locked = True
         if file_frame and not info.convention.is_project:
             root, q = info.convention.to_file(root, q)
