@@ -91,7 +91,8 @@ class Backend(Protocol):
     ``info``: the :class:`ModelInfo`.  ``predict(root (B, T, 3), local_q (B, T, J, 4), known (B, T, J) bool,
     weight (B, T, J) float32 | None)``: windows already in their canonical frame -> ``(root, local_q, contact)``, the
     decoded prediction (float64; ``contact (B, T, J)`` in [0, 1], or ``None`` for a network without contact channels),
-    the network's correction to the interpolation scaled by ``weight`` (the do-no-harm blend; ``None``: unscaled)."""
+    the network's correction to the interpolation scaled by ``weight`` (``None``: unscaled; the fill runtime asks for
+    the network unscaled and blends per gap itself, :mod:`.trust`)."""
 
     info: ModelInfo
 
