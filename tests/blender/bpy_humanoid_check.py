@@ -163,7 +163,7 @@ def scenario(sc: dict, out_dir: str) -> dict:
     obj = add_rig(sc["rig"])
     mod = ext_module()
     res = {"name": sc["name"], "bones": len(obj.data.bones)}
-    if sc["rig"] == "human":    elif sc["rig"] == "human":
+    if sc["rig"] == "human":
         if sc.get("rotation_mode"):  # every bone in this rotation mode (Euler orders, axis-angle)
             for pb in obj.pose.bones:
                 pb.rotation_mode = sc["rotation_mode"]

@@ -99,7 +99,7 @@ def scenario(sc: dict, out_dir: str) -> dict:
     result, error, seconds = run_fill()
     res.update({"result": result, "error": error, "seconds": seconds, "frame_after": bpy.context.scene.frame_current})
     info = dict(mod.LAST_FILL)
-    res["fill"] = {k: info.get(k) for k in ("rigify", "keyed_bones", "movers", "bone_map", "frames", "keys",
+    res["fill"] = {k: info.get(k) for k in ("rigify", "keyed_bones", "movers", "bone_map", "how", "frames", "keys",
                                             "solve_residual_deg", "solve_residual_hips", "solve_passes",
                                             "model_seconds", "seconds")}
     after = snapshot(obj)
