@@ -411,8 +411,8 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     in-betweens are keyed on the FK controls' rotations and ``torso``'s rotation and location only, every key is kept,
     nothing outside the keys changes, the scene's frame is restored and undo restores the curves.  The deform bones
     the FK controls turn take the runtime's own ``fill_rig`` of the keys read from Blender (PyTorch here, ONNX there)
-    within 0.01 degrees and the hips' head within 0.01 cm; Rigify's spine bends its own way between the hips and the
-    chest (the chest's head within 1 cm, the head's within 2 cm).  Limbs in IK (left so, or switched to IK inside the
+    within 0.05 degrees, the hips' and the legs' heads within 0.1 cm (the solve's tolerance); Rigify's spine bends its
+    own way between the hips and the chest (the chest's head within 1 cm, the head's within 2 cm).  Limbs in IK (left so, or switched to IK inside the
     range) are refused, nothing changed."""
     zip_path = next(built.glob("*-linux-x64.zip"))
     scenarios = [{"name": "fk", "undo": True, "panel": True},
@@ -437,7 +437,7 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     bad = {k: v for k, v in r["gained"].items() if v != (list(range(1, 62)) if k.startswith(unkeyed) else between)}
     assert not bad, bad
     assert set(r["changed_curves"]) <= written and len(r["changed_curves"]) > 60
-    assert r["fill"]["solve_residual_deg"] < 0.01 and r["fill"]["solve_residual_hips"] < 1e-4
+    assert r["fill"]["solve_residual_deg"] < 0.05 and r["fill"]["solve_residual_hips"] < 1e-3
     # the deform bones as Blender poses them after the fill against the runtime's fill_rig of the keys it read
     from inbetweening.api.inbetweener import Inbetweener
     from inbetweening.geometry.quaternion import qinv, qmul
@@ -459,8 +459,8 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     degrees = np.degrees(2 * np.arcsin(np.clip(np.linalg.norm(dq[..., 1:], axis=-1), 0, 1))).max(0)
     cm = 100 * np.linalg.norm(gp - bp, axis=-1).max(0)
     slot = {s: names.index(b) for s, b in r["fill"]["bone_map"].items()}
-    assert max(degrees[j] for s, j in slot.items() if s != "Spine") < 0.01
-    assert cm[slot["Hips"]] < 0.01 and max(cm[slot[s]] for s in slot if "Leg" in s or "Foot" in s) < 0.01
+    assert max(degrees[j] for s, j in slot.items() if s != "Spine") < 0.05
+    assert cm[slot["Hips"]] < 0.1 and max(cm[slot[s]] for s in slot if "Leg" in s or "Foot" in s) < 0.1
     assert cm[slot["Chest"]] < 1.0 and max(cm[slot[s]] for s in slot if "Arm" in s or "Hand" in s) < 1.0
     assert cm[slot["Head"]] < 2.0
     assert np.abs(d["lq_after"][keys] - d["lq"][keys]).max() < 1e-5  # the keys' poses as they were

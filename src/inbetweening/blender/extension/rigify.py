@@ -232,10 +232,12 @@ class RigifyRig:
             for fc, _ in muted:  # the scene's frame then sets every other channel, the solve these
                 fc.mute = True
             for t, fr in enumerate(frames):
-                if t and frames[t - 1] == fr - 1:  # start from the frame before's solution
+                if t and frames[t - 1] == fr - 1:  # start from the frames before's solutions, carried on
+                    go = t > 1 and frames[t - 2] == fr - 2
                     for k, pb in enumerate(self.pbones):
-                        set_rotation(pb, Quaternion(qb[t - 1, k]))
-                    self.pbones[-1].location = loc[t - 1]
+                        q = Quaternion(qb[t - 1, k])
+                        set_rotation(pb, q @ Quaternion(qb[t - 2, k]).rotation_difference(q) if go else q)
+                    self.pbones[-1].location = 2 * loc[t - 1] - loc[t - 2] if go else loc[t - 1]
                 else:  # from the curves
                     for (path, i), fc in curves.items():
                         if fc is not None:
