@@ -412,8 +412,8 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     nothing outside the keys changes, the scene's frame is restored and undo restores the curves.  The deform bones
     the FK controls turn take the runtime's own ``fill_rig`` of the keys read from Blender (PyTorch here, ONNX there)
     within 0.05 degrees, the hips' and the legs' heads within 0.1 cm (the solve's tolerance); Rigify's spine bends its
-    own way between the hips and the chest (the chest's head within 1 cm, the head's within 2 cm).  Limbs in IK (left so, or switched to IK inside the
-    range) are refused, nothing changed."""
+    own way between the hips and the chest (the chest's head within 1 cm, the head's within 2 cm).  Limbs in IK (left
+    so, or switched to IK inside the range) are refused, nothing changed."""
     zip_path = next(built.glob("*-linux-x64.zip"))
     scenarios = [{"name": "fk", "undo": True, "panel": True},
                  {"name": "legs_ik", "ik": ["thigh_parent.L", "thigh_parent.R"]},
