@@ -1,11 +1,14 @@
-"""Runs inside real Blender (``bpy``): the extension's fill of a Rigify Human meta-rig against Blender's own default
-interpolation for new keys (Bezier, auto-clamped) on real clips carried onto the meta-rig with the fill runtime's
-retargeting, and the fill time.  Driven by benchmarks/blender_rigify.py.
+"""Runs inside real Blender (``bpy``): the extension's fill of a Rigify Human meta-rig, or of the rig Rigify generates
+from it, against Blender's own default interpolation for new keys (Bezier, auto-clamped) on real clips carried onto
+the rig with the fill runtime's retargeting, and the fill time.  Driven by benchmarks/blender_rigify.py.
 
 Ground truth per clip: the clip imported with Blender's BVH importer, read in the model's representation
-(``rig.Rig.read``), carried onto the meta-rig with ``Retarget(meta-rig, model skeleton, detected bone map)
-.to_rig`` (the meta-rig's rest pose as the reference; bones without a slot at rest) and keyed on every frame with
-``HumanoidRig.basis_values`` (the rotation channels of the bones with a slot or between slots, the hips' location).
+(``rig.Rig.read``), carried onto the rig with ``Retarget(rig, model skeleton, detected bone map).to_rig`` (the rig's
+rest pose as the reference; bones without a slot at rest) and keyed on every frame: on the meta-rig with
+``HumanoidRig.basis_values`` (the rotation channels of the bones with a slot or between slots, the hips' location);
+on the generated rig (limbs in FK) with ``RigifyRig.basis_values`` (its FK controls and ``torso``, solved against
+Blender's evaluated pose: what the rig can play of the clip).  The errors are measured on the deform bones of the
+slots (the meta-rig's bones; the generated rig's ``DEF-`` bones, as Blender evaluates them).
 """
 from __future__ import annotations
 
@@ -48,12 +51,29 @@ def metarig():
     return obj
 
 
-def key_motion(root, lq_model, frame0: int = 1):
-    """A fresh meta-rig keyed on every frame with the clip carried onto it; ``(obj, mapped bone names, frames)``."""
+def generated():
+    """Rigify's rig generated from a fresh Human meta-rig, its limbs switched to FK."""
+    metarig()
+    bpy.ops.pose.rigify_generate()
+    obj = bpy.context.view_layer.objects.active
+    assert obj is not None and obj.data.get("rig_id"), obj
+    for pb in obj.pose.bones:
+        if "IK_FK" in pb.keys():
+            pb["IK_FK"] = 1.0
+    return obj
+
+
+def key_motion(root, lq_model, frame0: int = 1, rig_kind: str = "metarig"):
+    """A fresh meta-rig (or generated rig) keyed on every frame with the clip carried onto it; ``(obj, mapped bone
+    names, frames)``."""
     rig = ext("rig")
     info = ext("operators").load_model("").info
-    obj = metarig()
-    hr = ext("humanoid").HumanoidRig(obj, info, None)
+    if rig_kind == "generated":
+        obj = generated()
+        hr = ext("rigify").RigifyRig(obj, info, None)
+    else:
+        obj = metarig()
+        hr = ext("humanoid").HumanoidRig(obj, info, None)
     n = len(root)
     ident = np.tile([1.0, 0.0, 0.0, 0.0], (len(hr.names), 1))
     ret = hr.plan(ident)
@@ -104,9 +124,9 @@ def thin(obj, keep: set[int]) -> None:
         fc.update()
 
 
-def clip_errors(motion, name: str, every: int) -> dict:
+def clip_errors(motion, name: str, every: int, rig_kind: str = "metarig") -> dict:
     root, lq = motion
-    obj, names, frames = key_motion(root, lq)
+    obj, names, frames = key_motion(root, lq, rig_kind=rig_kind)
     keys = list(range(frames[0], frames[-1] + 1, every))
     frames = list(range(keys[0], keys[-1] + 1))
     gen = [f - keys[0] for f in frames if f not in keys]
@@ -119,21 +139,24 @@ def clip_errors(motion, name: str, every: int) -> dict:
     res = bpy.ops.anim.inbetween_fill()
     seconds = time.perf_counter() - t0
     assert res == {"FINISHED"}, res
+    info = dict(ext("operators").LAST_FILL)
     ours = heads(obj, names, frames)
 
     def err(x):
         return np.linalg.norm(x[gen] - truth[gen], axis=-1)
 
     return {"clip": name, "keys": len(keys), "generated": len(gen), "seconds": seconds, "bones": len(names),
-            "bezier_sum": float(err(bez).sum()), "fill_sum": float(err(ours).sum()), "n": int(err(bez).size)}
+            "bezier_sum": float(err(bez).sum()), "fill_sum": float(err(ours).sum()), "n": int(err(bez).size),
+            "model_seconds": info["model_seconds"], "solve_passes": info.get("solve_passes"),
+            "solve_residual_deg": info.get("solve_residual_deg")}
 
 
-def timing(motion, frames: int, n_keys: int, repeats: int) -> list[dict]:
+def timing(motion, frames: int, n_keys: int, repeats: int, rig_kind: str = "metarig") -> list[dict]:
     root, lq = motion
     out = []
     mod = ext("operators")
     for _ in range(repeats):
-        obj, _, _ = key_motion(root[:frames], lq[:frames])
+        obj, _, _ = key_motion(root[:frames], lq[:frames], rig_kind=rig_kind)
         keys = {1 + round(i * (frames - 1) / (n_keys - 1)) for i in range(n_keys)}
         thin(obj, keys)
         bezier_keys(obj)
@@ -144,26 +167,31 @@ def timing(motion, frames: int, n_keys: int, repeats: int) -> list[dict]:
         assert res == {"FINISHED"}, res
         out.append({"seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0,
                     "windows": mod.load_model("").calls - calls, "channels": len(ext("rig").channelbag(obj).fcurves),
-                    "model_seconds": mod.LAST_FILL["model_seconds"], "load": os.getloadavg()[0]})
+                    "model_seconds": mod.LAST_FILL["model_seconds"], "load": os.getloadavg()[0],
+                    "solve_passes": mod.LAST_FILL.get("solve_passes")})
     return out
 
 
 def main() -> None:
     cfg = json.load(open(sys.argv[1]))
     chk.install(cfg["zip"])
-    res = {"blender": bpy.app.version_string, "errors": {str(e): [] for e in cfg["every"]}, "timing": None}
+    kind = cfg.get("rig", "metarig")
+    res = {"blender": bpy.app.version_string, "rig": kind, "errors": {str(e): [] for e in cfg["every"]},
+           "timing": None}
     if cfg.get("timing_clip"):
         res["timing"] = timing(model_motion(cfg["timing_clip"]), cfg["timing_frames"], cfg["timing_keys"],
-                               cfg["repeats"])
+                               cfg["repeats"], kind)
         print("timing", res["timing"], flush=True)
     for i, path in enumerate(cfg["clips"]):
         motion = model_motion(path)
         for every in cfg["every"]:
-            row = clip_errors(motion, os.path.basename(path), every)
+            row = clip_errors(motion, os.path.basename(path), every, kind)
             res["errors"][str(every)].append(row)
             print(every, i, row, flush=True)
         json.dump(res, open(cfg["out"], "w"), indent=1)
     json.dump(res, open(cfg["out"], "w"), indent=1)
+    sys.stdout.flush()
+    os._exit(0)  # Blender 4.2's module teardown can crash after Rigify has generated a rig: nothing is left to do
 
 
 if __name__ == "__main__":

@@ -17,8 +17,8 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
-EXTENSION_FILES = ("__init__.py", "operators.py", "model.py", "rig.py", "humanoid.py", "bone_map_panel.py",
-                   "record.py", "loop.py")
+EXTENSION_FILES = ("__init__.py", "operators.py", "model.py", "rig.py", "humanoid.py", "rigify.py",
+                   "rigify_solve.py", "bone_map_panel.py", "record.py", "loop.py")
 RUNTIME = "inbetweening.runtime"  # bundled with every module of the package it imports
 RUNTIME_LEFT_OUT = ("inbetweening.runtime.torch_backend",)  # the torch backend stays behind
 RUNTIME_THIRD_PARTY = ("numpy", "onnxruntime")  # what the bundled modules may import besides the standard library
