@@ -66,8 +66,10 @@ class FillResult:
 
     ``root``/``local_q`` are in the model's skeleton (a folded ``joint_Root`` is not part of it);
     ``known_frames`` are the output frames that are keyframes; ``pseudo_keyframes`` the split points of
-    gaps longer than ``max_gap`` (interpolated, see the module docstring); ``contact`` the foot contact the model
-    predicted (:meth:`Inbetweener.fill_arrays` ``with_contacts``; ``None`` for a model without contact channels).
+    gaps longer than ``max_gap`` (interpolated, see the module docstring); ``contact`` the foot contact the lock used
+    (the model's prediction, or the contact rule on the fill; keys: their own); ``segments`` ``(a, b, weight)`` per
+    generated window of the model's frames (``weight``: the network's share) and ``checks`` the self-checks on the
+    keys (:mod:`inbetweening.runtime.trust`).
     """
 
     bvh: BVH
@@ -76,8 +78,10 @@ class FillResult:
     known_frames: list[int]
     skeleton: Skeleton
     pseudo_keyframes: list[int] = field(default_factory=list)
-    contact: np.ndarray | None = None  # (F, J) foot contact in [0, 1]: predicted; keys: their own; None: not predicted
+    contact: np.ndarray | None = None  # (F, J) foot contact in [0, 1]; keys: their own; None: no feet
     bone_map: object | None = None  # the character's BoneMap when the clip was retargeted (another skeleton)
+    segments: list = field(default_factory=list)
+    checks: list = field(default_factory=list)
 
     @property
     def num_frames(self) -> int:
@@ -262,7 +266,8 @@ class Inbetweener:
         convention = self.runtime.info.convention
         root, q = (filled.root, filled.local_q) if convention.is_project else convention.to_project(filled.root,
                                                                                                    filled.local_q)
-        return FillResult(out, root, q, out_pos, self.skeleton, filled.pseudo_keyframes, filled.contact)
+        return FillResult(out, root, q, out_pos, self.skeleton, filled.pseudo_keyframes, filled.contact,
+                          segments=filled.segments, checks=filled.checks)
 
     def _fill_character(self, bvh: BVH, src: list[int], out_pos: list[int], bone_map, kw) -> FillResult:
         """Another humanoid's clip: retargeted onto the model's skeleton, filled, retargeted back (module docstring)."""
@@ -284,7 +289,7 @@ class Inbetweener:
         span = np.arange(out_pos[-1] + 1)
         root, q = retarget.to_model(out.local_q[span], out.local_p[span])  # the character's fill, on the model's
         contact = m.contact if m.contact is not None and len(m.contact) == len(span) else None  # (not resampled)
-        return FillResult(clip, root, q, out_pos, self.skeleton, m.pseudo_keyframes, contact, bm)
+        return FillResult(clip, root, q, out_pos, self.skeleton, m.pseudo_keyframes, contact, bm, m.segments, m.checks)
 
     @staticmethod
     def _to_bvh(bvh: BVH, fold: bool, root: np.ndarray, q: np.ndarray, src: list[int], out_pos: list[int]) -> BVH:
