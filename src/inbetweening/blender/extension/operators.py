@@ -192,7 +192,8 @@ def foot_lock_property():
     """The ``foot_lock`` option (the operator's and the panel's settings share it)."""
     return BoolProperty(
         name="Lock Feet",
-        description="Hold the feet still where the model predicts them planted (models that predict foot contact)",
+        description="Hold the feet still where they are planted (the model's predicted contact, or the keys and the "
+                    "fill's own foot speed for a model without contact channels)",
         default=True)
 
 
