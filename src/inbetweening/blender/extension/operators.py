@@ -106,17 +106,16 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
                                                    if a in pos and b in pos}
     wm = context.window_manager
     progress = None
+    rows = [pos[f] for f in read_frames]
     if any_rig:
         lq_k, lp_k, raw = reader.read(read_frames)
         lq = np.full((len(frames),) + lq_k.shape[1:], np.nan)
         lp = np.full((len(frames),) + lp_k.shape[1:], np.nan)
-        rows = [pos[f] for f in read_frames]
         lq[rows], lp[rows] = lq_k, lp_k
     else:
         root_k, q_k, raw = reader.read(read_frames)
         root = np.full((len(frames), 3), np.nan)
         q = np.full((len(frames), info.skeleton.num_joints, 4), np.nan)
-        rows = [pos[f] for f in read_frames]
         root[rows], q[rows] = root_k, q_k
     if report_progress:
         wm.progress_begin(0, 100)
