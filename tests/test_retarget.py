@@ -122,6 +122,24 @@ def test_the_fill_on_a_character_is_the_fill_on_the_models_skeleton(backend, mot
     assert np.allclose(np.abs((out.local_q[:, finger] * iq[:, finger]).sum(-1)), 1.0)
 
 
+def test_a_refill_of_a_character_keeps_its_other_gaps_exactly(backend, motion):
+    """A re-fill in the rig's frames (``only``/``previous`` of :meth:`FillRuntime.fill`): the gaps before the named
+    ones are the input bit for bit, the named ones and those after them (their context) are the fill of every gap."""
+    sk = backend.info.skeleton
+    root, q = motion
+    keys = list(range(0, 121, 15))
+    rig, slots = character(sk, root, q, **VARIANTS["renamed"])
+    lq, lp = rig.local_rotations(), rig.channel_positions()
+    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0])
+    runtime = FillRuntime(backend, foot_lock=False)
+    full = runtime.fill_rig(rt, lq, lp, keys, movers=[0])
+    assert full.generated == list(zip(keys, keys[1:])) and set(full.shares) == set(full.generated)
+    out = runtime.fill_rig(rt, full.local_q, full.local_p, keys, movers=[0], only={(75, 90)}, previous=full.shares)
+    assert out.generated == [(75, 90), (90, 105), (105, 120)] and out.shares == full.shares
+    assert np.array_equal(out.local_q[:76], full.local_q[:76]) and np.array_equal(out.local_p[:76], full.local_p[:76])
+    assert np.abs(out.local_q - full.local_q).max() < 1e-5 and np.abs(out.local_p - full.local_p).max() < 1e-5
+
+
 def test_a_faster_rig_is_filled_at_the_models_rate(backend, motion):
     """A 120 fps rig (every frame of the motion 4 times, interpolated): keys 60 frames apart are 15 of the model's;
     the fill is the native fill of those keys, taken at the rig's frames."""

@@ -13,7 +13,7 @@ from inbetweening.data.contacts import FootContact
 from inbetweening.data.convention import FileConvention
 from inbetweening.geometry import canonical
 from inbetweening.geometry.interp import interpolate_keyframes
-from inbetweening.geometry.quaternion import qmul, qrot
+from inbetweening.geometry.quaternion import qmul, qrot, slerp_np
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor.predictor import Predictor
 from inbetweening.runtime import FillRuntime, InbetweenError, ModelError, ModelInfo
@@ -195,6 +195,85 @@ def test_trust_of_the_self_checks():
     assert w[(0, 5)] == w[(5, 10)] == (0.8, 0.5)  # the network beat interpolation well at key 5: the prior kept
     assert w[(40, 45)] == w[(45, 50)] == (0.0, 1.5)  # worse at key 45: interpolation
     assert w[(10, 40)] == (trust_of(4.0 / 4.0), 1.0)  # a long gap pools every check within reach of it
+
+
+class Lift:
+    """A backend that predicts the interpolation with the root lifted by up to ``lift`` cm mid-gap: better than the
+    interpolation at keys above it, worse below (the self-check's trust between none and full)."""
+
+    def __init__(self, model_info: ModelInfo, lift: float = 1.0):
+        self.info, self.lift = model_info, lift
+
+    def predict(self, root, local_q, known, weight):
+        p, t = self.info.n_past, root.shape[1]
+        s = np.clip((np.arange(t) - (p - 1)) / (t - p), 0, 1)
+        r = root[:, p - 1 : p] + s[None, :, None] * (root[:, -1:] - root[:, p - 1 : p])
+        r[..., 1] += self.lift * 4 * s * (1 - s)
+        w = np.broadcast_to(s[None, :, None], local_q.shape[:3])
+        return r, slerp_np(np.broadcast_to(local_q[:, p - 1 : p], local_q.shape),
+                           np.broadcast_to(local_q[:, -1:], local_q.shape), w), \
+            np.ones(known.shape) if self.info.has_contacts else None
+
+
+def lifted(frames=91):
+    root, q = motion(frames, seed=11)
+    root[:, 1] = 90 + 12 * np.sin(np.arange(frames) / 9)
+    q[:, 1:] = q[0, 1:]
+    return root, q
+
+
+def test_a_refill_generates_the_changed_gaps_and_those_whose_weight_changed():
+    """Keys every 6 frames filled; key 54 changed and its two gaps re-filled from the earlier output: the self-check
+    at 48, 54 and 60 changed, so the weights of the gaps within reach of them did, left of the key too; those are
+    generated, and every gap whose context was generated now.  The result is a fresh fill of the changed keys; the
+    gaps before are the input bit for bit."""
+    root, q = lifted()
+    keys = list(range(0, 91, 6))
+    rt = FillRuntime(Lift(info(trained_gap=12)), foot_lock=False)
+    before = rt.fill(root, q, keys)
+    assert before.generated == list(zip(keys, keys[1:]))
+    assert sorted({round(w[0], 2) for w in before.shares.values()})[1:3] == [0.14, 0.16]  # trusted in part
+    changed = root.copy()
+    changed[54, 1] -= 6.0
+    fresh = rt.fill(changed, q, keys)
+    given_r, given_q = before.root.copy(), before.local_q.copy()
+    given_r[54] = changed[54]
+    out = rt.fill(given_r, given_q, keys, only={(48, 54), (54, 60)}, previous=before.shares)
+    moved = [g for g in before.shares if abs(before.shares[g][0] - fresh.shares[g][0]) > 1e-6]
+    assert moved[:4] == [(24, 30), (30, 36), (36, 42), (42, 48)]  # left of the changed key: their weight changed
+    assert out.generated == [(a, a + 6) for a in range(24, 90, 6)] and out.shares == fresh.shares
+    np.testing.assert_allclose(out.root, fresh.root, atol=1e-6)
+    np.testing.assert_allclose(out.local_q, fresh.local_q, atol=1e-6)
+    assert np.array_equal(out.root[:24], given_r[:24]) and np.array_equal(out.local_q[:24], given_q[:24])
+    again = rt.fill(out.root, out.local_q, keys, only=set(), previous=out.shares)  # nothing changed: nothing generated
+    assert again.generated == [] and np.array_equal(again.root, out.root)
+    partial = rt.fill(out.root, out.local_q, keys, only=set(), previous={g: w for g, w in out.shares.items()
+                                                                        if g != (6, 12)})
+    assert partial.generated[0] == (6, 12)  # no earlier weight: generated (and the gaps it is context for)
+    hole = out.root.copy()
+    hole[3] = np.nan
+    assert rt.fill(hole, out.local_q, keys, only=set(), previous=out.shares).generated[0] == (0, 6)
+    with pytest.raises(InbetweenError, match=r"\(6, 18\) is not a gap between two consecutive keys"):
+        rt.fill(out.root, out.local_q, keys, only={(6, 18)}, previous=out.shares)
+
+
+def test_a_refill_locks_the_feet_over_the_span_into_the_generated_gaps_only():
+    """Standing on bent legs, the fill lifting the body mid-gap: a re-fill of the last gaps locks the foot at the
+    keys' place there (the contact found on the span as given), the kept frames untouched."""
+    root, q = motion(49, seed=11)
+    q[:] = q[10]
+    foot = SK.names.index("foot")
+    root[:] = (90.0, 3.0 - SK.pose(np.zeros((1, 3)), q[:1])[1][0, foot, 1], 5.0)  # the foot 3 cm above the floor
+    keys = list(range(0, 49, 6))
+    model = info(trained_gap=12, contact=FootContact(("foot",), 10.0, 30.0), has_contacts=True)
+    rt = FillRuntime(Lift(model), self_check=False)
+    before = rt.fill(root, q, keys, foot_lock=False)
+    out = rt.fill(before.root, before.local_q, keys, only={(36, 42), (42, 48)}, previous=before.shares)
+    assert out.locked and out.generated == [(36, 42), (42, 48)] and not np.isnan(out.contact[1:48]).any()
+    assert np.array_equal(out.root[:37], before.root[:37]) and np.array_equal(out.local_q[:37], before.local_q[:37])
+    assert np.abs(SK.pose(before.root, before.local_q)[1][37:48, foot, 1] - 3.0).max() > 0.5  # lifted ...
+    feet = SK.pose(out.root, out.local_q)[1][:, foot]
+    assert (out.contact[37:48, foot] > 0.5).all() and np.abs(feet[37:48] - feet[36]).max() < 1e-6  # ... and held
 
 
 def hparams(**kw) -> dict:

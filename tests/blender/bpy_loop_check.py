@@ -3,7 +3,8 @@ re-filled, undo, Discard Edits, Auto Re-fill, the Last Fill panel).  Driven by t
 
     python bpy_loop_check.py CONFIG.json   (the bpy venv's python; BLENDER_USER_RESOURCES set to a temp dir)
 
-CONFIG: {"zip", "bvh", "out", "model_path" (optional), "every"}.  Writes ``out/loop.json``.
+CONFIG: {"zip", "bvh", "out", "model_path" (optional), "every", "only_panel", "human", "weights" (a real clip)}.
+Writes ``out/loop.json``.
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ import bpy_fill_check as chk  # noqa: E402
 from bpy_humanoid_check import POSES, MockLayout, add_rig, key_poses  # noqa: E402
 
 EDIT = ('pose.bones["Neck"].rotation_euler', 0)
+HIPS = ('pose.bones["Hips"].rotation_euler', 0)
 
 
 def ext(name):
@@ -148,13 +150,14 @@ def scenario(cfg: dict) -> dict:
     obj = bpy.data.objects[name]
     res["redo_curves"] = equal(curves(obj), after)
 
-    # the re-fill against a fill of every gap with the same keys (another setting re-fills every gap, edits kept)
+    # the re-fill against a fill of every gap with the same keys (another setting re-fills every gap, edits kept; and
+    # back: every gap again)
     res["full"] = fill(mod, foot_lock=False, **kw)
+    res["full_edit_kept"] = float(key_at(obj, EDIT, 100).co[1]) == edited
+    res["full_again"] = fill(mod, **kw)
     full = curves(obj)
     res["partial_vs_full"] = max(float(np.abs(after[k][0] - full[k][0]).max()) for k in after)
-    res["full_edit_kept"] = float(key_at(obj, EDIT, 100).co[1]) == edited
-    fill(mod, **kw)
-    after = curves(obj)
+    after = full
 
     # save and reload: the record comes back with the file (nothing to re-fill)
     path = os.path.join(cfg["out"], "loop.blend")
@@ -192,25 +195,53 @@ def scenario(cfg: dict) -> dict:
     return res
 
 
+def weights(cfg: dict) -> dict:
+    """A real clip keyed every 10 frames, filled; the hips of key 71 turned by 1 rad and filled again: the self-check
+    at 61, 71 and 81 changes, and with it the network share of gaps up to three gaps away on either side, so gaps left
+    of the key's own are re-filled too; the re-fill against a fill of every gap (the record dropped)."""
+    mod, _ = chk.model_names()
+    chk.fresh()
+    obj = chk.import_bvh(cfg["weights"], "NATIVE")
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 121
+    chk.thin(obj, set(range(1, 122, 10)))
+    res = {"first": fill(mod), "panel_first": panel()}
+    fc = chk.channelbag(obj).fcurves.find(HIPS[0], index=HIPS[1])
+    next(k for k in fc.keyframe_points if abs(k.co[0] - 71) < 1e-4).co[1] += 1.0
+    fc.update()
+    changed = curves(obj)
+    res["refill"] = fill(mod)
+    res["panel"] = panel()
+    after = curves(obj)
+    lo = res["refill"]["refilled"][0][0]
+    res["kept_same"] = same_up_to(changed, after, lo - 1)  # (key lo starts the re-fill: its handle into it is frozen)
+    action, _ = ext("record").holder(obj)
+    del action[ext("record").RECORD]
+    res["full"] = fill(mod)
+    full = curves(obj)
+    res["partial_vs_full"] = max(float(np.abs(after[k][0] - full[k][0]).max()) for k in after)
+    return res
+
+
 def humanoid() -> dict:
     """Rigify's Human meta-rig keyed at 1, 31, 61 (the bone map and ``fill_rig``): filled, filled again (nothing
-    changed), a generated key of a mapped bone edited at frame 45 and filled again."""
+    changed), a generated key of a mapped bone edited at frame 45 and filled again (the new key is self-checked: the
+    share of the gap before changes)."""
     mod, _ = chk.model_names()
     chk.fresh()
     obj = add_rig("human")
     key_poses(obj, POSES, loc_bone="spine")
-    res = {"first": fill(mod)}
+    res = {"first": fill(mod), "panel_first": panel()}
     res["noop"] = fill(mod)
     chan = ('pose.bones["forearm.L"].rotation_quaternion', 1)
     k = key_at(obj, chan, 45)
     res["edit_type_before"] = k.type
     k.co[1] += 0.2
     edited = float(k.co[1])
-    first = curves(obj)
     res["refill"] = fill(mod)
+    res["panel"] = panel()
     k = key_at(obj, chan, 45)
     res["edit_kept"], res["edit_type_after"] = float(k.co[1]) == edited, k.type
-    res["first_gap_same"] = same_up_to(first, curves(obj), 30)
     return res
 
 
@@ -221,6 +252,8 @@ def main() -> None:
         res = scenario(cfg)
         if cfg.get("human"):
             res["human"] = humanoid()
+        if cfg.get("weights"):
+            res["weights"] = weights(cfg)
     except Exception:
         res = {"crash": traceback.format_exc()}
     json.dump(res, open(os.path.join(cfg["out"], "loop.json"), "w"), indent=1)

@@ -19,6 +19,13 @@ How a gap is generated (the conditions the model was trained under):
   where the foot is out of the leg's reach (:mod:`.foot_lock`); keys are never changed.
 * Keys, and every frame outside ``[first key, last key]``, come back exactly as given (bit for bit).
 
+**Re-fills** (``only``/``previous``): a caller that filled before hands over every key and, in the other gaps, the
+earlier fill's output; the runtime computes the self-check and the weights as for a fill of every gap and generates the
+gaps :func:`.plan.chosen_gaps` names (the changed ones, those whose weight changed, those whose context was generated
+now), in the same order and with the same context as a fill of every gap; the other gaps' frames come back exactly as
+given (:attr:`Filled.generated`).  The feet are locked over the whole span, into the generated gaps only: contact is
+found on the span as it is (the kept gaps hold the earlier, locked output), and the kept frames are never moved.
+
 Arrays are ``root (F, 3)``, ``local_q (F, J, 4)`` (wxyz) in the model's skeleton: in the project's frame (Y up, cm),
 or with ``file_frame=True`` in the training files' frame (:class:`~inbetweening.data.convention.FileConvention`,
 recorded with the model), which is then converted on the way in and back.
@@ -36,7 +43,8 @@ from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities,
 
 from .foot_lock import SHORT_GAP, contact_rule, detected_contacts, key_contacts, lock_feet
 from .model import Backend, InbetweenError, ModelInfo
-from .plan import GapPlan, check_keys, plan_gaps
+from .plan import GapPlan, check_keys, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
+from .rig_fill import RigFilled, fill_rig
 from .trust import Check, checks_of, gap_weights, scored
 
 __all__ = ["Filled", "FillRuntime", "RigFilled"]
@@ -44,13 +52,15 @@ __all__ = ["Filled", "FillRuntime", "RigFilled"]
 
 @dataclass
 class Filled:
-    """One filled clip.  ``root``/``local_q``: float64, keys and frames outside the filled span exactly the input;
-    ``contact (F, J)``: foot contact in [0, 1] on generated frames (the model's prediction; for a model without
-    contact channels, the contact rule on the fill), the keys' own on keys, ``None`` for a model whose data names no
-    feet; ``pseudo_keyframes``: split points of long gaps;
-    ``segments``: ``(a, b, weight)`` per generated window (``weight``: the network's share, the do-no-harm blend,
-    :mod:`.trust`); ``checks``: the self-checks on the keys (:class:`~inbetweening.runtime.trust.Check`);
-    ``locked``: whether the feet were locked."""
+    """One filled clip.  ``root``/``local_q``: float64, keys, frames outside the filled span and the frames of gaps
+    not generated exactly the input; ``contact (F, J)``: foot contact in [0, 1] on generated frames (the model's
+    prediction; for a model without contact channels, the contact rule on the fill), the keys' own on keys, the rule on
+    the frames of gaps not generated, ``None`` for a model whose data names no feet; ``pseudo_keyframes``: split
+    points of long gaps; ``segments``: ``(a, b, weight)`` per window of every gap (``weight``: the network's share,
+    the do-no-harm blend, :mod:`.trust`); ``shares``: the same per key gap, ``{(key, next key): (weight, ...)}`` (a
+    re-fill's ``previous``); ``generated``: the key gaps generated, in order (every gap but in a re-fill);
+    ``checks``: the self-checks on the keys (:class:`~inbetweening.runtime.trust.Check`); ``locked``: whether the feet
+    were locked."""
 
     root: np.ndarray
     local_q: np.ndarray
@@ -59,27 +69,8 @@ class Filled:
     segments: list[tuple[int, int, float]] = field(default_factory=list)
     locked: bool = False
     checks: list[Check] = field(default_factory=list)
-
-
-def _model_frames(times: np.ndarray, ratio: float) -> np.ndarray:
-    """Frames of the model's rate for rig frames ``times`` (relative to the first key, in order): rounded, and pushed
-    on so that no two fall on one frame."""
-    at = np.round(times * ratio).astype(int)
-    for i in range(1, len(at)):
-        at[i] = max(at[i], at[i - 1] + 1)
-    return at
-
-
-def _resample(root: np.ndarray, q: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A motion at fractional frames ``times``: the root linearly, rotations by slerp between the frames around."""
-    lo = np.clip(np.floor(times).astype(int), 0, len(root) - 1)
-    hi = np.clip(lo + 1, 0, len(root) - 1)
-    w = times - lo
-    exact = w < 1e-9
-    r = root[lo] + w[:, None] * (root[hi] - root[lo])
-    out = slerp_np(q[lo], q[hi], np.repeat(w[:, None], q.shape[1], axis=1))
-    out = np.where(exact[:, None, None], q[lo], out)
-    return np.where(exact[:, None], root[lo], r), out
+    shares: dict[tuple[int, int], tuple[float, ...]] = field(default_factory=dict)
+    generated: list[tuple[int, int]] = field(default_factory=list)
 
 
 def _check_batch_size(batch_size) -> int:
@@ -88,26 +79,20 @@ def _check_batch_size(batch_size) -> int:
     return int(batch_size)
 
 
-@dataclass
-class RigFilled:
-    """One filled clip of a rig (:meth:`FillRuntime.fill_rig`): the rig's ``local_q (F, J, 4)`` and ``local_p (F, J, 3)``
-    (keys and frames outside the filled span exactly the input), and ``model``: the fill in the model's skeleton
-    (:class:`Filled`; its root and rotations, the contacts and the blend weights)."""
-
-    local_q: np.ndarray
-    local_p: np.ndarray
-    model: Filled
-
-
 class _Clip:
-    """A clip being filled: working arrays in the project's frame, its plan, the predicted contact."""
+    """A clip being filled: working arrays in the project's frame, its plan and what a re-fill keeps, the windows to
+    generate, the predicted contact."""
 
-    def __init__(self, root, q, keys, plan: GapPlan, exact_root, exact_q):
+    def __init__(self, root, q, keys, plan: GapPlan, exact_root, exact_q, only, previous):
         self.root, self.q, self.keys, self.plan = root, q, keys, plan
         self.exact_root, self.exact_q = exact_root, exact_q
+        self.only, self.previous = only, previous
         self.contact = np.full(q.shape[:2], np.nan)
         self.weights: dict[tuple[int, int], float] = {}
         self.checks: list[Check] = []
+        self.generated: list[tuple[int, int]] = []
+        self.todo: list[tuple[int, int]] = []
+        self.shares: dict[tuple[int, int], tuple[float, ...]] = {}
 
 
 class FillRuntime:
@@ -150,29 +135,39 @@ class FillRuntime:
     # ------------------------------------------------------------------ entry points
     def fill(self, root, local_q, keys: Sequence[int], *, file_frame: bool = False, max_gap: int | None = None,
              segment: bool | None = None, foot_lock: bool | None = None,
-             progress: Callable[[int, int], None] | None = None) -> Filled:
+             progress: Callable[[int, int], None] | None = None, only=None, previous=None) -> Filled:
         """Generate every frame strictly between consecutive ``keys`` (sorted indices into the arrays); values of
-        those frames are never read (NaN is fine).  ``progress(done, total)`` is called after each window."""
-        return self.fill_many([(root, local_q, keys)], file_frame=file_frame, max_gap=max_gap, segment=segment,
-                              foot_lock=foot_lock, progress=progress)[0]
+        those frames are never read (NaN is fine).  ``progress(done, total)`` is called after each window.
+
+        A re-fill (module docstring): ``only``, the key gaps ``(key, next key)`` whose own inputs changed since an
+        earlier fill (a key of theirs, or a context frame before the first key); ``previous``, the earlier fill's
+        :attr:`Filled.shares` (a number per gap of one window will do); the frames of the other gaps hold the earlier
+        fill's output, and come back exactly unless the gap is generated (:attr:`Filled.generated`)."""
+        return self.fill_many([(root, local_q, keys, only, previous)], file_frame=file_frame, max_gap=max_gap,
+                              segment=segment, foot_lock=foot_lock, progress=progress)[0]
+
+    fill_rig = fill_rig
 
     def fill_many(self, clips, *, file_frame: bool = False, max_gap: int | None = None, segment: bool | None = None,
                   foot_lock: bool | None = None, batch_size: int | None = None,
                   progress: Callable[[int, int], None] | None = None) -> list[Filled]:
-        """:meth:`fill` of many ``(root, local_q, keys)`` at once: the k-th gap of every clip is generated together,
-        ``batch_size`` gaps of one length per backend call (gaps within a clip still left to right).  The same
-        numbers as clip by clip, up to float rounding of the batched network.  Every clip is checked first."""
+        """:meth:`fill` of many ``(root, local_q, keys)`` (or ``(root, local_q, keys, only, previous)``, a re-fill)
+        at once: the k-th window of every clip is generated together, ``batch_size`` windows of one length per backend
+        call (windows within a clip still left to right).  The same numbers as clip by clip, up to float rounding of
+        the batched network.  Every clip is checked first."""
         limit = self.max_gap if max_gap is None else self.check_max_gap(max_gap)
         size = self.batch_size if batch_size is None else _check_batch_size(batch_size)
         seg = self.segment if segment is None else bool(segment)
-        work = [self._prepare(r, q, k, limit, seg, file_frame) for r, q, k in clips]
+        work = [self._prepare(*clip, limit=limit, seg=seg, file_frame=file_frame) for clip in clips]
         self._weigh(work, size)
-        total, done = sum(len(c.plan.segments) for c in work), 0
-        for step in range(max((len(c.plan.segments) for c in work), default=0)):
+        for c in work:
+            self._choose(c)
+        total, done = sum(len(c.todo) for c in work), 0
+        for step in range(max((len(c.todo) for c in work), default=0)):
             groups: dict[int, list] = {}
             for c in work:
-                if step < len(c.plan.segments):
-                    a, b = c.plan.segments[step]
+                if step < len(c.todo):
+                    a, b = c.todo[step]
                     groups.setdefault(b - a, []).append((c, a, b))
             for items in groups.values():
                 for i in range(0, len(items), size):
@@ -183,54 +178,10 @@ class FillRuntime:
         lock = self.foot_lock if foot_lock is None else bool(foot_lock)
         return [self._finish(c, lock, file_frame) for c in work]
 
-    def fill_rig(self, retarget, local_q, local_p, keys: Sequence[int], *, movers: Sequence[int] | None = None,
-                 fps: float | None = None, **kw) -> RigFilled:
-        """Fill a humanoid rig that is not the model's skeleton: the keys are retargeted onto the model's skeleton
-        (``retarget``: a :class:`~inbetweening.runtime.retarget.Retarget` from the rig to the model), filled there
-        (:meth:`fill`; ``kw`` as there), and the fill retargeted back; the rig's bones without a slot (fingers, twist
-        and face bones, props) and every local translation but the hips' are interpolated between the keys (rotations by
-        slerp, translations linearly); the keys, and the frames outside ``[first key, last key]``, come back exactly.
-        ``local_q (F, J, 4)``, ``local_p (F, J, 3)``: the rig's local rotations and translations (offsets or position
-        channels); values at frames that are not keys are never read, but for context frames before the first key.
-        ``movers``: the rig's joints with position channels (the hips' translation goes to the nearest at or above the
-        hips; default: the root).  ``fps``: the rig's frame rate; when it is not the model's, the keys are placed on the
-        model's frames by their time, the model fills at its own rate, and the rig's frames take the fill at their time
-        (rotations by slerp, the root linearly)."""
-        lq = np.array(local_q, dtype=np.float64)
-        lp = np.array(local_p, dtype=np.float64)
-        n = len(lq)
-        if lq.ndim != 3 or lq.shape[1:] != (retarget.rig.num_joints, 4) or lp.shape != lq.shape[:2] + (3,):
-            raise InbetweenError(f"fill_rig: expected local_q (F, {retarget.rig.num_joints}, 4) and local_p (F, "
-                                 f"{retarget.rig.num_joints}, 3) of the rig, got {lq.shape} and {lp.shape}")
-        keys = check_keys(keys, n, "keys")
-        if not (np.isfinite(lq[keys]).all() and np.isfinite(lp[keys]).all()):
-            raise InbetweenError("fill_rig: the keys contain NaN or infinite values")
-        first, last = keys[0], keys[-1]
-        ratio = 1.0 if not fps or abs(float(fps) - self.info.fps) <= 0.5 else self.info.fps / float(fps)
-        context = [t for t in range(first) if np.isfinite(lq[t]).all() and np.isfinite(lp[t]).all()]
-        rows = context + list(keys)
-        at = _model_frames(np.array(rows, dtype=np.float64) - first, ratio)  # the rows' model frames, from the first key
-        shift = max(0, -int(at.min()))
-        at = at + shift
-        m = int(at.max()) + 1
-        root = np.full((m, 3), np.nan)
-        q = np.full((m, self.info.skeleton.num_joints, 4), np.nan)
-        root[at], q[at] = retarget.to_model(lq[rows], lp[rows])
-        model_keys = [int(a) for a in at[len(context):]]
-        model = self.fill(root, q, model_keys, **kw)
-        span = np.arange(first, last + 1)
-        times = (span - first) * ratio + shift
-        times[np.searchsorted(span, keys)] = model_keys  # the keys at their own model frames
-        m_root, m_q = _resample(model.root, model.local_q, times)
-        free_p, free_q = interpolate_keyframes(lp[span].reshape(len(span), -1), lq[span], [k - first for k in keys])
-        out_q, out_p = lq.copy(), lp.copy()
-        out_q[span], out_p[span] = retarget.to_rig(m_root, m_q, free_q, free_p.reshape(len(span), -1, 3), movers)
-        out_q[keys], out_p[keys] = lq[keys], lp[keys]
-        return RigFilled(out_q, out_p, model)
-
     # ------------------------------------------------------------------ stages
-    def _prepare(self, root, local_q, keys, limit: int, seg: bool, file_frame: bool) -> _Clip:
-        """Check one clip, convert it to the project's frame and lay out its plan; pseudo-keyframes interpolated."""
+    def _prepare(self, root, local_q, keys, only=None, previous=None, *, limit: int, seg: bool,
+                 file_frame: bool) -> _Clip:
+        """Check one clip, convert it to the project's frame and lay out its plan."""
         info = self.info
         exact_root = np.array(root, dtype=np.float64)
         exact_q = np.array(local_q, dtype=np.float64)
@@ -241,6 +192,7 @@ class FillRuntime:
         keys = check_keys(keys, len(exact_root), "keys")
         if not (np.isfinite(exact_root[keys]).all() and np.isfinite(exact_q[keys]).all()):
             raise InbetweenError("fill: the keys contain NaN or infinite values")
+        only, previous = check_refill(keys, only, previous)
         r, q = exact_root.copy(), exact_q.copy()
         if file_frame and not info.convention.is_project:
             r, q = info.convention.to_project(r, q)
@@ -249,10 +201,7 @@ class FillRuntime:
         r[:first][bad], q[:first][bad] = r[first], q[first]  # no usable context there: the first key's pose
         q[: keys[-1] + 1] = qnormalize(q[: keys[-1] + 1])
         plan = plan_gaps(keys, limit, seg, info.trained_gap)
-        for a, b, points in plan.pseudo:
-            w = (np.array(points) - a) / (b - a)
-            r[points], q[points] = interpolate_pose(r[a], q[a], r[b], q[b], w)
-        return _Clip(r, q, keys, plan, exact_root, exact_q)
+        return _Clip(r, q, keys, plan, exact_root, exact_q, only, previous)
 
     def windows(self, roots: Sequence[np.ndarray], qs: Sequence[np.ndarray], spans: Sequence[tuple[int, int]]):
         """The context windows of gaps ``(a, b)`` of one length, one per clip ``roots[i] (F, 3)``, ``qs[i] (F, J, 4)``:
@@ -320,6 +269,21 @@ class FillRuntime:
             weights = gap_weights(c.plan.segments, c.keys, c.checks, self.info.blend_weight)
             c.weights = {k: w for k, (w, _) in weights.items()}
 
+    def _choose(self, c: _Clip) -> None:
+        """The key gaps to generate (:func:`.plan.chosen_gaps`), their windows in order, their pseudo-keyframes
+        interpolated."""
+        windows = gap_windows(c.keys, c.plan.segments)
+        c.shares = {g: tuple(c.weights.get(w, 1.0) for w in ws) for g, ws in windows.items()}
+        finite = np.isfinite(c.exact_root).all(-1) & np.isfinite(c.exact_q).all((-1, -2))
+        c.generated = chosen_gaps(c.keys, c.shares, c.only, c.previous, self.info.n_past,
+                                  lambda a, b: bool(finite[a + 1 : b].all()))
+        c.todo = [w for g in c.generated for w in windows[g]]
+        chosen = set(c.generated)
+        for a, b, points in c.plan.pseudo:
+            if (a, b) in chosen:
+                w = (np.array(points) - a) / (b - a)
+                c.root[points], c.q[points] = interpolate_pose(c.root[a], c.q[a], c.root[b], c.q[b], w)
+
     def _generate(self, items) -> None:
         """Fill frames ``a+1 .. b-1`` of each ``(clip, a, b)`` in place (gaps of one length, one backend call): the
         network's prediction blended with the interpolation by the window's weight."""
@@ -337,7 +301,8 @@ class FillRuntime:
                 c.contact[a + 1 : b] = pc[i]
 
     def _finish(self, c: _Clip, lock: bool, file_frame: bool) -> Filled:
-        """Keys exact, the keys' own contacts, feet locked, back to the file's frame, keys and outside frames exact."""
+        """Keys exact, the keys' own contacts, feet locked (into the generated gaps), back to the file's frame; keys,
+        outside frames and the frames of gaps not generated exactly the input."""
         info = self.info
         keys = c.keys
         root, q = c.root, c.q
@@ -346,6 +311,9 @@ class FillRuntime:
         else:
             exact_r, exact_q = c.exact_root[keys], c.exact_q[keys]
         root[keys], q[keys] = exact_r, exact_q
+        kept = np.zeros(len(root), dtype=bool)
+        for a, b in sorted(set(key_gaps(keys)) - set(c.generated)):
+            kept[a + 1 : b] = True
         contact, locked = None, False
         rule = contact_rule(info.contact, info.skeleton, root, q, keys)
         if rule.feet:  # on the filled span alone: frames before the first key are context, never feet to lock
@@ -359,18 +327,22 @@ class FillRuntime:
                 for a, b in zip(keys, keys[1:]):  # short gaps: what the keys say
                     if b - a - 1 < SHORT_GAP:
                         contact[a + 1 : b] = detected[a + 1 - s : b - s]
+                contact[s:e][kept[s:e]] = detected[kept[s:e]]  # kept gaps: the rule on them as they are
             else:
                 contact[s:e] = detected
             if lock:
                 feet = rule.indices(info.skeleton.names, "the model's feet")
+                fixed = np.flatnonzero(kept[s:e]).tolist() + span  # never moved: the keys and the kept gaps
                 root, q = root.copy(), q.copy()
-                root[s:e], q[s:e] = lock_feet(info.skeleton, root[s:e], q[s:e], span, contact[s:e], feet)
+                root[s:e], q[s:e] = lock_feet(info.skeleton, root[s:e], q[s:e], fixed, contact[s:e], feet)
                 locked = True
         if file_frame and not info.convention.is_project:
             root, q = info.convention.to_file(root, q)
         outside = np.ones(len(root), dtype=bool)
         outside[keys[0] + 1 : keys[-1]] = False
         outside[keys] = True
+        outside |= kept
         root[outside], q[outside] = c.exact_root[outside], c.exact_q[outside]
         segments = [(a, b, c.weights.get((a, b), 1.0)) for a, b in c.plan.segments]
-        return Filled(root, q, contact, c.plan.pseudo_keyframes, segments, locked, c.checks)
+        return Filled(root, q, contact, c.plan.pseudo_keyframes, segments, locked, c.checks, c.shares,
+                      list(c.generated))

@@ -5,9 +5,19 @@ For keys ``a < b`` with ``b - a > 1`` the frames ``a+1 .. b-1`` are generated in
 ``m - 1`` split points are *pseudo-keyframes* interpolated between ``a`` and ``b`` (:func:`~inbetweening.geometry.
 interp.interpolate_pose`: root linearly, every joint by slerp), then each segment is generated left to right, its
 context the end of the previous one.  The true keys are never modified.
+
+**Re-fills** (:func:`chosen_gaps`).  A caller that filled before and changed some keys can keep the frames of the
+gaps nothing changed for: it hands over every key and, in the other gaps, the earlier fill's output, names the key
+gaps whose own inputs changed (``only``) and the network shares the earlier fill gave each gap (``previous``).  A key
+gap is generated when it is named; when its share now (the self-check on the keys, :mod:`.trust`, reaches
+:data:`~.trust.REACH` gap lengths either side of a key) differs from the earlier one, or there is none; when its
+frames do not all hold finite values; or when one of its ``n_past - 1`` context frames lies in a gap generated now
+(each window's context is the output so far: a generated gap re-generates the gaps it is context for).  The other gaps
+keep their frames: where they hold what a fill of every gap gave, the result is what a fill of every gap gives now.
 """
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 from dataclasses import dataclass
@@ -16,7 +26,10 @@ import numpy as np
 
 from .model import InbetweenError
 
-__all__ = ["GapPlan", "check_keys", "plan_gaps"]
+__all__ = ["SHARE_TOLERANCE", "GapPlan", "check_keys", "check_refill", "chosen_gaps", "gap_windows", "key_gaps",
+           "plan_gaps"]
+
+SHARE_TOLERANCE = 1e-6  # network shares closer than this are the same (the float noise of a batched network)
 
 
 def check_keys(keys, length: int, what: str = "keyframes") -> list[int]:
@@ -73,3 +86,62 @@ def plan_gaps(keys: list[int], limit: int, segment: bool = True, trained_gap: in
             pseudo.append((a, b, points[1:-1]))
         segments += [(s, e) for s, e in itertools.pairwise(points) if e - s > 1]
     return GapPlan(segments, pseudo)
+
+
+def key_gaps(keys: list[int]) -> list[tuple[int, int]]:
+    """The gaps between consecutive ``keys`` that hold frames."""
+    return [(a, b) for a, b in itertools.pairwise(keys) if b - a > 1]
+
+
+def gap_windows(keys: list[int], segments) -> dict[tuple[int, int], list[tuple[int, int]]]:
+    """The windows ``(a, b)`` of ``segments`` per key gap (every gap of :func:`key_gaps`), in order."""
+    out: dict[tuple[int, int], list[tuple[int, int]]] = {g: [] for g in key_gaps(keys)}
+    for a, b in segments:
+        i = bisect.bisect_right(keys, a) - 1
+        out[(keys[i], keys[i + 1])].append((a, b))
+    return out
+
+
+def check_refill(keys: list[int], only, previous) -> tuple[set | None, dict]:
+    """``only`` as a set of key gaps (each a pair of consecutive ``keys``, else :class:`InbetweenError`; ``None``: a fill
+    of every gap) and ``previous`` as ``{key gap: (share, ...)}`` (a number: a gap of one window; entries for gaps that
+    are not the keys' are left out)."""
+    if only is None:
+        return None, {}
+    gaps = set(itertools.pairwise(keys))
+    out = set()
+    for g in only:
+        try:
+            a, b = (int(x) for x in g)
+        except (TypeError, ValueError):
+            raise InbetweenError(f"only: {g!r} is not a gap (a pair of keys)") from None
+        if (a, b) not in gaps:
+            raise InbetweenError(f"only: ({a}, {b}) is not a gap between two consecutive keys")
+        out.add((a, b))
+    prev = {}
+    for g, shares in dict(previous or {}).items():
+        g = tuple(int(x) for x in g)
+        if g in gaps:
+            prev[g] = tuple(float(w) for w in np.atleast_1d(np.asarray(shares, dtype=np.float64)))
+    return out, prev
+
+
+def chosen_gaps(keys: list[int], shares: dict, only: set | None, previous: dict, n_past: int,
+                finite) -> list[tuple[int, int]]:
+    """The key gaps a fill generates, left to right (module docstring): every gap when ``only`` is ``None``.
+    ``shares``: ``{key gap: (share, ...)}`` now; ``previous``: the earlier ones (:func:`check_refill`);
+    ``finite(a, b)``: whether the input holds finite values on the gap's frames."""
+    gaps = key_gaps(keys)
+    if only is None:
+        return gaps
+    out: list[tuple[int, int]] = []
+    generated = np.zeros(keys[-1] + 1, dtype=bool)
+    for a, b in gaps:
+        before = previous.get((a, b))
+        take = ((a, b) in only or before is None or len(before) != len(shares[(a, b)])
+                or any(abs(x - y) > SHARE_TOLERANCE for x, y in zip(before, shares[(a, b)]))
+                or generated[max(a - n_past + 1, 0) : a].any() or not finite(a, b))
+        if take:
+            out.append((a, b))
+            generated[a + 1 : b] = True
+    return out

@@ -10,7 +10,7 @@ import numpy as np
 from inbetweening.geometry.quaternion import qinv, qmul, qnormalize
 from inbetweening.runtime import ModelInfo
 
-from .rig import RigError, _rot_quat, _to_np, bone_path, channelbag, rot_path, rotation_values
+from .rig import RigError, _to_np, bone_path, channelbag, curve_values, rot_path, rotation_quats, rotation_values
 
 # ---------------------------------------------------------------------------------------------- any humanoid
 ROT_LOC = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle")
@@ -143,15 +143,13 @@ class HumanoidRig:
                 raw_k = [[1.0, 0.0, 0.0, 0.0]] * f
             else:
                 path, n = rot_path(pb)
-                curves = [self.fcurve(bone_path(pb.name, path), i) for i in range(n)]
                 cur = list(getattr(pb, path))
-                raw_k = [[c.evaluate(fr) if c is not None and not c.mute else cur[i] for i, c in enumerate(curves)]
-                         for fr in frames]
+                raw_k = np.stack([curve_values(self.fcurve(bone_path(pb.name, path), i), cur[i], frames)
+                                  for i in range(n)], -1)
                 if not self.connected[k]:
                     lcur = list(pb.location)
-                    lc = [self.fcurve(bone_path(pb.name, "location"), i) for i in range(3)]
-                    loc[:, k] = [[c.evaluate(fr) if c is not None and not c.mute else lcur[i] for i, c in enumerate(lc)]
-                                 for fr in frames]
+                    loc[:, k] = np.stack([curve_values(self.fcurve(bone_path(pb.name, "location"), i), lcur[i], frames)
+                                          for i in range(3)], -1)
             for t in range(f):
                 raw[t][k] = raw_k[t]
         return raw, loc
@@ -161,9 +159,10 @@ class HumanoidRig:
         raw, loc = self.read_channels(frames)
         f, j = len(frames), len(self.pbones)
         qb = np.zeros((f, j, 4))
+        qb[..., 0] = 1.0
         for k, pb in enumerate(self.pbones):
-            for t in range(f):
-                qb[t, k] = [1.0, 0, 0, 0] if pb is None else _to_np(_rot_quat(pb, raw[t][k]))
+            if pb is not None:
+                qb[:, k] = rotation_quats(pb.rotation_mode, np.array([raw[t][k] for t in range(f)]))
         from inbetweening.geometry.quaternion import qrot
 
         r = self.r[None]

@@ -64,7 +64,8 @@ def _runs(frames: np.ndarray, flags: np.ndarray) -> list[list[int]]:
 
 def gap_info(frames: np.ndarray, gaps, filled, model_info) -> dict:
     """``{(a, b): {"windows": [[a, b, share]], "planted": {"L": [[s, e]], "R": ...} or None}}`` for the gaps filled
-    now, from the runtime's :class:`~inbetweening.runtime.fill.Filled` over ``frames`` (its rows)."""
+    now, from the runtime's :class:`~inbetweening.runtime.fill.Filled` over ``frames`` (its rows); the shares exact
+    (the next re-fill compares them with its own)."""
     out = {}
     contact = filled.contact
     sides = []
@@ -75,7 +76,7 @@ def gap_info(frames: np.ndarray, gaps, filled, model_info) -> dict:
             sides.append(({"left": "L", "right": "R"}.get(side, sk.names[ankle]), ankle))
     pos = {int(f): i for i, f in enumerate(frames)}
     for a, b in gaps:
-        windows = [[int(frames[i]), int(frames[j]), round(float(w), 4)] for i, j, w in filled.segments
+        windows = [[int(frames[i]), int(frames[j]), float(w)] for i, j, w in filled.segments
                    if a <= frames[i] and frames[j] <= b]
         planted = None
         if sides:

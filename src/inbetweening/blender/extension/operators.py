@@ -42,8 +42,9 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
                discard_edits: bool = False) -> dict:
     """Fill the armature ``obj``'s in-betweens with the fill runtime (``model``: its ONNX backend); returns a summary
     dict.  Raises ``rig.RigError`` / ``BoneMapError`` / ``ModelError`` / ``InbetweenError`` before changing anything.
-    Only the gaps that changed since the last fill are re-filled, and generated keys edited by hand are kept as keys
-    (:mod:`.record`; ``discard_edits``: every gap re-filled, the edits replaced).
+    Only what changed since the last fill is re-filled (the gaps whose inputs changed, and those the runtime adds:
+    whose network share or context changed), and generated keys edited by hand are kept as keys (:mod:`.record`;
+    ``discard_edits``: every gap re-filled, the edits replaced).
 
     The model's own skeleton is filled directly (:class:`rig.Rig`); any other humanoid armature through the bone map
     and :meth:`FillRuntime.fill_rig` (:class:`humanoid.HumanoidRig`): the rotation channels of the bones with a slot or
@@ -89,35 +90,34 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     settings = record.settings_digest(record.model_key(model), foot_lock, chans, r.fcurves,
                                       getattr(r, "ancestors", ()))
     plan = past.plan(all_keys, all_gaps, p, reader.digests(seen), settings)
-    summary = {"gaps": len(plan.gaps), "kept": len(all_gaps) - len(plan.gaps), "edits": past.new_edits,
-               "keys": len(all_keys), "range": (all_keys[0], all_keys[-1]), "humanoid": any_rig, "model_seconds": 0.0,
-               "windows": 0, "frames": 0, "feet_locked": False, "network_share": [], "refilled": []}
-    if not plan.gaps:
+    summary = {"gaps": 0, "kept": len(all_gaps), "edits": past.new_edits, "keys": len(all_keys),
+               "range": (all_keys[0], all_keys[-1]), "humanoid": any_rig, "model_seconds": 0.0, "windows": 0,
+               "frames": 0, "feet_locked": False, "network_share": [], "refilled": []}
+    if plan.nothing:
         return summary
-    gaps, keys, first, last = plan.gaps, plan.fixed, plan.first, plan.last
-    frames = np.arange(first - (p - 1), last + 1)
-    read_frames = [int(f) for f in frames if f < first] + keys
+    # every key, and the frames of the gaps the runtime may keep as they are now (the last fill's output)
+    frames = np.arange(all_keys[0] - (p - 1), all_keys[-1] + 1)
     pos = {int(f): i for i, f in enumerate(frames)}
+    changed = set(all_gaps) if plan.changed is None else plan.changed
+    kept = [f for a, b in all_gaps if (a, b) not in changed for f in range(a + 1, b)]
+    read_keys = set(seen)
+    read_frames = sorted(read_keys | set(kept))
+    only = None if plan.changed is None else {(pos[a], pos[b]) for a, b in plan.changed}
+    previous = None if plan.previous is None else {(pos[a], pos[b]): w for (a, b), w in plan.previous.items()
+                                                   if a in pos and b in pos}
     wm = context.window_manager
-    total_frames = sum(b - a - 1 for a, b in gaps)
-    gen = np.array([f for a, b in gaps for f in range(a + 1, b)])
-    idx = np.array([pos[int(f)] for f in gen])
     progress = None
+    rows = [pos[f] for f in read_frames]
     if any_rig:
         lq_k, lp_k, raw = reader.read(read_frames)
         lq = np.full((len(frames),) + lq_k.shape[1:], np.nan)
         lp = np.full((len(frames),) + lp_k.shape[1:], np.nan)
-        for t, f in enumerate(read_frames):
-            lq[pos[f]], lp[pos[f]] = lq_k[t], lp_k[t]
+        lq[rows], lp[rows] = lq_k, lp_k
     else:
         root_k, q_k, raw = reader.read(read_frames)
-        root = np.zeros((len(frames), 3))
-        q = np.zeros((len(frames), info.skeleton.num_joints, 4))
-        q[..., 0] = 1.0
-        for t, f in enumerate(read_frames):
-            root[pos[f]], q[pos[f]] = root_k[t], q_k[t]
-        for a, b in gaps:  # placeholders (never read by the model): the previous key
-            root[pos[a] + 1 : pos[b]], q[pos[a] + 1 : pos[b]] = root[pos[a]], q[pos[a]]
+        root = np.full((len(frames), 3), np.nan)
+        q = np.full((len(frames), info.skeleton.num_joints, 4), np.nan)
+        root[rows], q[rows] = root_k, q_k
     if report_progress:
         wm.progress_begin(0, 100)
 
@@ -125,19 +125,26 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
             wm.progress_update(int(100 * done / max(total, 1)))
     t0 = time.perf_counter()
     try:
-        keys_idx = [pos[k] for k in keys]
+        keys_idx = [pos[k] for k in all_keys]
         runtime = FillRuntime(model, foot_lock=foot_lock)
         if any_rig:
-            out = runtime.fill_rig(retarget, lq, lp, keys_idx, movers=r.movers, progress=progress)
-            filled = out.model
+            out = runtime.fill_rig(retarget, lq, lp, keys_idx, movers=r.movers, progress=progress, only=only,
+                                   previous=previous)
+            filled, generated = out.model, out.generated
         else:
-            filled = runtime.fill(root, q, keys_idx, progress=progress)
-            out_r, out_q = filled.root, filled.local_q
+            filled = runtime.fill(root, q, keys_idx, progress=progress, only=only, previous=previous)
+            out_r, out_q, generated = filled.root, filled.local_q, filled.generated
     finally:
         if report_progress:
             wm.progress_end()
     t_model = time.perf_counter() - t0
-    raw_prev = {f: raw[t] for t, f in enumerate(read_frames)}
+    gaps = [(int(frames[a]), int(frames[b])) for a, b in generated]
+    if not gaps:
+        return summary
+    first, last = gaps[0][0], gaps[-1][1]
+    gen = np.array([f for a, b in gaps for f in range(a + 1, b)])
+    idx = np.array([pos[int(f)] for f in gen])
+    raw_prev = {f: raw[t] for t, f in enumerate(read_frames) if f in read_keys}  # Euler continuity from the keys
     if any_rig:
         values = r.basis_values([int(f) for f in gen], out.local_q[idx], out.local_p[idx], raw_prev)
         if not all(np.isfinite(v).all() for v in values.values()):
@@ -145,7 +152,7 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     else:
         values = r.basis_values([int(f) for f in gen], out_r[idx], out_q[idx], raw_prev)
     prefs = context.preferences.edit
-    spans = plan.spans
+    spans = record.runs(all_gaps, gaps)
     past.apply()
     gen_type = rig._enum_index("type", rig.GENERATED)
     for j, path, i in chans:
@@ -165,10 +172,11 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
             extra = np.array([fc.evaluate(k) for k in missing])
             fr, val = np.concatenate([fr, missing]), np.concatenate([val, extra])
         rig.write_curve(fc, fr, val, spans, prefs.keyframe_new_interpolation_type, prefs.keyframe_new_handle_type)
-    summary.update(frames=total_frames, model_seconds=t_model, windows=model.calls, feet_locked=filled.locked,
-                   network_share=[w for _, _, w in filled.segments], refilled=[list(g) for g in gaps])
-    past.commit(r.fcurves, chans, all_keys, all_gaps, p, reader.digests(seen), settings,
-                loop.gap_info(frames, gaps, filled, info),
+    done = loop.gap_info(frames, gaps, filled, info)
+    summary.update(gaps=len(gaps), kept=len(all_gaps) - len(gaps), frames=len(gen), model_seconds=t_model,
+                   windows=model.calls, feet_locked=filled.locked, refilled=[list(g) for g in gaps],
+                   network_share=[w for g in gaps for _, _, w in done[g]["windows"]])
+    past.commit(r.fcurves, chans, all_keys, all_gaps, p, reader.digests(seen), settings, done,
                 {k: summary[k] for k in ("gaps", "kept", "edits", "refilled")})
     if any_rig:
         keyed = [pb.name for pb in r.pbones] if generated else [r.names[j] for j in r.rot_bones]

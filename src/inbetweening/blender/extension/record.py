@@ -13,13 +13,16 @@ hand: the next fill sets its type to *Keyframe* and fills around it as around an
 animator changed is theirs like any key they made.  With *Discard Edits* the edits go back to *Generated* and are
 replaced with the rest.
 
-**What is re-filled** (:meth:`Past.plan`).  The runtime fills gaps left to right and each gap sees the ``n_past``
-frames before it, so a gap is re-filled when anything it was generated from changed: it is new (a key added inside
-it, one of its keys moved or deleted), the pose at one of its two keys changed, a generated key inside it was
-deleted, one of its ``n_past - 1`` context frames changed (a changed key, a frame before the first key, or a frame of
-a gap that is re-filled: so a re-fill runs on to the right until ``n_past - 1`` consecutive keys stop it), or the
-settings changed (model, Lock Feet, the channels written, the curves above the model's root).  Gaps left of the first
-change are never rewritten.
+**What is re-filled** (:meth:`Past.plan`).  The record names the gaps whose own inputs changed: the gap is new (a key
+added inside it, one of its keys moved or deleted), the pose at one of its two keys changed, a generated key inside
+it was deleted, or a key or a frame before the first key among its ``n_past - 1`` context frames changed; a change of
+the settings (model, Lock Feet, the channels written, the curves above the model's root) or Discard Edits re-fills
+every gap.  The fill runtime is handed every key, the other gaps' frames as they are, those gaps (``only``) and the
+network shares the record holds (``previous``), and adds what only it knows (:func:`inbetweening.runtime.plan.
+chosen_gaps`): the gaps whose share changed (the self-check on the keys reaches three gap lengths either side of a
+changed key, left of it too) and the gaps whose context it generated now (each gap sees the end of the gap before it:
+a re-fill runs on to the right until ``n_past - 1`` consecutive keys stop it).  The gaps it did not generate are
+never rewritten.
 """
 from __future__ import annotations
 
@@ -142,27 +145,31 @@ class Reader:
 
 
 class Plan:
-    """The part of the timeline a fill rewrites: ``gaps`` (the gaps re-filled, in order), ``first``/``last`` (the span
-    handed to the runtime), ``fixed`` (the frames of that span it keeps: keys, and the frames of gaps kept inside it),
-    ``spans`` (runs of re-filled gaps: the generated keys inside them are replaced)."""
+    """What the record says a fill must re-fill: ``changed``, the gaps whose own inputs changed (the runtime's
+    ``only``), and ``previous``, the network shares the record holds per gap (its ``previous``); both ``None`` where
+    every gap is re-filled (no record, other settings, Discard Edits)."""
 
-    def __init__(self, keys, gaps, dirty):
-        self.gaps = [g for g in gaps if g in dirty]
-        self.spans: list[list[int]] = []
-        for i, (a, b) in enumerate(gaps):
-            if (a, b) not in dirty:
-                continue
-            if self.spans and i > 0 and gaps[i - 1] in dirty:
-                self.spans[-1][1] = b
-            else:
-                self.spans.append([a, b])
-        if not self.gaps:
-            self.first = self.last = None
-            self.fixed = []
-            return
-        self.first, self.last = self.gaps[0][0], self.gaps[-1][1]
-        inside = {f for a, b in self.gaps for f in range(a + 1, b)}
-        self.fixed = [f for f in range(self.first, self.last + 1) if f not in inside]
+    def __init__(self, changed: set | None, previous: dict | None):
+        self.changed, self.previous = changed, previous
+
+    @property
+    def nothing(self) -> bool:
+        """Whether nothing changed (then no share can have changed either: nothing to fill)."""
+        return self.changed is not None and not self.changed
+
+
+def runs(gaps, filled) -> list[list[int]]:
+    """``[[lo, hi], ...]``: the runs of consecutive ``gaps`` (in order) that are in ``filled``."""
+    out: list[list[int]] = []
+    filled = set(filled)
+    for i, (a, b) in enumerate(gaps):
+        if (a, b) not in filled:
+            continue
+        if out and i > 0 and gaps[i - 1] in filled:
+            out[-1][1] = b
+        else:
+            out.append([a, b])
+    return out
 
 
 class Past:
@@ -249,11 +256,11 @@ class Past:
 
     # ------------------------------------------------------------------ what changed
     def plan(self, keys, gaps, n_past: int, digests: dict, settings: str) -> Plan:
-        """The gaps to re-fill (module docstring): ``digests`` of the poses read now at the keys and the context frames
-        before the first key; ``settings``: :func:`settings_digest`."""
+        """The gaps whose inputs changed and the recorded shares (module docstring): ``digests`` of the poses read now
+        at the keys and the context frames before the first key; ``settings``: :func:`settings_digest`."""
         meta = self.meta
         if meta is None or meta.get("settings") != settings or self.discard:
-            return Plan(keys, gaps, set(gaps))
+            return Plan(None, None)
         old_gaps = {tuple(g) for g in meta["gaps"]}
         old = meta["digests"]
         keyset = set(keys)
@@ -262,18 +269,12 @@ class Past:
         def changed(f):
             return str(f) not in old or old[str(f)] != digests.get(str(f))
 
-        dirty: set = set()
-        inside: set[int] = set()
-        for a, b in gaps:
-            d = (a, b) not in old_gaps or changed(a) or changed(b) or any(a < f < b for f in self.broken)
-            for f in range(a - n_past + 1, a):
-                if d:
-                    break
-                d = f in inside or ((f < first or f in keyset) and changed(f))
-            if d:
-                dirty.add((a, b))
-                inside.update(range(a + 1, b))
-        return Plan(keys, gaps, dirty)
+        dirty = {(a, b) for a, b in gaps
+                 if (a, b) not in old_gaps or changed(a) or changed(b) or any(a < f < b for f in self.broken)
+                 or any((f < first or f in keyset) and changed(f) for f in range(a - n_past + 1, a))}
+        previous = {tuple(g): [w for _, _, w in gi["windows"]] for g, gi in zip(meta["gaps"], meta["info"])
+                    if gi.get("windows")}
+        return Plan(dirty, previous)
 
     # ------------------------------------------------------------------ writing
     def apply(self) -> None:

@@ -14,7 +14,7 @@ import bpy
 import numpy as np
 from mathutils import Euler, Matrix, Quaternion, Vector
 
-from inbetweening.geometry.quaternion import qinv, qmul, qnormalize
+from inbetweening.geometry.quaternion import euler_to_quat_np, qinv, qmul, qnormalize
 from inbetweening.runtime import ModelInfo
 
 ROT_PATH = {"QUATERNION": ("rotation_quaternion", 4), "AXIS_ANGLE": ("rotation_axis_angle", 4)}
@@ -57,13 +57,41 @@ def bone_path(name: str, prop: str) -> str:
     return f'pose.bones["{bpy.utils.escape_identifier(name)}"].{prop}'
 
 
-def _rot_quat(pb, values) -> Quaternion:
-    """The rotation of a bone's rotation channel values in its rotation mode."""
-    if pb.rotation_mode == "QUATERNION":
-        return Quaternion(values).normalized()
-    if pb.rotation_mode == "AXIS_ANGLE":
-        return Quaternion(Vector(values[1:4]), values[0])
-    return Euler(values, pb.rotation_mode).to_quaternion()
+def rotation_quats(mode: str, values: np.ndarray) -> np.ndarray:
+    """``(F, 4)`` (wxyz): the rotations of a bone's rotation channel values ``(F, n)`` in its rotation ``mode``, as
+    Blender (``mathutils``) reads them (an Euler mode names the order the axes are applied in, the angles are x, y, z;
+    an axis-angle's axis is normalised)."""
+    v = np.asarray(values, dtype=np.float64)
+    if mode == "QUATERNION":
+        return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-30)
+    if mode == "AXIS_ANGLE":
+        n = np.linalg.norm(v[:, 1:], axis=-1, keepdims=True)
+        q = np.concatenate([np.cos(v[:, :1] / 2), np.sin(v[:, :1] / 2) * v[:, 1:] / np.maximum(n, 1e-30)], -1)
+        return np.where(n > 0, q, np.array([1.0, 0.0, 0.0, 0.0]))
+    order = mode[::-1].lower()  # applied X then Y then Z ("XYZ") is q_z q_y q_x
+    return euler_to_quat_np(v[:, ["xyz".index(a) for a in order]], order, degrees=False)
+
+
+def curve_values(fc, default: float, frames) -> np.ndarray:
+    """``(F,)``: an F-curve's values at ``frames``: a key's own value where the curve has a key at the frame (what
+    Blender evaluates there), else the curve evaluated; ``default`` (the property's value) without a curve or with a
+    muted one."""
+    frames = np.asarray(frames, dtype=np.float64)
+    if fc is None or fc.mute:
+        return np.full(len(frames), float(default))
+    out = np.full(len(frames), np.nan)
+    n = len(fc.keyframe_points)
+    if n and not len(fc.modifiers):
+        co = np.zeros(2 * n, np.float32)
+        fc.keyframe_points.foreach_get("co", co)
+        order = np.argsort(co[0::2], kind="stable")
+        x, y = co[0::2][order].astype(np.float64), co[1::2][order].astype(np.float64)
+        i = np.clip(np.searchsorted(x, frames), 0, n - 1)
+        hit = x[i] == frames
+        out[hit] = y[i[hit]]
+    miss = np.flatnonzero(np.isnan(out))
+    out[miss] = [fc.evaluate(float(frames[t])) for t in miss]
+    return out
 
 
 def rotation_values(pb, q: np.ndarray, frames, raw_prev: dict, k: int) -> np.ndarray:
@@ -164,30 +192,28 @@ class Rig:
     def fcurve(self, path: str, index: int):
         return self.fcurves.fcurves.find(path, index=index) if self.fcurves is not None else None
 
-    def _value(self, pb, prop: str, n: int, frame: float) -> list[float]:
+    def _values(self, pb, prop: str, n: int, frames) -> np.ndarray:
+        """``(F, n)``: a pose bone property's channel values at ``frames`` (:func:`curve_values`)."""
         cur = list(getattr(pb, prop))
-        vals = []
-        for i in range(n):
-            fc = self.fcurve(bone_path(pb.name, prop), i)
-            vals.append(fc.evaluate(frame) if fc is not None and not fc.mute else cur[i])
-        return vals
+        return np.stack([curve_values(self.fcurve(bone_path(pb.name, prop), i), cur[i], frames) for i in range(n)], -1)
 
-    def _basis(self, pb, frame: float) -> Matrix:
-        loc = Vector(self._value(pb, "location", 3, frame))
+    def _bases(self, pb, frames) -> list[Matrix]:
+        """A pose bone's ``matrix_basis`` at each of ``frames``."""
+        loc = self._values(pb, "location", 3, frames)
         path, n = rot_path(pb)
-        rot = _rot_quat(pb, self._value(pb, path, n, frame))
-        scale = Vector(self._value(pb, "scale", 3, frame))
-        return Matrix.LocRotScale(loc, rot, scale)
+        rot = rotation_quats(pb.rotation_mode, self._values(pb, path, n, frames))
+        scale = self._values(pb, "scale", 3, frames)
+        return [Matrix.LocRotScale(Vector(a), Quaternion(b), Vector(c)) for a, b, c in zip(loc, rot, scale)]
 
-    def parent_matrix(self, frame: float) -> Matrix:
-        """``P(f)``: the pose matrix of the root's parent chain at ``frame`` times the root's rest relation."""
-        m = Matrix.Identity(4)
+    def parent_matrices(self, frames) -> list[Matrix]:
+        """``P(f)`` at each of ``frames``: the pose matrix of the root's parent chain times the root's rest relation."""
+        out = [Matrix.Identity(4) for _ in frames]
         prev = None
         for pb in self.ancestors:
             rel = (prev.bone.matrix_local.inverted() @ pb.bone.matrix_local) if prev is not None else pb.bone.matrix_local
-            m = m @ rel @ self._basis(pb, frame)
+            out = [m @ rel @ b for m, b in zip(out, self._bases(pb, frames))]
             prev = pb
-        return m @ self.root_rel
+        return [m @ self.root_rel for m in out]
 
     def read(self, frames) -> tuple[np.ndarray, np.ndarray, list]:
         """Model-space ``root (F, 3), local_q (F, J, 4)`` of the animation at ``frames``, and the raw rotation channel
@@ -198,17 +224,15 @@ class Rig:
         root = np.zeros((f, 3))
         for k, pb in enumerate(self.pbones):
             path, n = rot_path(pb)
-            curves = [self.fcurve(bone_path(pb.name, path), i) for i in range(n)]
-            cur = list(getattr(pb, path))
-            for t, fr in enumerate(frames):
-                vals = [c.evaluate(fr) if c is not None and not c.mute else cur[i] for i, c in enumerate(curves)]
-                raw[t][k] = vals
-                qb[t, k] = _to_np(_rot_quat(pb, vals))
+            vals = self._values(pb, path, n, frames)
+            qb[:, k] = rotation_quats(pb.rotation_mode, vals)
+            for t in range(f):
+                raw[t][k] = vals[t]
         local = qmul(qmul(qinv(self.A)[None], qb), self.A[None])
         cinv = np.linalg.inv(self.C)
         rots = np.zeros((f, 4))
-        for t, fr in enumerate(frames):
-            m = self.parent_matrix(fr) @ self._basis(self.pbones[0], fr)
+        for t, (p, b) in enumerate(zip(self.parent_matrices(frames), self._bases(self.pbones[0], frames))):
+            m = p @ b
             rots[t] = _to_np(m.to_quaternion())
             root[t] = cinv @ np.array(m.translation) / self.s
         local[:, 0] = qmul(qmul(qinv(self.c)[None], rots),
@@ -223,9 +247,9 @@ class Rig:
         locs = np.zeros((len(frames), 3))
         rots = qmul(qmul(self.c[None], local_q[:, 0]), qmul(qinv(self.c), self.r[0])[None])
         heads = (root @ self.C.T) * self.s
-        for t, fr in enumerate(frames):
+        for t, parent in enumerate(self.parent_matrices(frames)):
             m = Matrix.LocRotScale(Vector(heads[t]), Quaternion(rots[t]), None)
-            basis = (self.parent_matrix(fr)).inverted() @ m
+            basis = parent.inverted() @ m
             locs[t] = np.array(basis.translation)
             qb[t, 0] = _to_np(basis.to_quaternion())
         out = {}
