@@ -25,7 +25,7 @@ from inbetweening.geometry.quaternion import qinv, qmul, qnormalize
 from inbetweening.runtime import ModelInfo
 
 from .humanoid import ROT_LOC, VIRTUAL_ROOT
-from .rig import RigError, _rot_quat, _to_np, bone_path, channelbag, rot_path, rotation_values
+from .rig import RigError, _to_np, bone_path, channelbag, rot_path, rotation_quats, rotation_values
 from .rigify_solve import ControlSolve, rot, set_rotation, stands_for
 
 FK_CONTROLS = {"Hips": ("hips",), "Chest": ("chest",), "Neck": ("neck",), "Head": ("head",)}
@@ -251,7 +251,7 @@ class RigifyRig:
                 worst = [max(worst[0], res[0]), max(worst[1], res[1])]
                 for k, pb in enumerate(self.pbones):
                     path, _ = rot_path(pb)
-                    qb[t, k] = _to_np(_rot_quat(pb, list(getattr(pb, path))))
+                    qb[t, k] = rotation_quats(pb.rotation_mode, np.array([list(getattr(pb, path))]))[0]
                 loc[t] = self.pbones[-1].location
         finally:
             for fc, mute in muted:
