@@ -53,8 +53,8 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     its deform bones and keyed on its FK controls."""
     info = model.info
     r = make_rig(obj, info)
-    generated = isinstance(r, rigify.RigifyRig)
-    any_rig = generated or isinstance(r, humanoid.HumanoidRig)
+    rigify_rig = isinstance(r, rigify.RigifyRig)
+    any_rig = rigify_rig or isinstance(r, humanoid.HumanoidRig)
     if r.fcurves is None:
         raise rig.RigError(f"armature '{obj.name}' has no animation: key at least two poses first")
     scene = context.scene
@@ -78,7 +78,7 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     all_gaps = [(a, b) for a, b in zip(all_keys, all_keys[1:]) if b - a > 1]
     if not all_gaps:
         raise rig.RigError(f"nothing to fill: frames {lo}..{hi} hold {len(all_keys)} key(s) and no gap between two keys")
-    if generated:
+    if rigify_rig:
         r.check_fk(all_keys[0], all_keys[-1])
     p = info.n_past
     reader = record.Reader(r)
@@ -179,10 +179,10 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     past.commit(r.fcurves, chans, all_keys, all_gaps, p, reader.digests(seen), settings, done,
                 {k: summary[k] for k in ("gaps", "kept", "edits", "refilled")})
     if any_rig:
-        keyed = [pb.name for pb in r.pbones] if generated else [r.names[j] for j in r.rot_bones]
+        keyed = [pb.name for pb in r.pbones] if rigify_rig else [r.names[j] for j in r.rot_bones]
         summary.update(bone_map=dict(r.map.slots), how=dict(r.map.how), keyed_bones=keyed,
-                       movers=[r.names[j] for j in r.movers], rig_root=r.names[0], rigify=generated)
-    if generated:
+                       movers=[r.names[j] for j in r.movers], rig_root=r.names[0], rigify=rigify_rig)
+    if rigify_rig:
         summary.update(solve_residual_deg=float(np.degrees(r.residual[0])), solve_residual_hips=r.residual[1],
                        solve_passes=r.passes)
     return summary
