@@ -110,8 +110,15 @@ class DatasetSpec:
     def split_rule(self, split: str) -> SplitRule:
         """The rule of the split called ``split``; :class:`DatasetError` listing the spec's splits otherwise."""
         if split not in self.splits:
-            raise DatasetError(f"dataset {self.name!r} has no split {split!r}; its splits are {list(self.splits)}")
+            raise DatasetError(f"dataset {self.name!r} has no split {split!r}; its splits are {self.split_names()}")
         return self.splits[split]
+
+    def split_names(self) -> str:
+        """The split names for a message: ``['standard', 'content']``, then ``holdout-<content> for the contents a, b,
+        ...`` where the spec has leave-one-content-out splits."""
+        plain = [n for n in self.splits if not n.startswith("holdout-")]
+        held = [n[len("holdout-"):] for n in self.splits if n.startswith("holdout-")]
+        return f"{plain}" + (f" and holdout-<content> for the contents {', '.join(held)}" if held else "")
 
     def reads(self, fname: str) -> bool:
         """Whether some split of the spec uses the file ``fname`` (the reader skips the others unparsed)."""

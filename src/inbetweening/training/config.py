@@ -163,7 +163,7 @@ def _check_data(cfg, mask) -> None:
     split = _get(cfg, "data.split", DEFAULT_SPLIT)
     if name in DATASETS and (not isinstance(split, str) or split not in DATASETS[name].splits):
         raise ConfigError(f"data.split: dataset {name!r} has no split {split!r}; its splits are "
-                          f"{list(DATASETS[name].splits)}")
+                          f"{DATASETS[name].split_names()}")
     syn = _get(cfg, "data.synthetic")
     if name == "synthetic":
         if _get(cfg, "data.path") is not None:
