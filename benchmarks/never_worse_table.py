@@ -18,6 +18,8 @@ import json
 import shutil
 from pathlib import Path
 
+from inbetweening.data.specs import BN_CONTENTS
+
 SCHEDULES = ("5", "15", "30", "45", "random", "extremes")
 WORSE = 1.05
 
@@ -35,14 +37,15 @@ def cell(r: dict | None) -> str:
     if not r:
         return "–"
     skate = f", {r['skate_model']:.1f}" if "skate_model" in r else ""
-    return f"{r['ratio']:.3f} ({100 * r.get('worse_share', 0.0):.0f} %{skate})"
+    return f"{r['ratio']:.3f} ({100 * r.get('worse_share', 0.0):.1f} %{skate})"
 
 
 def pooled(runs: dict[str, dict], variant: str) -> dict[str, dict]:
     """Every content's clips of one variant together: clip-weighted ratio, share worse, clip-weighted skating."""
     out = {}
     for s in SCHEDULES:
-        parts = [kf[s] for name, kf in runs.items() if name.endswith(f"_{variant}") and s in kf]
+        parts = [kf[s] for name, kf in runs.items() if name.rsplit("_", 1)[0] in BN_CONTENTS
+                 and name.endswith(f"_{variant}") and s in kf]
         if not parts:
             continue
         n = sum(p["n_clips"] for p in parts)
@@ -61,7 +64,7 @@ def main() -> None:
     ap.add_argument("--copy", type=Path)
     a = ap.parse_args()
     runs = rows(a.out)
-    variants = sorted({n.rsplit("_", 1)[1] for n in runs if "_" in n and n.rsplit("_", 1)[1] in ("default", "before")})
+    variants = sorted({n.rsplit("_", 1)[1] for n in runs if n.rsplit("_", 1)[0] in BN_CONTENTS})
     table = dict(runs)
     for v in variants:
         table[f"all contents ({v})"] = pooled(runs, v)
