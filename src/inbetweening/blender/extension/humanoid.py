@@ -10,7 +10,7 @@ import numpy as np
 from inbetweening.geometry.quaternion import qinv, qmul, qnormalize
 from inbetweening.runtime import ModelInfo
 
-from .rig import RigError, _to_np, bone_path, channelbag, curve_values, rot_path, rotation_quats, rotation_values
+from .rig import RigError, _to_np, bone_path, channelbag, curve_values, rot_path, rotation_channels, rotation_quats
 
 # ---------------------------------------------------------------------------------------------- any humanoid
 ROT_LOC = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle")
@@ -179,13 +179,7 @@ class HumanoidRig:
         r = self.r[None]
         qb = qmul(qmul(qinv(r), local_q), r)
         loc = qrot(np.broadcast_to(qinv(r), local_p.shape[:-1] + (4,)), local_p - self.offsets[None])
-        out = {}
-        for k in self.rot_bones:
-            pb = self.pbones[k]
-            path, n = rot_path(pb)
-            vals = rotation_values(pb, qb[:, k], frames, raw_prev, k)
-            for i in range(n):
-                out[(k, bone_path(pb.name, path), i)] = vals[:, i]
+        out = rotation_channels(self.pbones, qb, frames, raw_prev, self.rot_bones)
         for k in self.movers:
             for i in range(3):
                 out[(k, bone_path(self.pbones[k].name, "location"), i)] = loc[:, k, i]

@@ -120,6 +120,19 @@ def rotation_values(pb, q: np.ndarray, frames, raw_prev: dict, k: int) -> np.nda
     return vals
 
 
+def rotation_channels(pbones, qb: np.ndarray, frames, raw_prev: dict, bones=None) -> dict:
+    """``{(k, data path, index): values over frames}`` of the rotation channels of ``pbones[k]`` for basis rotations
+    ``qb (F, K, 4)`` (:func:`rotation_values`; ``bones``: the indices to write, default all)."""
+    out = {}
+    for k in range(len(pbones)) if bones is None else bones:
+        pb = pbones[k]
+        path, n = rot_path(pb)
+        vals = rotation_values(pb, qb[:, k], frames, raw_prev, k)
+        for i in range(n):
+            out[(k, bone_path(pb.name, path), i)] = vals[:, i]
+    return out
+
+
 def _to_np(q) -> np.ndarray:
     return np.array([q.w, q.x, q.y, q.z], dtype=np.float64)
 
@@ -252,15 +265,9 @@ class Rig:
             basis = parent.inverted() @ m
             locs[t] = np.array(basis.translation)
             qb[t, 0] = _to_np(basis.to_quaternion())
-        out = {}
-        for k, pb in enumerate(self.pbones):
-            path, n = rot_path(pb)
-            vals = rotation_values(pb, qb[:, k], frames, raw_prev, k)
-            for i in range(n):
-                out[(k, bone_path(pb.name, path), i)] = vals[:, i]
-            if k == 0:
-                for i in range(3):
-                    out[(0, bone_path(pb.name, "location"), i)] = locs[:, i]
+        out = rotation_channels(self.pbones, qb, frames, raw_prev)
+        for i in range(3):
+            out[(0, bone_path(self.pbones[0].name, "location"), i)] = locs[:, i]
         return out
 
 

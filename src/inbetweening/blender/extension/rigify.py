@@ -25,7 +25,7 @@ from inbetweening.geometry.quaternion import qinv, qmul, qnormalize
 from inbetweening.runtime import ModelInfo
 
 from .humanoid import ROT_LOC, VIRTUAL_ROOT
-from .rig import RigError, _to_np, bone_path, channelbag, rot_path, rotation_quats, rotation_values
+from .rig import RigError, _to_np, bone_path, channelbag, rot_path, rotation_channels, rotation_quats
 from .rigify_solve import ControlSolve, rot, set_rotation, stands_for
 
 FK_CONTROLS = {"Hips": ("hips",), "Chest": ("chest",), "Neck": ("neck",), "Head": ("head",)}
@@ -260,12 +260,7 @@ class RigifyRig:
                 setattr(pb, path, values)
             scene.frame_set(at[0], subframe=at[1])
         self.residual, self.passes = (worst[0], worst[1]), solve.passes
-        out = {}
-        for k, pb in enumerate(self.pbones):
-            path, n = rot_path(pb)
-            vals = rotation_values(pb, qb[:, k], frames, raw_prev, k)
-            for i in range(n):
-                out[(k, bone_path(pb.name, path), i)] = vals[:, i]
+        out = rotation_channels(self.pbones, qb, frames, raw_prev)
         for i in range(3):
             out[(len(self.pbones) - 1, bone_path(TORSO, "location"), i)] = loc[:, i]
         return out
