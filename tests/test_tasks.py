@@ -65,3 +65,31 @@ def test_intermediate_keyframes_lie_inside_the_transition_and_leave_frames_to_pr
         assert ((inside >= cb) & (inside < cb + nb)).all()
         assert (~known[b, cb : cb + nb, 0]).sum() >= 1  # something is left to predict
         assert known[b, inside].all()
+
+
+def test_subtrees_mark_each_joint_and_everything_below_it():
+    from inbetweening.training.tasks import subtrees
+    below = subtrees([-1, 0, 1, 1, 0, 4])  # root, spine, arm.L, arm.R, leg, foot
+    assert below[0].all()
+    assert below[1].tolist() == [False, True, True, True, False, False]
+    assert below[4].tolist() == [False, False, False, False, True, True]
+    assert below[5].tolist() == [False] * 5 + [True]
+
+
+def test_partial_keys_know_one_body_part_or_the_rest_and_only_on_keyframes():
+    from inbetweening.training.tasks import partial_keys, subtrees
+    parents = [-1, 0, 1, 1, 0, 4]
+    below = subtrees(parents)
+    c, n, keys = draw_task(torch.Generator().manual_seed(3), 128, (5, 30), True, (1, 10), 4, 1.0)
+    part = partial_keys(torch.Generator().manual_seed(4), keys, parents, 0.5)
+    assert part.shape == (*keys.shape, 6)
+    assert not part[~keys].any()  # never a value outside the keyframes
+    rows = part[keys]
+    full = rows.all(-1)
+    assert 0.3 < full.float().mean() < 0.7  # about half the keyframes stay whole
+    parts = {tuple(r.tolist()) for r in rows[~full]}
+    allowed = {tuple(b.tolist()) for b in below[1:]} | {tuple((~b).tolist()) for b in below[1:]}
+    assert parts <= allowed and len(parts) > 4
+    _, _, known = task_window(torch.zeros(128, 50, 3), torch.zeros(128, 50, 6, 4), c, n, part)
+    assert (known.any(-1) & ~known.all(-1)).any()  # frames known on some joints only
+    assert torch.equal(partial_keys(torch.Generator().manual_seed(4), keys, parents, 0.0), keys[..., None].expand_as(part))

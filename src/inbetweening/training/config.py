@@ -305,6 +305,9 @@ def _check_task(cfg: DictConfig) -> None:
     prob = float(_get(cfg, "data.keyframe_prob", 0.0))
     if not 0.0 <= prob <= 1.0:
         raise ConfigError(f"data.keyframe_prob: must be in [0, 1], got {prob}")
+    partial = float(_get(cfg, "data.partial_prob", 0.0))
+    if not 0.0 <= partial <= 1.0:
+        raise ConfigError(f"data.partial_prob: must be in [0, 1], got {partial}")
     speed = _get(cfg, "data.speed", None)
     if speed is not None:
         try:

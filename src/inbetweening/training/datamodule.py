@@ -30,7 +30,7 @@ from inbetweening.training.sampling import (
     mix_seed,
     rank_world,
 )
-from inbetweening.training.tasks import draw_task, task_window
+from inbetweening.training.tasks import draw_task, partial_keys, task_window
 
 
 def _plain(v):
@@ -83,6 +83,8 @@ class InbetweenDataModule(L.LightningDataModule):
             trains for keyframes alone too).
         keyframes_max, keyframe_prob: with probability ``keyframe_prob`` a sample gets ``1..keyframes_max`` extra
             known frames inside its transition.
+        partial_prob: each of those keyframes is, with this probability, a partial key: known on one body part only
+            (:func:`~inbetweening.training.tasks.partial_keys`; the animator keyed some bones).
         mirror: mirror each training window left/right with probability 0.5 (the dataset's mirror map).
         speed: ``[lo, hi]`` play each training window at a speed drawn uniformly in that range (time warp: faster
             versions of the training motions; capped where the clip ends); ``None``: off.
@@ -127,6 +129,7 @@ class InbetweenDataModule(L.LightningDataModule):
         context_max: int,
         keyframes_max: int,
         keyframe_prob: float,
+        partial_prob: float,
         mirror: bool,
         speed: list[float] | None,
         val_lengths: list[int],
@@ -232,6 +235,8 @@ class InbetweenDataModule(L.LightningDataModule):
             return {"root": root, "q": q, "known": known, "loss_mask": ~known}
         c, n, keys = draw_task(gen, b, (int(h.transition_min), int(h.transition_max)), h.transition_per == "sample",
                                (int(h.context_min), int(h.context_max)), int(h.keyframes_max), float(h.keyframe_prob))
+        if keys is not None and float(h.partial_prob) > 0:
+            keys = partial_keys(gen, keys, self.data.skeleton.parents, float(h.partial_prob))
         root, q, known = task_window(root, q, c, n, keys)
         return {"root": root, "q": q, "known": known, "loss_mask": ~known, "n_trans": n}
 

@@ -13,7 +13,7 @@ import torch
 from inbetweening.data.windows import N_PAST
 from inbetweening.predictor.masks import transition_known
 
-__all__ = ["draw_task", "task_window"]
+__all__ = ["draw_task", "partial_keys", "subtrees", "task_window"]
 
 
 def draw_task(gen: torch.Generator | None, batch: int, transition: tuple[int, int], per_sample: bool,
@@ -48,6 +48,31 @@ def draw_task(gen: torch.Generator | None, batch: int, transition: tuple[int, in
     return c, n, inside & (rank < k[:, None])
 
 
+def subtrees(parents) -> torch.Tensor:
+    """``(J, J)`` bool: row ``j`` marks joint ``j`` and every joint below it (``parents[j] < j``, root ``-1``)."""
+    j = len(parents)
+    below = torch.eye(j, dtype=torch.bool)
+    for c in range(j - 1, 0, -1):  # children after parents: fold each joint's row into its parent's
+        p = int(parents[c])
+        if p >= 0:
+            below[p] |= below[c]
+    return below
+
+
+def partial_keys(gen: torch.Generator | None, keyframes: torch.Tensor, parents, prob: float) -> torch.Tensor:
+    """Partial keys: ``keyframes (B, T)`` -> ``(B, T, J)``; each keyframe is, with probability ``prob``, known on one
+    body part only: the joints below a random joint other than the root (an arm, a leg, the upper body...), or, half
+    of the time, every joint but those (the animator keyed the body and left the arm free)."""
+    b, t = keyframes.shape
+    below = subtrees(parents)
+    j = below.shape[0]
+    part = torch.rand(b, t, generator=gen) < prob
+    joint = torch.randint(1, j, (b, t), generator=gen)
+    flip = torch.rand(b, t, generator=gen) < 0.5
+    sel = below[joint] ^ flip[..., None]  # (B, T, J)
+    return keyframes[..., None] & torch.where(part[..., None], sel, torch.ones_like(sel))
+
+
 def task_window(root: torch.Tensor, q: torch.Tensor, context: torch.Tensor, n_trans: torch.Tensor,
                 keyframes: torch.Tensor | None = None,
                 n_past: int = N_PAST) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -56,7 +81,8 @@ def task_window(root: torch.Tensor, q: torch.Tensor, context: torch.Tensor, n_tr
     ``root (B, W, 3), q (B, W, J, 4)`` are windows whose frame ``n_past - 1`` is the last context frame; sample ``b``
     keeps its ``context[b]`` frames up to there, its ``n_trans[b]`` transition frames and the target keyframe; frames
     after the target repeat it (known, so never in the loss).  ``T = max(context + n_trans) + 1``.  ``keyframes
-    (B, T)`` marks extra known frames inside the transition.
+    (B, T)`` marks extra known frames inside the transition, ``(B, T, J)`` extra known values (partial keys,
+    :func:`partial_keys`).
     """
     b, _, j, _ = q.shape
     t = int((context + n_trans).max()) + 1
@@ -66,5 +92,5 @@ def task_window(root: torch.Tensor, q: torch.Tensor, context: torch.Tensor, n_tr
     out_q = torch.gather(q, 1, src[:, :, None, None].expand(b, t, j, 4))
     known = transition_known(b, t, j, context, n_trans)
     if keyframes is not None:
-        known = known | keyframes[:, :, None]
+        known = known | (keyframes if keyframes.dim() == 3 else keyframes[:, :, None])
     return out_root, out_q, known
