@@ -127,3 +127,22 @@ def test_a_real_cmu_clip_at_120_fps(ib, tmp_path):
     assert (gp[:, head, 1] > gp[:, hips, 1]).all()  # upright on every generated frame
     step = np.linalg.norm(np.diff(gp[:, hips], axis=0), axis=-1)
     assert step.max() < 1.0  # no jump between frames (CMU units: the body is about 25 tall)
+
+
+def test_partial_keys_on_another_humanoid_keep_their_bones_and_move_the_fill(ib, character_file):
+    path, slots = character_file
+    rig = read_bvh(path)
+    arm = [slots[s] for s in ("UpperArm_L", "LowerArm_L", "Hand_L")]
+    keys = [0, 45, 90]
+    out = ib.fill(path, keyframes=keys, partial={20: arm})
+    whole = ib.fill(path, keyframes=keys)
+    ends = np.cumsum([len(ch) for ch in rig.channels])
+    cols = np.concatenate([np.arange(ends[j] - len(rig.channels[j]), ends[j]) for j in map(rig.names.index, arm)])
+    assert np.array_equal(out.motion[20, cols], rig.motion[20, cols])
+    assert np.array_equal(out.motion[keys], rig.motion[keys]) and np.isfinite(out.motion).all()
+    hand = rig.names.index(slots["Hand_L"])
+    gp = {k: read.skeleton().pose(read.channel_positions()[:, 0], read.local_rotations())[1][:, hand]
+          for k, read in (("out", out), ("whole", whole), ("rig", rig))}
+    # the hand passes through its key: closer to where it was keyed than the fill without the partial key
+    assert np.linalg.norm(gp["out"][20] - gp["rig"][20]) < 0.5 * np.linalg.norm(gp["whole"][20] - gp["rig"][20])
+    assert not np.allclose(out.motion[21:45], whole.motion[21:45])

@@ -377,3 +377,32 @@ def test_cli_defaults_to_the_shipped_model(tiny_checkpoint, tmp_path, monkeypatc
     with pytest.raises(SystemExit) as exc:
         predict.run(["input=clip.bvh", "keyframes=0,30,59", "output=o2.bvh"])
     assert exc.value.code == 2 and "missing ckpt_path=..." in capsys.readouterr().err
+
+
+def test_partial_keys_through_the_api_and_the_cli(tiny_checkpoint, tmp_path, monkeypatch, capsys):
+    """A frame keyed on some bones only: those bones' channels come back bit for bit, the frame's other bones are
+    generated; the CLI's form reaches the same fill; bad partial keys are one line and exit code 2."""
+    write_bvh(_clip(60), tmp_path / "clip.bvh")
+    clip = read_bvh(tmp_path / "clip.bvh")
+    ib = Inbetweener.from_checkpoint(tiny_checkpoint)
+    arm = [n for n in clip.names if "Left" in n and ("Arm" in n or "Hand" in n)]
+    assert arm
+    out = ib.fill(clip, keyframes=[0, 40], partial={20: arm})
+    ends = np.cumsum([len(ch) for ch in clip.channels])
+    cols = np.concatenate([np.arange(ends[j] - len(clip.channels[j]), ends[j]) for j in map(clip.names.index, arm)])
+    assert np.array_equal(out.motion[20, cols], clip.motion[20, cols])  # the keyed bones, bit for bit
+    rest = np.setdiff1d(np.arange(clip.motion.shape[1]), cols)
+    assert not np.allclose(out.motion[20, rest], clip.motion[20, rest])  # the others are generated
+    whole = ib.fill(clip, keyframes=[0, 40])
+    assert not np.allclose(out.motion[10], whole.motion[10])  # and the constraint changes the fill around it
+    monkeypatch.chdir(tmp_path)
+    assert predict.run([f"ckpt={tiny_checkpoint}", "input=clip.bvh", "keyframes=0,40", "output=p.bvh",
+                        f"partial=20:{','.join(arm)}"]) == 0
+    np.testing.assert_allclose(read_bvh(tmp_path / "p.bvh").motion, out.motion, atol=PRINT_ATOL, rtol=0)
+    for bad, says in (("partial=50:Hips", "frame 50 must lie strictly between"), ("partial=20:Elbow", "Elbow not in"),
+                      ("partial=20", "is not FRAME:BONE")):
+        with pytest.raises(SystemExit) as e:
+            predict.run([f"ckpt={tiny_checkpoint}", "input=clip.bvh", "keyframes=0,40", "output=q.bvh", bad])
+        assert e.value.code == 2
+        err = capsys.readouterr().err.strip()
+        assert says in err and len(err.splitlines()) == 1

@@ -46,6 +46,39 @@ from inbetweening.runtime.torch_backend import TorchBackend
 __all__ = ["FillResult", "InbetweenError", "Inbetweener"]
 
 
+def _partial_rows(bvh: BVH, partial, src: list[int]) -> dict[int, list[str]]:
+    """``partial`` (``{frame: [bone names]}`` of ``bvh``) checked: frames strictly between the first and the last of
+    the keyframes ``src`` and not one of them, bones of the file's hierarchy; ``{}`` for ``None``."""
+    if not partial:
+        return {}
+    if not isinstance(partial, dict):
+        raise InbetweenError(f"partial: must map frame -> bone names, got {type(partial).__name__}")
+    out = {}
+    for frame, bones in partial.items():
+        if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)):
+            raise InbetweenError(f"partial: {frame!r} is not an integer frame index")
+        t = int(frame)
+        if not src[0] < t < src[-1] or t in src:
+            raise InbetweenError(f"partial: frame {t} must lie strictly between the keyframes {src[0]} and {src[-1]} "
+                                 "and not be one of them")
+        bones = [bones] if isinstance(bones, str) else list(bones)
+        unknown = [b for b in bones if b not in bvh.names]
+        if unknown:
+            raise InbetweenError(f"partial: frame {t}: {', '.join(map(str, unknown))} not in {bvh.source}'s hierarchy")
+        out[t] = bones
+    return out
+
+
+def _keep_partial_rows(out: BVH, bvh: BVH, part: dict[int, list[str]], first: int) -> None:
+    """The partial keys' bones in ``out``'s rows as in ``bvh``'s (their raw channel values, bit for bit); ``part``:
+    ``{input frame: bone names}``, output row ``frame - first``."""
+    ends = np.cumsum([len(ch) for ch in bvh.channels])
+    for t, bones in part.items():
+        for b in bones:
+            j = bvh.names.index(b)
+            out.motion[t - first, ends[j] - len(bvh.channels[j]) : ends[j]] = bvh.motion[t, ends[j] - len(bvh.channels[j]) : ends[j]]
+
+
 def _bone_map(bvh: BVH, bone_map):
     """The character's :class:`~inbetweening.runtime.bone_map.BoneMap`: detected, with ``bone_map`` (a path of an
     override file, or a dict ``rig bone -> slot``) on top; :class:`InbetweenError` (one line) when it cannot be made."""
@@ -203,7 +236,7 @@ class Inbetweener:
     # ------------------------------------------------------------------ BVH level
     def fill(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
              max_gap: int | None = None, segment: bool | None = None, foot_lock: bool | None = None,
-             bone_map=None) -> BVH:
+             bone_map=None, partial=None) -> BVH:
         """In-between a BVH clip; returns a new :class:`~inbetweening.data.bvh.BVH` (write it with ``write_bvh``).
 
         Give exactly one of:
@@ -220,15 +253,18 @@ class Inbetweener:
         a folded ``joint_Root`` moves between its values at the surrounding keyframes (module docstring).  Gaps
         longer than ``max_gap`` are split with interpolated pseudo-keyframes unless ``segment=False`` (then
         :class:`InbetweenError`).  A clip of another humanoid is retargeted (module docstring; ``bone_map``: an
-        override file's path or a dict ``rig bone -> slot`` for what detection gets wrong).  Errors:
+        override file's path or a dict ``rig bone -> slot`` for what detection gets wrong).  ``partial`` (form A
+        only): partial keys, ``{frame of bvh: [bone names of bvh]}``: frames strictly between the first and the last
+        keyframe where only these bones are keyed; they constrain those bones, the frame's other bones are generated
+        (:mod:`inbetweening.runtime.partial`), and the keyed bones' rotations come back exactly.  Errors:
         :class:`InbetweenError` (keyframes, gap, a rig that cannot be mapped), ``BVHError`` (unreadable file).
         """
         return self.fill_detailed(bvh, keyframes, gap, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
-                                  bone_map=bone_map).bvh
+                                  bone_map=bone_map, partial=partial).bvh
 
     def fill_detailed(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
                       max_gap: int | None = None, segment: bool | None = None,
-                      foot_lock: bool | None = None, bone_map=None) -> FillResult:
+                      foot_lock: bool | None = None, bone_map=None, partial=None) -> FillResult:
         """:meth:`fill` plus the arrays behind it (for rendering and inspection): a :class:`FillResult`."""
         if not isinstance(bvh, BVH):
             bvh = read_bvh(bvh)
@@ -247,13 +283,17 @@ class Inbetweener:
             src = list(range(n_in))
             out_pos = [i * (int(gap) + 1) for i in range(n_in)]
         kw = {"max_gap": max_gap, "segment": segment, "foot_lock": foot_lock}
+        if partial and gap is not None:
+            raise InbetweenError("partial: partial keys are frames of the clip between its keyframes (form A, "
+                                 "keyframes=[...]); with gap= every input frame is a whole key")
+        part = _partial_rows(bvh, partial, src)
         try:
             fold, root_in, q_in = clip_in_skeleton(bvh, self.skeleton)
         except DatasetError as e:
             if not self.retargets:  # a model of another skeleton than the humanoid slots: its own skeleton only
                 raise InbetweenError(f"{e} (this model fills its own skeleton only; retargeting another character "
                                      "needs a model of the humanoid slots, such as the shipped ones)") from None
-            return self._fill_character(bvh, src, out_pos, bone_map, kw)
+            return self._fill_character(bvh, src, out_pos, bone_map, {**kw, "partial": part})
         if bvh.frame_time > 0 and abs(1.0 / bvh.frame_time - self.fps) > 0.5:
             warnings.warn(f"{bvh.source}: {1.0 / bvh.frame_time:.3g} fps, the model was trained at {self.fps:.3g} "
                           f"fps; gaps are counted in the file's frames", stacklevel=2)
@@ -261,8 +301,20 @@ class Inbetweener:
         root = np.full((n_out, 3), np.nan)
         q = np.full((n_out, self.skeleton.num_joints, 4), np.nan)
         root[out_pos], q[out_pos] = root_in[src], q_in[src]
-        filled = self.runtime.fill(root, q, out_pos, file_frame=True, **kw)
+        model_part = {}
+        for t, bones in part.items():  # the file's bones -> the model's joints (a folded top joint: the hips)
+            names = [self.skeleton.names[0] if b == bvh.names[0] and fold else b for b in bones]
+            missing = [b for b in names if b not in self.skeleton.names]
+            if missing:
+                raise InbetweenError(f"partial: frame {t}: {', '.join(missing)} not among the model's joints")
+            model_part[t - src[0]] = names
+            mask = np.isin(self.skeleton.names, names)
+            q[t - src[0], mask] = q_in[t, mask]
+            if mask[0]:
+                root[t - src[0]] = root_in[t]
+        filled = self.runtime.fill(root, q, out_pos, file_frame=True, partial=model_part or None, **kw)
         out = self._to_bvh(bvh, fold, filled.root, filled.local_q, src, out_pos)
+        _keep_partial_rows(out, bvh, part, src[0])
         convention = self.runtime.info.convention
         root, q = (filled.root, filled.local_q) if convention.is_project else convention.to_project(filled.root,
                                                                                                    filled.local_q)
@@ -279,12 +331,19 @@ class Inbetweener:
         lq = np.full((n_out, bvh.num_joints, 4), np.nan)
         lp = np.full((n_out, bvh.num_joints, 3), np.nan)
         lq[out_pos], lp[out_pos] = lq_in[src], lp_in[src]
+        part = {}
+        for t, bones in (kw.pop("partial", None) or {}).items():
+            mask = np.isin(bvh.names, bones)
+            lq[t - src[0], mask], lp[t - src[0], mask] = lq_in[t, mask], lp_in[t, mask]
+            part[t - src[0]] = mask
         movers = [j for j, ch in enumerate(bvh.channels) if any(c.lower().endswith("position") for c in ch)]
         retarget = Retarget(bvh.skeleton(), self.skeleton, bm, reference=lq_in[src[0]], where=f"rig '{bvh.source}'")
         fps = 1.0 / bvh.frame_time if bvh.frame_time > 0 else None
-        out = self.runtime.fill_rig(retarget, lq, lp, out_pos, movers=movers, fps=fps, **kw)
+        out = self.runtime.fill_rig(retarget, lq, lp, out_pos, movers=movers, fps=fps, partial=part or None, **kw)
         clip = bvh.with_motion(out.local_q, out.local_p)
         clip.motion[out_pos] = bvh.motion[np.asarray(src)]
+        _keep_partial_rows(clip, bvh, {src[0] + t: [bvh.names[j] for j in np.flatnonzero(m)] for t, m in part.items()},
+                           src[0])
         m = out.model
         span = np.arange(out_pos[-1] + 1)
         root, q = retarget.to_model(out.local_q[span], out.local_p[span])  # the character's fill, on the model's

@@ -37,6 +37,27 @@ def parse_int_list(text: str) -> list[int]:
     return out
 
 
+def parse_partial_keys(text: str) -> dict[int, list[str]]:
+    """``"45:UpperArm_L,LowerArm_L,Hand_L;60:UpperLeg_R"`` -> ``{45: ["UpperArm_L", "LowerArm_L", "Hand_L"], 60:
+    ["UpperLeg_R"]}``: partial keys, a frame and the bones keyed there, ``;`` between frames."""
+    out: dict[int, list[str]] = {}
+    for item in (p.strip() for p in text.split(";")):
+        if not item:
+            continue
+        frame, sep, bones = item.partition(":")
+        names = [b.strip() for b in bones.split(",") if b.strip()]
+        if not sep or not names:
+            raise ValueError(f"{item!r} is not FRAME:BONE,BONE,... (e.g. 45:UpperArm_L,LowerArm_L)")
+        try:
+            t = int(frame)
+        except ValueError:
+            raise ValueError(f"{frame.strip()!r} is not an integer frame") from None
+        if t in out:
+            raise ValueError(f"frame {t} is given twice")
+        out[t] = names
+    return out
+
+
 def parse_args(argv: Sequence[str], options: dict[str, Callable[[str], object]],
                aliases: dict[str, str] | None = None) -> dict[str, object] | None:
     """Parse ``argv`` into ``{key: converted value}``; ``None`` when help was asked for.

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool, parse_int_list
+from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool, parse_int_list, parse_partial_keys
 
 USAGE = """\
 usage: python -m inbetweening.predict [ckpt_path=<model.ckpt>] input=<clip.bvh> output=<out.bvh>
@@ -30,6 +30,11 @@ Two ways to say which frames are keyframes:
   gap=30                (form B) every frame of the input is a keyframe (a clip holding only the key poses);
                         30 frames are generated between each consecutive pair, so K input frames give
                         K + (K - 1) * 30 output frames.
+
+Partial keys (with form A): 'partial=45:UpperArm_L,LowerArm_L,Hand_L;60:UpperLeg_R' says that at input frame 45
+only the left arm is keyed, at 60 only the right thigh: those bones' values there constrain the fill (the model
+was trained for keys known on some bones), the frames' other bones are generated.  Bone names are the input's;
+frames lie strictly between the first and the last keyframe.  Their bones' channels are copied unchanged too.
 
 Keyframe rows are copied unchanged into the output.  Generated frames take non-root position channels from
 the nearest keyframe; a folded Bandai-Namco joint_Root (still, or carrying the locomotion) moves between its
@@ -52,6 +57,7 @@ options:
                         a saved <output>.bone_map.yaml is one
   output=PATH           BVH file to write                                                (required)
   keyframes=LIST        form A, see above
+  partial=F:BONES;...   partial keys (form A), see above
   gap=N                 form B, see above
   max_gap=N             longest gap generated in one pass (default: the longest gap the model was trained on)
   segment=true|false    split gaps longer than max_gap (default true; --no-segment = false)
@@ -79,7 +85,7 @@ examples:
 """
 
 OPTIONS = {
-    "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "gap": int, "max_gap": int,
+    "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "partial": parse_partial_keys, "gap": int, "max_gap": int,
     "segment": parse_bool, "foot_lock": parse_bool, "self_check": parse_bool, "render": str, "render_dpi": int, "device": str, "force": parse_bool,
     "threads": int, "bone_map": str,
 }
@@ -196,7 +202,7 @@ def run(argv: Sequence[str]) -> int:
         out = Path(args["output"])
         try:
             res = ib.fill_detailed(clip, keyframes=args.get("keyframes"), gap=args.get("gap"),
-                                   bone_map=args.get("bone_map"))
+                                   bone_map=args.get("bone_map"), partial=args.get("partial"))
         except InbetweenError as e:
             template = getattr(e, "template", None)
             if template:  # a rig that cannot be mapped: an override template to fill in, next to the output

@@ -39,14 +39,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from inbetweening.data.contacts import FootContact, foot_contacts
-from inbetweening.evaluation.schedules import needs_positions, schedule_keyframes
+from inbetweening.evaluation import partial_keys as PK
+from inbetweening.evaluation.schedules import needs_positions, partial_interval, schedule_keyframes
 from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.skeleton import Skeleton
 
 UP = 1  # Y up
 HORIZONTAL = (0, 2)  # X and Z
 
-# fill(root (F, 3), local_q (F, J, 4) with NaN in unknown frames, keyframes) -> (root (F, 3), local_q (F, J, 4))
+# fill(root (F, 3), local_q (F, J, 4) with NaN in unknown frames, keyframes[, partial={frame: (J,) bool}])
+#   -> (root (F, 3), local_q (F, J, 4)); partial keys: schedule partial<K> (:mod:`.partial_keys`)
 Fill = Callable[[np.ndarray, np.ndarray, list[int]], tuple[np.ndarray, np.ndarray]]
 
 # the figures of one interval, in the order they are printed
@@ -116,11 +118,17 @@ def foot_spec(skeleton: Skeleton, contact: FootContact) -> FootSpec | None:
     return FootSpec(contact.indices(skeleton.names, "foot contact"), contact.height, contact.speed)
 
 
-def hold_keyframes(root: np.ndarray, local_q: np.ndarray, keys: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
-    """The zero-velocity baseline on keyframes: every frame repeats the keyframe before it.
-    ``root (F, 3), local_q (F, J, 4)`` (unknown frames never read) -> new float64 arrays."""
+def hold_keyframes(root: np.ndarray, local_q: np.ndarray, keys: Sequence[int],
+                   partial: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The zero-velocity baseline on keyframes: every frame repeats the keyframe before it (a partial key's joints
+    their own value there).  ``root (F, 3), local_q (F, J, 4)`` (unknown frames never read) -> new float64 arrays."""
     idx = np.asarray(keys)[np.searchsorted(keys, np.arange(len(root)), side="right") - 1]
-    return np.array(root, np.float64)[idx], np.array(local_q, np.float64)[idx]
+    r, q = np.array(root, np.float64)[idx], np.array(local_q, np.float64)[idx]
+    for t, mask in (partial or {}).items():
+        q[t, mask] = local_q[t, mask]
+        if mask[0]:
+            r[t] = root[t]
+    return r, q
 
 
 @dataclass
@@ -196,6 +204,13 @@ def evaluate_clips(clips: Sequence, skeleton: Skeleton, fill: Fill | None, inter
     """
     out: dict[str, dict] = {}
     for k in intervals:
+        if partial_interval(k):
+            row = evaluate_partial(clips, skeleton, fill, partial_interval(k))
+            if row:
+                out[str(k)] = row
+            if progress is not None:
+                progress(f"keyframes {k}: {row.get('n_clips', 0)} clips")
+            continue
         totals = _Totals.empty()
         for i, clip in enumerate(clips):
             positions = None
@@ -222,14 +237,57 @@ def evaluate_clips(clips: Sequence, skeleton: Skeleton, fill: Fill | None, inter
     return out
 
 
+def evaluate_partial(clips: Sequence, skeleton: Skeleton, fill: Fill | None, interval: int) -> dict:
+    """The ``partial<K>`` schedule (:mod:`.partial_keys`) over ``clips``: ``{model_cm, interp_cm, ratio, frozen_cm,
+    ratio_frozen, free_model_cm, free_interp_cm, free_frozen_cm, worse_share, worst, clip_ratios, n_clips,
+    n_frames}`` (``{}`` when no clip is long enough)."""
+    parts = PK.body_parts(skeleton)
+    sums = {m: np.zeros(4) for m in ("model", "interp", "frozen")}
+    ratios, frames = {}, 0
+    for i, clip in enumerate(clips):
+        keys, partial = PK.partial_schedule(len(clip.root_pos), interval, parts)
+        if not keys:
+            continue
+        n = keys[-1] + 1
+        gt = (np.asarray(clip.root_pos[:n], np.float64), np.asarray(clip.local_q[:n], np.float64))
+        res = PK.score_partial_clip(skeleton, gt, keys, partial, fill)
+        for m, v in res.items():
+            sums[m] += v
+        if res["interp"][0] > 0:
+            ratios[getattr(clip, "name", f"clip{i}")] = res["model"][0] / res["interp"][0]
+        frames += n - len(keys)
+    if not ratios:
+        return {}
+    mean = {m: (v[0] / max(v[1], 1), v[2] / max(v[3], 1)) for m, v in sums.items()}
+    worst = sorted(ratios.items(), key=lambda kv: -kv[1])[:N_WORST]
+    return {"model_cm": mean["model"][0], "interp_cm": mean["interp"][0], "ratio": mean["model"][0] / mean["interp"][0],
+            "frozen_cm": mean["frozen"][0], "ratio_frozen": mean["model"][0] / mean["frozen"][0],
+            "free_model_cm": mean["model"][1], "free_interp_cm": mean["interp"][1],
+            "free_frozen_cm": mean["frozen"][1],
+            "worse_share": sum(r > WORSE for r in ratios.values()) / len(ratios),
+            "worst": ", ".join(f"{n} {r:.2f}" for n, r in worst), "n_clips": len(ratios), "n_frames": frames,
+            "clip_ratios": ratios}
+
+
 def format_table(results: dict[str, dict], unit: str = "cm") -> str:
     """Markdown table of :func:`evaluate_clips`'s results: one row per keyframe interval."""
     head = (f"| keyframe every | model ({unit}) | interpolation ({unit}) | ratio | skate model ({unit}/s) "
             f"| skate interpolation ({unit}/s) | skate ground truth ({unit}/s) | clips | generated frames "
             f"| clips worse than interpolation by > 5 % | worst clips (ratio) |")
     lines = [head, "|---:|" + "---:|" * 10]
+    partial = {k: r for k, r in results.items() if "frozen_cm" in r}
     for k, r in results.items():
+        if k in partial:
+            continue
         cells = [("" if r.get(c) is None else f"{r[c]:.3f}" if c == "ratio" else f"{r[c]:.2f}") for c in COLUMNS]
         lines.append(f"| {k} | " + " | ".join(cells) + f" | {r['n_clips']} | {r['n_frames']} "
                      f"| {100 * r.get('worse_share', 0.0):.1f} % | {r.get('worst', '')} |")
+    if partial:
+        lines += ["", f"| partial keys | model ({unit}) | interpolation ({unit}) | ratio | frozen ({unit}) | ratio to "
+                  f"frozen | unkeyed joints: model / interpolation / frozen ({unit}) | clips | clips worse than "
+                  "interpolation by > 5 % | worst clips (ratio) |", "|---:|" + "---:|" * 9]
+        for k, r in partial.items():
+            lines.append(f"| {k} | {r['model_cm']:.2f} | {r['interp_cm']:.2f} | {r['ratio']:.3f} | {r['frozen_cm']:.2f} "
+                         f"| {r['ratio_frozen']:.3f} | {r['free_model_cm']:.2f} / {r['free_interp_cm']:.2f} / "
+                         f"{r['free_frozen_cm']:.2f} | {r['n_clips']} | {100 * r['worse_share']:.1f} % | {r['worst']} |")
     return "\n".join(lines)

@@ -12,6 +12,9 @@ mK``, the clip truncated to the last keyframe so its last frame is a key), or th
   minima of the mean joint speed (the poses where the motion turns), taken lowest speed first at least 8 frames from
   every key already chosen; a gap longer than 45 frames is then split into equal parts (breakdown keys).
 
+* ``partial<K>`` (e.g. ``partial30``): partial keys (:mod:`inbetweening.evaluation.partial_keys`): whole keys every
+  ``K`` frames and, halfway between each two, a key of one body part only.
+
 Adding a schedule is one function and one entry of :data:`SCHEDULES`.
 """
 from __future__ import annotations
@@ -21,12 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MIN_INTERVAL", "SCHEDULES", "KeyposeSchedule", "check_schedule", "extreme_keyframes", "keyframe_indices",
+__all__ = ["MIN_INTERVAL", "PARTIAL", "SCHEDULES", "partial_interval", "KeyposeSchedule", "check_schedule", "extreme_keyframes", "keyframe_indices",
            "mean_joint_speed", "needs_positions", "random_keyframes", "schedule_keyframes"]
 
 MIN_INTERVAL = 2  # the shortest interval a config may name (a key every K frames; K = 1 generates nothing)
 RANDOM_GAPS = (3, 45)  # random: gaps drawn uniformly in this range (frames)
 EXTREME_MIN_GAP, EXTREME_MAX_GAP = 8, 45  # extremes: minima at least this far apart; longer gaps split
+PARTIAL = "partial"  # partial<K>: whole keys every K frames, a partial key halfway between each two
 
 
 def keyframe_indices(num_frames: int, interval: int) -> list[int]:
@@ -101,14 +105,23 @@ SCHEDULES: dict[str, KeyposeSchedule] = {
 }
 
 
+def partial_interval(schedule) -> int | None:
+    """``K`` of a ``partial<K>`` schedule (``K >= 4``: room for a partial key and frames to fill on each side);
+    ``None`` for any other schedule."""
+    if isinstance(schedule, str) and schedule.startswith(PARTIAL) and schedule[len(PARTIAL):].isdigit():
+        k = int(schedule[len(PARTIAL):])
+        return k if k >= 4 else None
+    return None
+
+
 def check_schedule(schedule) -> None:
     """ValueError (a message a config check puts its key in front of) unless ``schedule`` is an interval
-    ``K >= MIN_INTERVAL`` or a name of :data:`SCHEDULES`."""
-    if isinstance(schedule, str) and schedule in SCHEDULES:
+    ``K >= MIN_INTERVAL``, a name of :data:`SCHEDULES` or ``partial<K>`` (``K >= 4``)."""
+    if isinstance(schedule, str) and (schedule in SCHEDULES or partial_interval(schedule)):
         return
     if isinstance(schedule, bool) or not isinstance(schedule, int) or schedule < MIN_INTERVAL:
-        raise ValueError(f"intervals must be integers >= {MIN_INTERVAL} (a keyframe every K frames) or one of "
-                         f"{list(SCHEDULES)}, got {schedule!r}")
+        raise ValueError(f"intervals must be integers >= {MIN_INTERVAL} (a keyframe every K frames), one of "
+                         f"{list(SCHEDULES)} or partial<K> (K >= 4: partial keys), got {schedule!r}")
 
 
 def needs_positions(schedule) -> bool:

@@ -49,3 +49,38 @@ def interpolate_keyframes(root, local_q, known_frames) -> tuple[np.ndarray, np.n
         w = (np.arange(a + 1, b) - a) / (b - a)
         root[a + 1 : b], q[a + 1 : b] = interpolate_pose(root[a], q[a], root[b], q[b], w)
     return root, q
+
+
+def interpolate_known(root, local_q, known) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`interpolate_keyframes` joint by joint: ``known (F, J)`` bool marks the values given (partial keys: a
+    frame may be known on some joints only); each joint's rotation is slerped between its own known frames, the root
+    position lerped between the frames where joint 0 is known; before a joint's first / after its last known frame it
+    holds that value.  Known values are copied unchanged and unknown values are never read; a joint never known keeps
+    the input (never read by callers that know it)."""
+    root = np.array(root, dtype=np.float64)
+    q = np.array(local_q, dtype=np.float64)
+    known = np.asarray(known, dtype=bool)
+    f = len(root)
+    t = np.arange(f)
+
+    def spans(frames):
+        nxt = np.clip(np.searchsorted(frames, t, side="left"), 1, len(frames) - 1)
+        a, b = frames[nxt - 1], frames[nxt]
+        w = np.clip((t - a) / np.maximum(b - a, 1), 0.0, 1.0)
+        return a, b, w, ~np.isin(t, frames)
+
+    for j in range(known.shape[1]):
+        frames = np.flatnonzero(known[:, j])
+        if len(frames) == 0:
+            continue
+        if len(frames) == 1:
+            q[~known[:, j], j] = q[frames[0], j]
+        else:
+            a, b, w, todo = spans(frames)
+            q[todo, j] = slerp_np(q[a[todo], j], q[b[todo], j], w[todo])
+        if j == 0:
+            if len(frames) == 1:
+                root[~known[:, 0]] = root[frames[0]]
+            else:
+                root[todo] = lerp(root[a[todo]], root[b[todo]], w[todo, None])
+    return root, q

@@ -38,11 +38,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from inbetweening.geometry import canonical
-from inbetweening.geometry.interp import interpolate_keyframes, interpolate_pose
+from inbetweening.geometry.interp import interpolate_keyframes, interpolate_known, interpolate_pose
 from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities, slerp_np
 
 from .foot_lock import SHORT_GAP, contact_rule, detected_contacts, key_contacts, lock_feet
 from .model import Backend, InbetweenError, ModelInfo
+from .partial import check_partial, known_values
 from .plan import GapPlan, check_keys, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
 from .rig_fill import RigFilled, fill_rig
 from .trust import Check, checks_of, gap_weights, scored
@@ -83,8 +84,10 @@ class _Clip:
     """A clip being filled: working arrays in the project's frame, its plan and what a re-fill keeps, the windows to
     generate, the predicted contact."""
 
-    def __init__(self, root, q, keys, plan: GapPlan, exact_root, exact_q, only, previous):
+    def __init__(self, root, q, keys, plan: GapPlan, exact_root, exact_q, only, previous, partial=None, base=None):
         self.root, self.q, self.keys, self.plan = root, q, keys, plan
+        self.partial = partial or {}  # partial keys {frame: (J,) bool}
+        self.base = base  # with partial keys: every joint interpolated between its own known values (root, q)
         self.exact_root, self.exact_q = exact_root, exact_q
         self.only, self.previous = only, previous
         self.contact = np.full(q.shape[:2], np.nan)
@@ -135,15 +138,19 @@ class FillRuntime:
     # ------------------------------------------------------------------ entry points
     def fill(self, root, local_q, keys: Sequence[int], *, file_frame: bool = False, max_gap: int | None = None,
              segment: bool | None = None, foot_lock: bool | None = None,
-             progress: Callable[[int, int], None] | None = None, only=None, previous=None) -> Filled:
+             progress: Callable[[int, int], None] | None = None, only=None, previous=None, partial=None) -> Filled:
         """Generate every frame strictly between consecutive ``keys`` (sorted indices into the arrays); values of
         those frames are never read (NaN is fine).  ``progress(done, total)`` is called after each window.
+
+        ``partial``: partial keys, ``{frame: joints}`` (a ``(J,)`` bool mask, joint indices or names) between the
+        first and the last key: those joints' values at that frame are kept and constrain the fill, the frame's other
+        joints are generated (:mod:`.partial`).
 
         A re-fill (module docstring): ``only``, the key gaps ``(key, next key)`` whose own inputs changed since an
         earlier fill (a key of theirs, or a context frame before the first key); ``previous``, the earlier fill's
         :attr:`Filled.shares` (a number per gap of one window will do); the frames of the other gaps hold the earlier
         fill's output, and come back exactly unless the gap is generated (:attr:`Filled.generated`)."""
-        return self.fill_many([(root, local_q, keys, only, previous)], file_frame=file_frame, max_gap=max_gap,
+        return self.fill_many([(root, local_q, keys, only, previous, partial)], file_frame=file_frame, max_gap=max_gap,
                               segment=segment, foot_lock=foot_lock, progress=progress)[0]
 
     fill_rig = fill_rig
@@ -151,7 +158,7 @@ class FillRuntime:
     def fill_many(self, clips, *, file_frame: bool = False, max_gap: int | None = None, segment: bool | None = None,
                   foot_lock: bool | None = None, batch_size: int | None = None,
                   progress: Callable[[int, int], None] | None = None) -> list[Filled]:
-        """:meth:`fill` of many ``(root, local_q, keys)`` (or ``(root, local_q, keys, only, previous)``, a re-fill)
+        """:meth:`fill` of many ``(root, local_q, keys)`` (or ``(root, local_q, keys, only, previous[, partial])``)
         at once: the k-th window of every clip is generated together, ``batch_size`` windows of one length per backend
         call (windows within a clip still left to right).  The same numbers as clip by clip, up to float rounding of
         the batched network.  Every clip is checked first."""
@@ -179,7 +186,7 @@ class FillRuntime:
         return [self._finish(c, lock, file_frame) for c in work]
 
     # ------------------------------------------------------------------ stages
-    def _prepare(self, root, local_q, keys, only=None, previous=None, *, limit: int, seg: bool,
+    def _prepare(self, root, local_q, keys, only=None, previous=None, partial=None, *, limit: int, seg: bool,
                  file_frame: bool) -> _Clip:
         """Check one clip, convert it to the project's frame and lay out its plan."""
         info = self.info
@@ -190,8 +197,12 @@ class FillRuntime:
             raise InbetweenError(f"fill: expected root (F, 3) and local_q (F, {j}, 4) of the model's skeleton, "
                                  f"got {exact_root.shape} and {exact_q.shape}")
         keys = check_keys(keys, len(exact_root), "keys")
+        partial, keys = check_partial(partial, keys, len(exact_root), info.skeleton.names)
         if not (np.isfinite(exact_root[keys]).all() and np.isfinite(exact_q[keys]).all()):
             raise InbetweenError("fill: the keys contain NaN or infinite values")
+        for t, mask in partial.items():
+            if not (np.isfinite(exact_q[t, mask]).all() and (not mask[0] or np.isfinite(exact_root[t]).all())):
+                raise InbetweenError(f"fill: the partial key at frame {t} contains NaN or infinite values")
         only, previous = check_refill(keys, only, previous)
         r, q = exact_root.copy(), exact_q.copy()
         if file_frame and not info.convention.is_project:
@@ -201,36 +212,53 @@ class FillRuntime:
         r[:first][bad], q[:first][bad] = r[first], q[first]  # no usable context there: the first key's pose
         q[: keys[-1] + 1] = qnormalize(q[: keys[-1] + 1])
         plan = plan_gaps(keys, limit, seg, info.trained_gap)
-        return _Clip(r, q, keys, plan, exact_root, exact_q, only, previous)
+        base = None
+        if partial:
+            base = interpolate_known(r, q, known_values(partial, keys, len(r), j))
+            for t in partial:  # what the windows show: the keyed joints, the others interpolated
+                r[t], q[t] = base[0][t], base[1][t]
+        return _Clip(r, q, keys, plan, exact_root, exact_q, only, previous, partial, base)
 
-    def windows(self, roots: Sequence[np.ndarray], qs: Sequence[np.ndarray], spans: Sequence[tuple[int, int]]):
+    def windows(self, roots: Sequence[np.ndarray], qs: Sequence[np.ndarray], spans: Sequence[tuple[int, int]],
+                partials: Sequence[dict] | None = None):
         """The context windows of gaps ``(a, b)`` of one length, one per clip ``roots[i] (F, 3)``, ``qs[i] (F, J, 4)``:
         ``root (B, T, 3), local_q (B, T, J, 4)`` (frames ``a - n_past + 1 .. a``, the gap holding frame ``a``'s values,
-        never read, then ``b``), sign-continuous along time."""
+        never read, but at the frames of ``partials[i]`` (partial keys) their own, then ``b``), sign-continuous along
+        time."""
         p = self.info.n_past
         wr, wq = [], []
-        for root, q, (a, b) in zip(roots, qs, spans):
-            idx = np.concatenate([np.clip(np.arange(a - p + 1, a + 1), 0, None), np.full(b - a - 1, a), [b]])
+        for i, (root, q, (a, b)) in enumerate(zip(roots, qs, spans)):
+            gap = np.arange(a + 1, b)
+            inside = np.isin(gap, list(partials[i])) if partials else np.zeros(len(gap), dtype=bool)
+            idx = np.concatenate([np.clip(np.arange(a - p + 1, a + 1), 0, None), np.where(inside, gap, a), [b]])
             wr.append(root[idx])
             wq.append(remove_discontinuities(q[idx], axis=0))
         return np.stack(wr), np.stack(wq)
 
-    def known_mask(self, batch: int, gap: int) -> np.ndarray:
-        """``known (B, T, J)``: ``n_past`` context frames, ``gap`` unknown frames, the target."""
+    def known_mask(self, batch: int, gap: int, starts: Sequence[int] | None = None,
+                   partials: Sequence[dict] | None = None) -> np.ndarray:
+        """``known (B, T, J)``: ``n_past`` context frames, ``gap`` unknown frames, the target; with ``partials[i]``
+        (partial keys of window ``i``, whose gap starts after frame ``starts[i]``) their joints known there."""
         p, j = self.info.n_past, self.info.skeleton.num_joints
         known = np.zeros((batch, p + gap + 1, j), dtype=bool)
         known[:, :p] = True
         known[:, -1] = True
+        for i, part in enumerate(partials or []):
+            for t, mask in part.items():
+                if 0 < t - starts[i] <= gap:
+                    known[i, p + t - starts[i] - 1] = mask
         return known
 
-    def predict_windows(self, wr: np.ndarray, wq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    def predict_windows(self, wr: np.ndarray, wq: np.ndarray,
+                        known: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Windows in the clip's frame -> the network's prediction of the gap (no blend): ``root (B, n, 3), local_q
-        (B, n, J, 4)`` (unit), contact ``(B, n, J)`` or ``None``: canonical frame, backend, back."""
+        (B, n, J, 4)`` (unit), contact ``(B, n, J)`` or ``None``: canonical frame, backend, back.  ``known``: the
+        windows' mask (default :meth:`known_mask` without partial keys)."""
         info = self.info
         b, t = wr.shape[:2]
         p = info.n_past
         n = t - p - 1
-        known = self.known_mask(b, n)
+        known = self.known_mask(b, n) if known is None else known
         centre, rot = canonical.canonical_frame(wr, wq, info.forward_axis, p - 1, known[..., 0],
                                                 centre_at_frame=info.centre == "last")
         croot, cq = canonical.canonicalise(wr, wq, centre, rot)
@@ -280,21 +308,33 @@ class FillRuntime:
         c.todo = [w for g in c.generated for w in windows[g]]
         chosen = set(c.generated)
         for a, b, points in c.plan.pseudo:
-            if (a, b) in chosen:
+            if (a, b) in chosen and c.base is not None:  # each joint between its own known values
+                c.root[points], c.q[points] = c.base[0][points], c.base[1][points]
+            elif (a, b) in chosen:
                 w = (np.array(points) - a) / (b - a)
                 c.root[points], c.q[points] = interpolate_pose(c.root[a], c.q[a], c.root[b], c.q[b], w)
 
     def _generate(self, items) -> None:
         """Fill frames ``a+1 .. b-1`` of each ``(clip, a, b)`` in place (gaps of one length, one backend call): the
         network's prediction blended with the interpolation by the window's weight."""
-        wr, wq = self.windows([c.root for c, _, _ in items], [c.q for c, _, _ in items], [(a, b) for _, a, b in items])
-        pr, pq, pc = self.predict_windows(wr, wq)
+        spans = [(a, b) for _, a, b in items]
+        parts = [{t: m for t, m in c.partial.items() if a < t < b} for c, a, b in items]
+        wr, wq = self.windows([c.root for c, _, _ in items], [c.q for c, _, _ in items], spans, parts)
+        known = self.known_mask(len(items), spans[0][1] - spans[0][0] - 1, [a for a, _ in spans], parts)
+        pr, pq, pc = self.predict_windows(wr, wq, known)
         for i, (c, a, b) in enumerate(items):
             w = c.weights.get((a, b), 1.0)
             r, q = pr[i], pq[i]
             if w < 1.0:
-                ir, iq = interpolate_pose(c.root[a], c.q[a], c.root[b], c.q[b], (np.arange(a + 1, b) - a) / (b - a))
+                if parts[i]:  # the fall-back: each joint between its own known values
+                    ir, iq = c.base[0][a + 1 : b], c.base[1][a + 1 : b]
+                else:
+                    ir, iq = interpolate_pose(c.root[a], c.q[a], c.root[b], c.q[b], (np.arange(a + 1, b) - a) / (b - a))
                 r, q = ir + w * (r - ir), slerp_np(iq, q, np.full(q.shape[:-1], w))
+            for t, mask in parts[i].items():  # partial keys exactly as keyed
+                q[t - a - 1, mask] = c.q[t, mask]
+                if mask[0]:
+                    r[t - a - 1] = c.root[t]
             c.root[a + 1 : b] = r
             c.q[a + 1 : b] = remove_discontinuities(np.concatenate([c.q[a : a + 1], q]), axis=0)[1:]
             if pc is not None:
@@ -332,7 +372,8 @@ class FillRuntime:
                 contact[s:e] = detected
             if lock:
                 feet = rule.indices(info.skeleton.names, "the model's feet")
-                fixed = np.flatnonzero(kept[s:e]).tolist() + span  # never moved: the keys and the kept gaps
+                # never moved: the keys, the kept gaps and the partial keys (their keyed joints are put back below)
+                fixed = np.flatnonzero(kept[s:e]).tolist() + span + [t - s for t in c.partial]
                 root, q = root.copy(), q.copy()
                 root[s:e], q[s:e] = lock_feet(info.skeleton, root[s:e], q[s:e], fixed, contact[s:e], feet)
                 locked = True
@@ -343,6 +384,10 @@ class FillRuntime:
         outside[keys] = True
         outside |= kept
         root[outside], q[outside] = c.exact_root[outside], c.exact_q[outside]
+        for t, mask in c.partial.items():  # partial keys: the keyed joints exactly as given
+            q[t, mask] = c.exact_q[t, mask]
+            if mask[0]:
+                root[t] = c.exact_root[t]
         segments = [(a, b, c.weights.get((a, b), 1.0)) for a, b in c.plan.segments]
         return Filled(root, q, contact, c.plan.pseudo_keyframes, segments, locked, c.checks, c.shares,
                       list(c.generated))

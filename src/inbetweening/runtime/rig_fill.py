@@ -8,10 +8,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from inbetweening.geometry.interp import interpolate_keyframes
+from inbetweening.geometry.interp import interpolate_keyframes, interpolate_known
 from inbetweening.geometry.quaternion import slerp_np
 
 from .model import InbetweenError
+from .partial import check_partial, known_values
 from .plan import check_keys, check_refill, key_gaps
 
 __all__ = ["RigFilled", "fill_rig"]
@@ -53,7 +54,7 @@ def _resample(root: np.ndarray, q: np.ndarray, times: np.ndarray) -> tuple[np.nd
 
 
 def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers: Sequence[int] | None = None,
-             fps: float | None = None, only=None, previous=None, **kw) -> RigFilled:
+             fps: float | None = None, only=None, previous=None, partial=None, **kw) -> RigFilled:
     """Fill a humanoid rig that is not the model's skeleton: the keys are retargeted onto the model's skeleton
     (``retarget``: a :class:`~inbetweening.runtime.retarget.Retarget` from the rig to the model), filled there
     (:meth:`~inbetweening.runtime.fill.FillRuntime.fill`; ``kw`` as there), and the fill retargeted back; the rig's
@@ -66,7 +67,11 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
     root).  ``fps``: the rig's frame rate; when it is not the model's, the keys are placed on the model's frames by
     their time, the model fills at its own rate, and the rig's frames take the fill at their time (rotations by slerp,
     the root linearly).  ``only``/``previous``: a re-fill, as :meth:`~inbetweening.runtime.fill.FillRuntime.fill`'s,
-    in the rig's frames (the kept gaps' frames are carried to the model's at their time; they come back exactly)."""
+    in the rig's frames (the kept gaps' frames are carried to the model's at their time; they come back exactly).
+    ``partial``: partial keys of the rig, ``{frame: bones}`` (a bool mask, indices or names of the rig's bones): the
+    frame's other bones interpolated between their own keys, it is retargeted, and a model joint is keyed there when
+    the rig bones its rotation comes from are (:attr:`Retarget.model_source`; the hips: the rig's hips bone); the
+    keyed bones come back exactly."""
     info = runtime.info
     lq = np.array(local_q, dtype=np.float64)
     lp = np.array(local_p, dtype=np.float64)
@@ -75,22 +80,37 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
         raise InbetweenError(f"fill_rig: expected local_q (F, {retarget.rig.num_joints}, 4) and local_p (F, "
                              f"{retarget.rig.num_joints}, 3) of the rig, got {lq.shape} and {lp.shape}")
     keys = check_keys(keys, n, "keys")
+    part, keys = check_partial(partial, keys, n, list(retarget.rig.names))
     if not (np.isfinite(lq[keys]).all() and np.isfinite(lp[keys]).all()):
         raise InbetweenError("fill_rig: the keys contain NaN or infinite values")
+    for t, mask in part.items():
+        if not (np.isfinite(lq[t, mask]).all() and np.isfinite(lp[t, mask]).all()):
+            raise InbetweenError(f"fill_rig: the partial key at frame {t} contains NaN or infinite values")
     only, previous = check_refill(keys, only, previous)
     first, last = keys[0], keys[-1]
     ratio = 1.0 if not fps or abs(float(fps) - info.fps) <= 0.5 else info.fps / float(fps)
     finite = np.isfinite(lq).all((1, 2)) & np.isfinite(lp).all((1, 2))
     context = [t for t in range(first) if finite[t]]
-    rows = context + list(keys)
+    rows = context + sorted(set(keys) | set(part))
     at = _model_frames(np.array(rows, dtype=np.float64) - first, ratio)  # the rows' model frames, from the first key
     shift = max(0, -int(at.min()))
     at = at + shift
     m = int(at.max()) + 1
     root = np.full((m, 3), np.nan)
     q = np.full((m, info.skeleton.num_joints, 4), np.nan)
-    root[at], q[at] = retarget.to_model(lq[rows], lp[rows])
-    model_keys = [int(a) for a in at[len(context):]]
+    src_q, src_p = lq, lp
+    if part:  # the partial keys' other bones: between their own keys (rotations), between the keys (translations)
+        known = known_values(part, keys, n, retarget.rig.num_joints)
+        src_q = interpolate_known(np.zeros((n, 3)), np.where(known[..., None], lq, np.nan), known)[1]
+        src_p = interpolate_keyframes(lp.reshape(n, -1), lq, keys)[0].reshape(lp.shape)
+        for t, mask in part.items():
+            src_p[t, mask] = lp[t, mask]
+    root[at], q[at] = retarget.to_model(src_q[rows], src_p[rows])
+    model_at = dict(zip(rows, (int(a) for a in at)))
+    model_keys = [model_at[k] for k in keys]
+    hips = retarget.rig_slot["Hips"]
+    model_part = {model_at[t]: np.array([all(mask[s] for s in retarget.model_source[j][:2]) and (j > 0 or mask[hips])
+                                         for j in range(info.skeleton.num_joints)]) for t, mask in part.items()}
     to_model = dict(zip(zip(keys, keys[1:]), zip(model_keys, model_keys[1:])))
     to_rig = {v: k for k, v in to_model.items()}
     model_only = None
@@ -102,12 +122,16 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
             root[ma + 1 : mb], q[ma + 1 : mb] = _resample(g_root, g_q, (np.arange(ma + 1, mb) - ma) * (kb - ka) / (mb - ma))
         model_only = {to_model[g] for g in only}
         previous = {to_model[g]: w for g, w in previous.items()}
-    model = runtime.fill(root, q, model_keys, only=model_only, previous=previous, **kw)
+    model = runtime.fill(root, q, model_keys, only=model_only, previous=previous, partial=model_part or None, **kw)
     span = np.arange(first, last + 1)
     times = (span - first) * ratio + shift
     times[np.searchsorted(span, keys)] = model_keys  # the keys at their own model frames
+    for t in part:
+        times[t - first] = model_at[t]
     m_root, m_q = _resample(model.root, model.local_q, times)
-    free_p, free_q = interpolate_keyframes(lp[span].reshape(len(span), -1), lq[span], [k - first for k in keys])
+    free_p, free_q = interpolate_keyframes(src_p[span].reshape(len(span), -1), lq[span], [k - first for k in keys])
+    if part:  # bones without a slot: through their partial keys too
+        free_q = src_q[span]
     out_q, out_p = lq.copy(), lp.copy()
     out_q[span], out_p[span] = retarget.to_rig(m_root, m_q, free_q, free_p.reshape(len(span), -1, 3), movers)
     generated, kept = [], np.zeros(n, dtype=bool)
@@ -120,4 +144,6 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
             kept[a + 1 : b] = True
     kept[keys] = True
     out_q[kept], out_p[kept] = lq[kept], lp[kept]
+    for t, mask in part.items():  # the partial keys' bones exactly as keyed
+        out_q[t, mask], out_p[t, mask] = lq[t, mask], lp[t, mask]
     return RigFilled(out_q, out_p, model, generated, {to_rig[g]: w for g, w in model.shares.items()})

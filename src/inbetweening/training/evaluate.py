@@ -74,15 +74,16 @@ def animator_fill(model, foot_lock: bool = True, self_check: bool = True):
     """The animator's fill (the fill runtime, :class:`~inbetweening.runtime.FillRuntime`, with the torch backend) of
     ``model``, a checkpoint path or a predictor (feet locked unless ``foot_lock=False``; the self-check of the do-no-harm
     blend unless ``self_check=False``): ``(fill, predictor)``,
-    ``fill(root, local_q, keys) -> (root, local_q)``: what ``predict``, the Python API and Blender fill with."""
+    ``fill(root, local_q, keys, partial=None) -> (root, local_q)``: what ``predict``, the Python API and Blender fill
+    with (``partial``: partial keys, ``{frame: joints}``)."""
     from inbetweening.runtime import FillRuntime
     from inbetweening.runtime.torch_backend import TorchBackend
 
     backend = TorchBackend(model) if isinstance(model, torch.nn.Module) else TorchBackend.from_checkpoint(model)
     runtime = FillRuntime(backend, foot_lock=foot_lock, self_check=self_check)
 
-    def fill(root, local_q, keys):
-        out = runtime.fill(root, local_q, keys)
+    def fill(root, local_q, keys, partial=None):
+        out = runtime.fill(root, local_q, keys, partial=partial)
         return out.root, out.local_q
 
     return fill, backend.predictor
