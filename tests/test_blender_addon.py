@@ -556,3 +556,28 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
         e = res[name]
         assert e["result"] == ["CANCELLED"] and needle in e["error"], (name, e["error"])
         assert e["n_lost_keys"] == 0 and not e["changed_curves"] and not e["gained"] and e["frame_after"] == 1, name
+
+
+def test_partial_keys_in_blender(bpy_exe, built, tmp_path):
+    """Whole keys at 1, 31, 61, 91 and, at 76, the left arm alone keyed raised: the arm keys stay the animator's
+    exactly, the frame's other bones get generated keys (not keys frozen at their curves); a second fill writes
+    nothing; the arm key changed re-fills its own gap only (the gaps before it bit for bit); undo restores."""
+    model_skeleton_bvh(tmp_path / "clip.bvh", frames=91)
+    out = tmp_path / "partial"
+    out.mkdir()
+    (out / "cfg.json").write_text(json.dumps({"zip": str(next(built.glob("*-linux-x64.zip"))),
+                                              "bvh": str(tmp_path / "clip.bvh"), "out": str(out)}))
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(out / "user"), "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run([str(bpy_exe), str(REPO / "tests" / "blender" / "bpy_partial_check.py"),
+                           str(out / "cfg.json")], capture_output=True, text=True, env=env, timeout=900)
+    assert proc.returncode == 0, (proc.stdout[-3000:], proc.stderr[-3000:])
+    r = json.loads((out / "partial.json").read_text())
+    assert "crash" not in r, r["crash"]
+    assert r["whole"]["result"] == ["FINISHED"] and r["whole"]["gaps"] == 3 and r["whole_undone"]
+    assert r["fill"]["result"] == ["FINISHED"] and r["fill"]["gaps"] == 3 and r["partial_keys"] == 1
+    assert r["arm_keys_kept"] and r["arm_types"] == [r["key_type"]]
+    assert r["spine_types"] == [r["gen_type"]]  # today's extension keyed every other bone there as the animator's
+    assert r["spine_moved_deg"] > 0.01  # generated, not frozen at the curve's value
+    assert r["noop"]["result"] == ["CANCELLED"] and r["noop_same"]
+    assert r["refill"]["result"] == ["FINISHED"] and r["refill"]["refilled"] == [[61, 91]]
+    assert r["left_gaps_same"] and r["own_gap_changed"] and r["undo_restores"]

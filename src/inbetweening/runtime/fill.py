@@ -61,7 +61,8 @@ class Filled:
     the do-no-harm blend, :mod:`.trust`); ``shares``: the same per key gap, ``{(key, next key): (weight, ...)}`` (a
     re-fill's ``previous``); ``generated``: the key gaps generated, in order (every gap but in a re-fill);
     ``checks``: the self-checks on the keys (:class:`~inbetweening.runtime.trust.Check`); ``locked``: whether the feet
-    were locked."""
+    were locked; ``feet``: the foot joints ``contact`` is about (the model's, or found by name for a model whose data
+    did not record them)."""
 
     root: np.ndarray
     local_q: np.ndarray
@@ -72,6 +73,7 @@ class Filled:
     checks: list[Check] = field(default_factory=list)
     shares: dict[tuple[int, int], tuple[float, ...]] = field(default_factory=dict)
     generated: list[tuple[int, int]] = field(default_factory=list)
+    feet: list[int] = field(default_factory=list)
 
 
 def _check_batch_size(batch_size) -> int:
@@ -354,9 +356,10 @@ class FillRuntime:
         kept = np.zeros(len(root), dtype=bool)
         for a, b in sorted(set(key_gaps(keys)) - set(c.generated)):
             kept[a + 1 : b] = True
-        contact, locked = None, False
+        contact, locked, feet = None, False, []
         rule = contact_rule(info.contact, info.skeleton, root, q, keys)
-        if rule.feet:  # on the filled span alone: frames before the first key are context, never feet to lock
+        if rule.feet:
+            feet = list(rule.indices(info.skeleton.names, "the model's feet"))  # on the filled span alone: frames before the first key are context, never feet to lock
             s, e = keys[0], keys[-1] + 1
             span = [k - s for k in keys]
             detected = detected_contacts(info.skeleton, rule, info.fps, root[s:e], q[s:e], span)
@@ -371,7 +374,6 @@ class FillRuntime:
             else:
                 contact[s:e] = detected
             if lock:
-                feet = rule.indices(info.skeleton.names, "the model's feet")
                 # never moved: the keys, the kept gaps and the partial keys (their keyed joints are put back below)
                 fixed = np.flatnonzero(kept[s:e]).tolist() + span + [t - s for t in c.partial]
                 root, q = root.copy(), q.copy()
@@ -390,4 +392,4 @@ class FillRuntime:
                 root[t] = c.exact_root[t]
         segments = [(a, b, c.weights.get((a, b), 1.0)) for a, b in c.plan.segments]
         return Filled(root, q, contact, c.plan.pseudo_keyframes, segments, locked, c.checks, c.shares,
-                      list(c.generated))
+                      list(c.generated), feet)

@@ -2,8 +2,8 @@
 and *Auto Re-fill* settings, and the handlers behind Auto Re-fill.
 
 **What the model did.**  Per gap the fill re-filled: the network's share of each window (the do-no-harm blend
-weight, 100 % where the model has no blend) and, for a model that predicts foot contact, the frames where each foot is
-planted (predicted contact above one half); kept in the record (:mod:`.record`), so gaps kept from an earlier fill
+weight, 100 % where the model has no blend) and the frames where each foot is planted (the model's predicted contact
+above one half, or the contact rule on the fill for a model without contact channels); kept in the record (:mod:`.record`), so gaps kept from an earlier fill
 show what was done then.
 
 **Auto Re-fill.**  A ``depsgraph_update_post`` handler notices that the active armature's action changed (an update
@@ -69,9 +69,9 @@ def gap_info(frames: np.ndarray, gaps, filled, model_info) -> dict:
     out = {}
     contact = filled.contact
     sides = []
-    if contact is not None and model_info.contact.feet:
+    if contact is not None and filled.feet:  # the model's feet, or those found by name (a model without them)
         sk = model_info.skeleton
-        for _, _, ankle in legs(sk, model_info.contact.indices(sk.names, "the model's feet")):
+        for _, _, ankle in legs(sk, filled.feet):
             side = side_of(sk.names[ankle])
             sides.append(({"left": "L", "right": "R"}.get(side, sk.names[ankle]), ankle))
     pos = {int(f): i for i, f in enumerate(frames)}

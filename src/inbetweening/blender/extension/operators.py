@@ -74,7 +74,8 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
             lo, hi = max(lo, scene.frame_preview_start), min(hi, scene.frame_preview_end)
         else:
             raise rig.RigError("only selected range: no keys are selected and there is no preview range")
-    all_keys = sorted(past.key_frames(curves, lo, hi))
+    # whole keys (every keyed bone) bound the gaps; a frame keyed on some bones only is a partial key inside one
+    all_keys, partial = record.split_keys(past.keyed_bones(curves, lo, hi), whole_only=rigify_rig)
     all_gaps = [(a, b) for a, b in zip(all_keys, all_keys[1:]) if b - a > 1]
     if not all_gaps:
         raise rig.RigError(f"nothing to fill: frames {lo}..{hi} hold {len(all_keys)} key(s) and no gap between two keys")
@@ -82,17 +83,20 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
         r.check_fk(all_keys[0], all_keys[-1])
     p = info.n_past
     reader = record.Reader(r)
-    seen = list(range(all_keys[0] - (p - 1), all_keys[0])) + all_keys
+    seen = list(range(all_keys[0] - (p - 1), all_keys[0])) + sorted(all_keys + list(partial))
     reader.read(seen)
     if any_rig:
         retarget = r.plan(reader.a[all_keys[0]])
         chans = r.channels()
     settings = record.settings_digest(record.model_key(model), foot_lock, chans, r.fcurves,
                                       getattr(r, "ancestors", ()))
-    plan = past.plan(all_keys, all_gaps, p, reader.digests(seen), settings)
+    bones = list(r.names) if any_rig else [pb.name for pb in r.pbones]
+    masks = {f: np.isin(bones, sorted(b)) for f, b in partial.items()}
+    digests = reader.digests(seen, masks)
+    plan = past.plan(all_keys, all_gaps, p, digests, settings, inner=list(partial))
     summary = {"gaps": 0, "kept": len(all_gaps), "edits": past.new_edits, "keys": len(all_keys),
                "range": (all_keys[0], all_keys[-1]), "humanoid": any_rig, "model_seconds": 0.0, "windows": 0,
-               "frames": 0, "feet_locked": False, "network_share": [], "refilled": []}
+               "frames": 0, "feet_locked": False, "network_share": [], "refilled": [], "partial_keys": len(partial)}
     if plan.nothing:
         return summary
     # every key, and the frames of the gaps the runtime may keep as they are now (the last fill's output)
@@ -126,13 +130,14 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     t0 = time.perf_counter()
     try:
         keys_idx = [pos[k] for k in all_keys]
+        part = {pos[f]: m for f, m in masks.items()} or None
         runtime = FillRuntime(model, foot_lock=foot_lock)
         if any_rig:
             out = runtime.fill_rig(retarget, lq, lp, keys_idx, movers=r.movers, progress=progress, only=only,
-                                   previous=previous)
+                                   previous=previous, partial=part)
             filled, generated = out.model, out.generated
         else:
-            filled = runtime.fill(root, q, keys_idx, progress=progress, only=only, previous=previous)
+            filled = runtime.fill(root, q, keys_idx, progress=progress, only=only, previous=previous, partial=part)
             out_r, out_q, generated = filled.root, filled.local_q, filled.generated
     finally:
         if report_progress:
@@ -176,7 +181,7 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     summary.update(gaps=len(gaps), kept=len(all_gaps) - len(gaps), frames=len(gen), model_seconds=t_model,
                    windows=model.calls, feet_locked=filled.locked, refilled=[list(g) for g in gaps],
                    network_share=[w for g in gaps for _, _, w in done[g]["windows"]])
-    past.commit(r.fcurves, chans, all_keys, all_gaps, p, reader.digests(seen), settings, done,
+    past.commit(r.fcurves, chans, all_keys, all_gaps, p, digests, settings, done,
                 {k: summary[k] for k in ("gaps", "kept", "edits", "refilled")})
     if any_rig:
         keyed = [pb.name for pb in r.pbones] if rigify_rig else [r.names[j] for j in r.rot_bones]

@@ -32,7 +32,7 @@ import os
 
 import numpy as np
 
-from .rig import GENERATED, _enum_index
+from .rig import GENERATED, _enum_index, bone_of
 
 RECORD = "inbetween_fill"
 TOLERANCE = 1e-6
@@ -140,8 +140,15 @@ class Reader:
         return (np.stack([self.a[f] for f in frames]), np.stack([self.b[f] for f in frames]),
                 [self.raw[f] for f in frames])
 
-    def digests(self, frames) -> dict[str, str]:
-        return {str(f): digest(self.a[f], self.b[f]) for f in frames}
+    def digests(self, frames, masks: dict | None = None) -> dict[str, str]:
+        """A digest of the pose read at each of ``frames``; at a partial key (``masks``: ``{frame: (J,) bool}``) of
+        its keyed joints only (the others are the fill's)."""
+        def keyed(x, m):
+            return x[m] if x.shape[:1] == m.shape else (x if m[0] else x[:0])
+
+        masks = masks or {}
+        return {str(f): digest(*((keyed(self.a[f], masks[f]), keyed(self.b[f], masks[f])) if f in masks
+                                 else (self.a[f], self.b[f]))) for f in frames}
 
 
 class Plan:
@@ -170,6 +177,20 @@ def runs(gaps, filled) -> list[list[int]]:
         else:
             out.append([a, b])
     return out
+
+
+def split_keys(by_frame: dict[int, set[str]], whole_only: bool = False) -> tuple[list[int], dict[int, set[str]]]:
+    """The whole keys and the partial keys of ``{frame: bones keyed there}`` (:meth:`Past.keyed_bones`): a frame is a
+    whole key when every bone keyed anywhere is keyed there, a partial key (constraining its bones only) when it lies
+    between two whole keys; frames outside them, and every frame when fewer than two are whole (or ``whole_only``),
+    are whole keys, each channel not keyed there keyed at its current value as before partial keys existed."""
+    frames = sorted(by_frame)
+    every = set().union(*by_frame.values()) if by_frame else set()
+    whole = [f for f in frames if by_frame[f] >= every]
+    if whole_only or len(whole) < 2:
+        return frames, {}
+    partial = {f: by_frame[f] for f in frames if whole[0] < f < whole[-1] and f not in whole}
+    return sorted(set(frames) - set(partial)), partial
 
 
 class Past:
@@ -239,7 +260,12 @@ class Past:
         """Frames in ``[lo, hi]`` holding a key of the animator on any of ``curves``: not a generated key, or a
         generated one they edited (on any channel the fill writes); with Discard Edits, not one made from a generated
         key."""
-        out: set[int] = set()
+        return set(self.keyed_bones(curves, lo, hi, selected_only))
+
+    def keyed_bones(self, curves, lo: float, hi: float, selected_only: bool = False) -> dict[int, set[str]]:
+        """:meth:`key_frames` with, per frame, the bones keyed there (``{frame: {bone name}}``; a bone is keyed at a
+        frame where one of its curves holds a key of the animator)."""
+        out: dict[int, set[str]] = {}
         extra = [fc for fc in self.edit_keys if fc not in curves]
         for fc in list(curves) + extra:
             x, _, typ, sel = scan(fc)
@@ -251,13 +277,17 @@ class Past:
             if selected_only:
                 mine &= sel
             f = np.round(x[mine]).astype(int)
-            out.update(int(v) for v in f if lo <= v <= hi)
+            bone = bone_of(fc.data_path)
+            for v in f:
+                if lo <= v <= hi:
+                    out.setdefault(int(v), set()).add(bone)
         return out
 
     # ------------------------------------------------------------------ what changed
-    def plan(self, keys, gaps, n_past: int, digests: dict, settings: str) -> Plan:
+    def plan(self, keys, gaps, n_past: int, digests: dict, settings: str, inner=()) -> Plan:
         """The gaps whose inputs changed and the recorded shares (module docstring): ``digests`` of the poses read now
-        at the keys and the context frames before the first key; ``settings``: :func:`settings_digest`."""
+        at the keys, the partial keys (``inner``: frames keyed on some bones, inside the gaps) and the context frames
+        before the first key; ``settings``: :func:`settings_digest`."""
         meta = self.meta
         if meta is None or meta.get("settings") != settings or self.discard:
             return Plan(None, None)
@@ -271,7 +301,9 @@ class Past:
 
         dirty = {(a, b) for a, b in gaps
                  if (a, b) not in old_gaps or changed(a) or changed(b) or any(a < f < b for f in self.broken)
-                 or any((f < first or f in keyset) and changed(f) for f in range(a - n_past + 1, a))}
+                 or any((f < first or f in keyset) and changed(f) for f in range(a - n_past + 1, a))
+                 or any(a < f < b and changed(f) for f in inner)
+                 or any(a < int(f) < b and f not in digests for f in old)}  # a partial key added, changed, removed
         previous = {tuple(g): [w for _, _, w in gi["windows"]] for g, gi in zip(meta["gaps"], meta["info"])
                     if gi.get("windows")}
         return Plan(dirty, previous)

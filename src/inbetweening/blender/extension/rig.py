@@ -57,6 +57,14 @@ def bone_path(name: str, prop: str) -> str:
     return f'pose.bones["{bpy.utils.escape_identifier(name)}"].{prop}'
 
 
+def bone_of(data_path: str) -> str:
+    """The bone name of a pose bone's curve path (:func:`bone_path`'s inverse); the path's head for other curves."""
+    head = data_path.rsplit(".", 1)[0]
+    if head.startswith('pose.bones["') and head.endswith('"]'):
+        return head[len('pose.bones["'):-2].replace('\\"', '"').replace("\\\\", "\\")
+    return head
+
+
 def rotation_quats(mode: str, values: np.ndarray) -> np.ndarray:
     """``(F, 4)`` (wxyz): the rotations of a bone's rotation channel values ``(F, n)`` in its rotation ``mode``, as
     Blender (``mathutils``) reads them (an Euler mode names the order the axes are applied in, the angles are x, y, z;
