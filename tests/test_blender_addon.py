@@ -292,21 +292,25 @@ def test_animator_loop_in_blender(bpy_exe, built, tmp_path):
     r = run_loop(bpy_exe, next(built.glob("*-linux-x64.zip")), tmp_path / "clip.bvh", tmp_path / "loop", human=True)
     assert r["first"]["result"] == ["FINISHED"] and (r["first"]["gaps"], r["first"]["kept"]) == (8, 0)
     assert r["panel_first"][0] == "Last fill: 8 gap(s) filled, 0 kept"
-    assert r["panel_first"][1:] == [f"{a}–{a + 15}: network 0 %" for a in range(1, 107, 15)]  # no feet: no contacts
+    shares = [line for line in r["panel_first"][1:] if "network" in line]
+    assert shares == [f"{a}–{a + 15}: network 0 %" for a in range(1, 107, 15)]
+    feet = [line for line in r["panel_first"][1:] if line.startswith("feet planted: L ")]
+    assert len(feet) == 8  # the shipped model records no feet: found by name, the contact rule on the fill
     assert r["noop"]["result"] == ["CANCELLED"] and (r["noop"]["gaps"], r["noop"]["kept"]) == (0, 8) and r["noop_same"]
 
     refill = r["refill"]
     assert refill["result"] == ["FINISHED"] and refill["kept"] == 2 and refill["edits"] == 1
-    assert refill["refilled"] == [[31, 48], [48, 61], [61, 76], [76, 91], [91, 100], [100, 106], [106, 121]]
+    # the edit (the neck alone, at 100) is a partial key: it constrains the neck there and splits no gap
+    assert refill["refilled"] == [[31, 48], [48, 61], [61, 76], [76, 91], [91, 106], [106, 121]]
     assert r["edit_type_before"] == "GENERATED" and r["edit_kept"] and r["edit_type_after"] == "KEYFRAME"
     assert r["far_keys_same"] and r["far_values_same"] and r["far_key_values_as_first_fill"] and r["near_changed"]
     assert "1 hand edit(s) kept as keys" in r["panel"] and "1–16: network 0 %  (kept)" in r["panel"]
-    assert "91–100: network 0 %" in r["panel"] and "31–48: network 0 %" in r["panel"]
+    assert "91–106: network 0 %" in r["panel"] and "31–48: network 0 %" in r["panel"]
     assert r["again"]["result"] == ["CANCELLED"] and r["again_same"]
     assert r["undo_curves"] and r["undo_record"] and r["redo_curves"]
-    assert r["full"]["gaps"] == 9 and r["full_edit_kept"] and r["full_again"]["gaps"] == 9  # every gap, twice:
+    assert r["full"]["gaps"] == 8 and r["full_edit_kept"] and r["full_again"]["gaps"] == 8  # every gap, twice:
     assert r["partial_vs_full"] < 1e-3  # the re-fill is the same up to float32 rounding of the context read back
-    assert r["reloaded"]["result"] == ["CANCELLED"] and r["reloaded"]["kept"] == 9 and r["reloaded_same"]
+    assert r["reloaded"]["result"] == ["CANCELLED"] and r["reloaded"]["kept"] == 8 and r["reloaded_same"]
 
     assert r["discard"]["result"] == ["FINISHED"] and (r["discard"]["gaps"], r["discard"]["kept"]) == (8, 0)
     assert r["discard_type"] == "GENERATED" and r["discard_value_changed"]

@@ -171,7 +171,10 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
         mine = xr[typ != gen_type]
         have = set(mine.tolist()) | set(xr[(typ == gen_type) & ~record.inside(xr, spans)].tolist())
         missing = [k for k in all_keys if first <= k <= last and k not in have]
-        free = ~np.isin(gen, mine)  # never over one of the animator's keys
+        if partial:  # a partial key of this channel's bone: the bone is keyed there, each of its channels too
+            name = r.pbones[j].name
+            missing += [f for f, keyed in partial.items() if name in keyed and first < f < last and f not in mine]
+        free = ~np.isin(gen, mine) & ~np.isin(gen, missing)  # never over one of the animator's keys
         fr, val = gen[free].astype(np.float64), values[(j, path, i)][free]
         if missing:  # a key frame this channel has no key at: key its current value
             extra = np.array([fc.evaluate(k) for k in missing])
