@@ -71,9 +71,10 @@ def gap_info(frames: np.ndarray, gaps, filled, model_info) -> dict:
     sides = []
     if contact is not None and filled.feet:  # the model's feet, or those found by name (a model without them)
         sk = model_info.skeleton
-        for _, _, ankle in legs(sk, filled.feet):
+        for _, _, ankle in legs(sk, filled.feet):  # a foot is planted where its ankle or toe is
             side = side_of(sk.names[ankle])
-            sides.append(({"left": "L", "right": "R"}.get(side, sk.names[ankle]), ankle))
+            joints = [j for j in filled.feet if j == ankle or (side and side_of(sk.names[j]) == side)]
+            sides.append(({"left": "L", "right": "R"}.get(side, sk.names[ankle]), joints))
     pos = {int(f): i for i, f in enumerate(frames)}
     for a, b in gaps:
         windows = [[int(frames[i]), int(frames[j]), float(w)] for i, j, w in filled.segments
@@ -82,7 +83,8 @@ def gap_info(frames: np.ndarray, gaps, filled, model_info) -> dict:
         if sides:
             rows = np.array([pos[f] for f in range(a + 1, b)])
             gen = np.arange(a + 1, b)
-            planted = {name: _runs(gen, np.nan_to_num(contact[rows, j]) > CONTACT_THRESHOLD) for name, j in sides}
+            planted = {name: _runs(gen, (np.nan_to_num(contact[rows][:, js]) > CONTACT_THRESHOLD).any(-1))
+                       for name, js in sides}
         out[(a, b)] = {"windows": windows, "planted": planted}
     return out
 
@@ -99,6 +101,8 @@ def summary_lines(meta: dict | None) -> list[tuple[str, str]]:
     lines = [(f"Last fill: {last.get('gaps', 0)} gap(s) filled, {last.get('kept', 0)} kept", "IPO_BEZIER")]
     if last.get("edits"):
         lines.append((f"{last['edits']} hand edit(s) kept as keys", "KEYFRAME_HLT"))
+    if last.get("partial_keys"):
+        lines.append((f"{last['partial_keys']} partial key(s): some bones keyed", "KEYFRAME"))
     refilled = {tuple(g) for g in last.get("refilled", [])}
     for (a, b), gi in zip(meta["gaps"], meta["info"]):
         shares = " / ".join(f"{100 * w:.0f} %" for _, _, w in gi.get("windows", [])) or "?"

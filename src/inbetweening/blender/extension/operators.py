@@ -185,7 +185,7 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
                    windows=model.calls, feet_locked=filled.locked, refilled=[list(g) for g in gaps],
                    network_share=[w for g in gaps for _, _, w in done[g]["windows"]])
     past.commit(r.fcurves, chans, all_keys, all_gaps, p, digests, settings, done,
-                {k: summary[k] for k in ("gaps", "kept", "edits", "refilled")})
+                {k: summary[k] for k in ("gaps", "kept", "edits", "refilled", "partial_keys")})
     if any_rig:
         keyed = [pb.name for pb in r.pbones] if rigify_rig else [r.names[j] for j in r.rot_bones]
         summary.update(bone_map=dict(r.map.slots), how=dict(r.map.how), keyed_bones=keyed,
