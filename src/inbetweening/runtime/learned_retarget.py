@@ -40,7 +40,7 @@ class LearnedRetarget:
     @staticmethod
     def rig_of(hp: dict) -> TargetRig:
         """The target rig a checkpoint's hyperparameters name (its hierarchy and reference frame, as BVH text)."""
-        source = Skeleton.from_dict(hp["source"])
+        source = Skeleton.from_dict(hp["skeleton"])  # the source skeleton
         return TargetRig(parse_bvh(hp["rig_bvh"], hp.get("rig_name", "target_rig")), source, hp["forward"])
 
     @classmethod

@@ -37,11 +37,11 @@ def smoothness(y: torch.Tensor, kernel: torch.Tensor) -> torch.Tensor:
 
 class RetargetModule(L.LightningModule):
     """``model``: the network's config; ``loss``: ``{mse, smooth, bone}`` weights; ``smooth_kernel``; ``optim``: the
-    ``optim`` group; ``source``/``forward``/``rig_bvh``/``fps``: the source skeleton (dict), its root's facing axis,
+    ``optim`` group; ``skeleton``/``forward``/``rig_bvh``/``fps``: the source skeleton (dict), its root's facing axis,
     the target rig's hierarchy and reference frame (BVH text) and the frame rate; ``norm``: feature statistics;
     ``split``: the clips' selection and split (``contents``, ``train_fraction``), recorded for ``eval.py``."""
 
-    def __init__(self, model: dict, loss: dict, smooth_kernel: list, optim: dict, source: dict, forward: list,
+    def __init__(self, model: dict, loss: dict, smooth_kernel: list, optim: dict, skeleton: dict, forward: list,
                  rig_bvh: str, rig_name: str, fps: float, norm: dict, split: dict | None = None):
         super().__init__()
         self.save_hyperparameters()

@@ -115,7 +115,7 @@ def train_retarget(cfg: DictConfig) -> dict[str, float]:
     plain = OmegaConf.to_container
     module = RetargetModule(model=plain(cfg.model, resolve=True), loss=plain(rc.loss, resolve=True),
                             smooth_kernel=list(rc.smooth_kernel), optim=plain(cfg.optim, resolve=True),
-                            source=data.skeleton.to_dict(), forward=list(data.forward_axis), rig_bvh=format_bvh(ref),
+                            skeleton=data.skeleton.to_dict(), forward=list(data.forward_axis), rig_bvh=format_bvh(ref),
                             rig_name=Path(cfg.target_rig).name, fps=float(data.fps),
                             norm={k: v.tolist() for k, v in norm.items()},
                             split={"contents": contents, "train_fraction": float(rc.train_fraction)})
