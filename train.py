@@ -3,7 +3,7 @@ import hydra
 from omegaconf import DictConfig
 
 from inbetweening.training.job import run_cli
-from inbetweening.training.retarget_task import train_retarget, is_retarget
+from inbetweening.training.retarget_task import is_retarget, train_retarget
 from inbetweening.training.train import train
 
 

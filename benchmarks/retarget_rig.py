@@ -13,11 +13,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from characters import character  # noqa: E402
-
 from inbetweening.data.bvh_writer import write_bvh  # noqa: E402
 from inbetweening.geometry.quaternion import qinv, qmul  # noqa: E402
-from inbetweening.predictor.checkpoint import read_checkpoint  # noqa: E402
 from inbetweening.geometry.skeleton import Skeleton  # noqa: E402
+from inbetweening.predictor.checkpoint import read_checkpoint  # noqa: E402
 from inbetweening.runtime.retarget import tpose  # noqa: E402
 
 SCALE = {"legs": 1.15, "Spine": 0.85, "Chest": 1.1, "UpperArm_L": 1.15, "UpperArm_R": 1.15, "LowerArm_L": 0.9,

@@ -36,9 +36,9 @@ def run(opts: dict) -> Path:
     import torch
 
     from inbetweening.data.bvh import BVHError, read_bvh
+    from inbetweening.data.bvh_writer import write_bvh
     from inbetweening.data.clips import clip_in_skeleton
     from inbetweening.data.errors import DatasetError
-    from inbetweening.data.bvh_writer import write_bvh
     from inbetweening.predictor.checkpoint import CheckpointError
     from inbetweening.runtime.learned_retarget import LearnedRetarget, check_target
     from inbetweening.runtime.model import InbetweenError

@@ -10,7 +10,6 @@ scalars and the figure into TensorBoard.
 """
 from __future__ import annotations
 
-import io
 import json
 from pathlib import Path
 
@@ -95,12 +94,12 @@ def _report(out: Path, results: dict, learned: LearnedRetarget, sets: dict, head
 
 def train_retarget(cfg: DictConfig) -> dict[str, float]:
     """Fit the retargeting network on (source, analytic target) pairs, score the held-out clips (module docstring)."""
+    bvh = _rig_file(cfg)  # a wrong rig is one line before anything else is printed
+    if bvh is None:
+        raise ConfigError("target_rig: required with task=retarget (a BVH file whose hierarchy is the target)")
     use_threads(cfg)
     L.seed_everything(cfg.seed, workers=True)
     out = output_dir(cfg)
-    bvh = _rig_file(cfg)
-    if bvh is None:
-        raise ConfigError("target_rig: required with task=retarget (a BVH file whose hierarchy is the target)")
     rc = cfg.retarget
     data = make_datamodule(cfg).load_data()
     rig = _target(bvh, data, f"target_rig {cfg.target_rig}")
