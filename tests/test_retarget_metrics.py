@@ -55,3 +55,12 @@ def test_skating_is_the_foot_speed_while_the_source_foot_is_planted():
     s = _score()
     s.add(src, None, src)
     assert s.result()["skate"] == pytest.approx(0.0)
+
+
+def test_the_source_scores():
+    from inbetweening.evaluation.retarget_metrics import source_scores
+
+    still = _pose(30, foot_speed=0.0)
+    sliding = _pose(30, foot_speed=15.0)
+    r = source_scores([still, sliding], [2], 100.0, FootContact(("f",), 5.0, 20.0), FPS)
+    assert r["jerk"] == pytest.approx(0.0, abs=1e-6) and r["skate"] == pytest.approx(7.5)

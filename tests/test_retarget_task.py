@@ -64,6 +64,11 @@ def test_no_callbacks_no_logger_and_a_missing_rig(folder, tmp_path):
               "logger=none", "trainer.max_steps=3", f"hydra.run.dir={tmp_path / 'run'}"]
     r = _run("train.py", *common, f"target_rig={folder / 'cmu.bvh'}", "retarget.contents=null")
     assert r.returncode == 0, r.stderr[-2000:]
-    assert set(json.loads((tmp_path / "run" / "retarget.json").read_text())["sets"]) == {"all"}
+    first = json.loads((tmp_path / "run" / "retarget.json").read_text())
+    assert set(first["sets"]) == {"all"}
+    r = _run("train.py", *common[:-1], f"hydra.run.dir={tmp_path / 'again'}", f"target_rig={folder / 'cmu.bvh'}",
+             "retarget.contents=null")
+    again = json.loads((tmp_path / "again" / "retarget.json").read_text())
+    assert again["sets"]["all"]["learned"]["pos_err"] == first["sets"]["all"]["learned"]["pos_err"]  # same seed
     r = _run("train.py", *common, f"target_rig={folder / 'nowhere.bvh'}")
     assert r.returncode == 2 and r.stderr.strip() .startswith("error: target_rig:") and r.stderr.count("\n") == 1

@@ -21,7 +21,7 @@ import numpy as np
 from inbetweening.data.contacts import FootContact, planted_frames
 from inbetweening.evaluation.keyframes import foot_skate
 
-__all__ = ["METRICS", "RetargetScore", "jerk"]
+__all__ = ["METRICS", "RetargetScore", "jerk", "source_scores"]
 
 METRICS = ("pos_err", "pose_err", "bone_err", "jerk", "skate")
 
@@ -79,3 +79,16 @@ class RetargetScore:
 
     def result(self) -> dict[str, float]:
         return {k: self.sums[k] / self.counts[k] for k in self.sums if self.counts[k]}
+
+
+def source_scores(positions, feet, height: float, contact: FootContact, fps: float) -> dict[str, float]:
+    """``jerk`` and ``skate`` of the source motions themselves (global positions ``(F, Js, 3)`` per clip, the feet at
+    their own planted frames), in the source's body heights: what a retargeter inherits."""
+    sums, counts = [0.0, 0.0], [0, 0]
+    for gp in positions:
+        total, n = jerk(gp, fps)
+        sums[0], counts[0] = sums[0] + total / height, counts[0] + n
+        planted = planted_frames(gp[:, feet], fps, contact.height, contact.speed)[:-1]
+        total, n = foot_skate(gp[:, feet], planted, fps)
+        sums[1], counts[1] = sums[1] + 100 * total / height, counts[1] + n
+    return {k: s / n for k, s, n in zip(("jerk", "skate"), sums, counts) if n}

@@ -11,7 +11,7 @@ import numpy as np
 
 from inbetweening.data.clips import Clip
 from inbetweening.data.contacts import body_height
-from inbetweening.evaluation.retarget_metrics import METRICS, RetargetScore
+from inbetweening.evaluation.retarget_metrics import METRICS, RetargetScore, source_scores
 from inbetweening.rendering.retarget_figure import retarget_figure
 from inbetweening.runtime.learned_retarget import LearnedRetarget
 from inbetweening.runtime.retarget_rig import TargetRig
@@ -47,7 +47,8 @@ def score_clips(learned: LearnedRetarget, rig: TargetRig, clips: Sequence[Clip],
         src_gp.append(src.pose(c.root_pos, c.local_q)[1])
     heights = (body_height(runs["analytic"]), body_height(src_gp))
     frames = int(sum(c.num_frames for c in clips))
-    out: dict = {"n_clips": len(clips), "n_frames": frames, "heights": list(heights)}
+    out: dict = {"n_clips": len(clips), "n_frames": frames, "heights": list(heights),
+                 "source": source_scores(src_gp, rig.source_feet, heights[1], contact, fps)}
     slots = [(b, src.names.index(s)) for s, b in rig.slots.items()]
     for m in METHODS:
         score = RetargetScore(rig.bones, rig.bone_parents, rig.bone_lengths, slots,
@@ -75,6 +76,9 @@ def format_table(results: dict) -> str:
             row = res[m]
             cells = [f"{row[c]:.3f}" if c in row else "-" for c in cols]
             lines.append(f"| {name} ({res['n_clips']}) | {m} | " + " | ".join(cells) + " |")
+        src = res.get("source", {})
+        lines.append(f"| {name} ({res['n_clips']}) | (source) | " + " | ".join(
+            f"{src[c]:.3f}" if c in src else "-" for c in cols) + " |")
     return "\n".join(lines)
 
 
@@ -85,7 +89,12 @@ def clip_figure(learned: LearnedRetarget, clip: Clip, n: int = 6):
     l_q, l_p, _ = learned(clip.root_pos, clip.local_q)
     src = rig.source.pose(clip.root_pos, clip.local_q)[1]
     frames = list(np.linspace(0, min(clip.num_frames, 90) - 1, n).astype(int))
-    rows = [("source", src, rig.source.parents), ("analytic", rig.positions(a_q, a_p), rig.skeleton.parents),
-            ("learned", rig.positions(l_q, l_p), rig.skeleton.parents)]
+    top, j = set(), rig.skeleton.parents[rig.hips]
+    while j >= 0:  # bones above the hips (a static armature root at the origin) are not drawn
+        top.add(j)
+        j = rig.skeleton.parents[j]
+    parents = [-1 if p in top else p for p in rig.skeleton.parents]
+    rows = [("source", src, rig.source.parents), ("analytic", rig.positions(a_q, a_p), parents),
+            ("learned", rig.positions(l_q, l_p), parents)]
     return retarget_figure(rows, frames, title=f"{clip.name}: source ({rig.source.num_joints} joints) and target "
                                                f"({rig.skeleton.num_joints} joints)")

@@ -126,7 +126,7 @@ def train_retarget(cfg: DictConfig) -> dict[str, float]:
     trainer = _trainer(cfg)
     trainer.fit(module, train_dataloaders=loader)
     module.eval()
-    trainer.save_checkpoint(out / "checkpoints" / "retarget.ckpt")
+    trainer.save_checkpoint(out / "checkpoints" / "retarget.ckpt", weights_only=True)  # no optimiser state
     learned = module.retargeter()
     results = {"dataset": data.name, "target_rig": str(cfg.target_rig), "split": module.hparams["split"],
                "steps": int(trainer.global_step), "sets": score_sets(learned, sets, data.contact, float(data.fps))}
