@@ -1,6 +1,7 @@
 """The retargeting task's module and losses (src/inbetweening/training/retarget_module.py)."""
 from __future__ import annotations
 
+import pytest
 import torch
 
 from inbetweening.predictor.checkpoint import read_checkpoint
@@ -20,6 +21,29 @@ def test_smoothness_repeats_the_boundary_frames():
     assert smoothness(torch.randn(1, 50, 3), k) > 10 * inner
 
 
+def test_the_bone_term_is_zero_on_the_analytic_target_and_not_on_a_stretched_one(tmp_path):
+    """The bone-length term reads the position head's joints: the analytic retarget's own positions have the rig's
+    bone lengths (the term is ~0), the same positions stretched by 10 % do not (the term is ~0.1)."""
+    import numpy as np
+
+    from inbetweening.training.retarget_data import make_pairs
+    from inbetweening.training.retarget_module import RetargetModule
+    from retarget_fixtures import source_clips
+
+    sk = source_skeleton()
+    hp = read_checkpoint(tiny_checkpoint(tmp_path / "a.ckpt", sk))["hyper_parameters"]
+    module = RetargetModule(**hp)
+    pair = make_pairs(module.rig, source_clips(sk, 1, frames=20))[0]
+    y = torch.from_numpy((pair.y - np.asarray(hp["norm"]["y_mean"])) / np.asarray(hp["norm"]["y_std"]))[None].float()
+    parts = module.losses(y, y)
+    assert parts["mse"] == 0 and parts["bone"] < 1e-3 and parts["smooth"] > 0
+    stretched = pair.y.copy()
+    stretched[:, module.pos] *= 1.1
+    y2 = torch.from_numpy((stretched - np.asarray(hp["norm"]["y_mean"])) / np.asarray(hp["norm"]["y_std"]))[None]
+    assert abs(module.losses(y2.float(), y)["bone"].item() - 0.1) < 0.01
+
+
+@pytest.mark.slow
 def test_training_lowers_every_loss(tmp_path):
     sk = source_skeleton()
     before = read_checkpoint(tiny_checkpoint(tmp_path / "a.ckpt", sk))
