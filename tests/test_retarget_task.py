@@ -14,7 +14,28 @@ from inbetweening.data.bvh import BVH
 from inbetweening.data.bvh_writer import write_bvh
 from retarget_fixtures import ROOT, rig_of, source_clips, source_skeleton
 
-pytestmark = pytest.mark.slow
+
+
+@pytest.mark.parametrize("config, extra", [("train", ["callbacks=none", "logger=none"]), ("train", []), ("eval", [])])
+def test_the_task_composes(config, extra, tmp_path):
+    from conftest import compose_cfg
+
+    cfg = compose_cfg(config, ["task=retarget", "data=bandai_namco", *extra], tmp_path, tmp_path)
+    assert cfg.task == "retarget" and cfg.model.name == "retarget_lstm" and cfg.retarget.train_fraction == 0.6
+    assert set(cfg.retarget.loss) == {"mse", "smooth", "bone"}
+
+
+def test_an_in_betweening_model_or_no_rig_is_one_line(tmp_path):
+    from conftest import compose_cfg
+    from inbetweening.training.config import ConfigError
+    from inbetweening.training.retarget_task import train_retarget
+
+    cfg = compose_cfg("train", ["task=retarget", "model=resnet_lstm"], tmp_path, tmp_path)
+    with pytest.raises(ConfigError, match="model.name: 'resnet_lstm' is an in-betweening network"):
+        train_retarget(cfg)
+    cfg = compose_cfg("train", ["task=retarget"], tmp_path, tmp_path)
+    with pytest.raises(ConfigError, match="target_rig: required with task=retarget"):
+        train_retarget(cfg)
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +56,7 @@ def _run(script, *args, cwd=ROOT):
     return subprocess.run([sys.executable, script, *args], cwd=cwd, capture_output=True, text=True, timeout=600)
 
 
+@pytest.mark.slow
 def test_train_then_eval(folder, tmp_path):
     common = ["task=retarget", "data=bvh", f"data.path={folder / 'clips'}", f"paths.log_dir={tmp_path / 'logs'}",
               f"paths.cache_dir={tmp_path / 'cache'}", "threads=1", "retarget.window=32", "retarget.batch_size=4"]
@@ -58,6 +80,7 @@ def test_train_then_eval(folder, tmp_path):
     assert r.returncode == 2 and r.stderr.strip().count("\n") == 0 and "is not the target rig" in r.stderr, r.stderr
 
 
+@pytest.mark.slow
 def test_no_callbacks_no_logger_and_a_missing_rig(folder, tmp_path):
     common = ["task=retarget", "data=bvh", f"data.path={folder / 'clips'}", f"paths.log_dir={tmp_path / 'logs'}",
               f"paths.cache_dir={tmp_path / 'cache'}", "threads=1", "retarget.window=32", "callbacks=none",

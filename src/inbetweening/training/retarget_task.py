@@ -94,6 +94,11 @@ def _report(out: Path, results: dict, learned: LearnedRetarget, sets: dict, head
 
 def train_retarget(cfg: DictConfig) -> dict[str, float]:
     """Fit the retargeting network on (source, analytic target) pairs, score the held-out clips (module docstring)."""
+    from inbetweening.models import RETARGETERS
+
+    if cfg.model.get("name") not in RETARGETERS:
+        raise ConfigError(f"model.name: {cfg.model.get('name')!r} is an in-betweening network; task=retarget takes "
+                          f"one of {sorted(RETARGETERS)} (model=retarget_lstm)")
     bvh = _rig_file(cfg)  # a wrong rig is one line before anything else is printed
     if bvh is None:
         raise ConfigError("target_rig: required with task=retarget (a BVH file whose hierarchy is the target)")
