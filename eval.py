@@ -7,11 +7,12 @@ from omegaconf import DictConfig
 
 from inbetweening.training.evaluate import evaluate
 from inbetweening.training.job import run_cli
+from inbetweening.training.retarget_task import eval_retarget, is_retarget
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="eval")
 def main(cfg: DictConfig) -> None:
-    run_cli(evaluate, cfg)
+    run_cli(eval_retarget if is_retarget(cfg) else evaluate, cfg)
 
 
 if __name__ == "__main__":

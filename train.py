@@ -3,12 +3,13 @@ import hydra
 from omegaconf import DictConfig
 
 from inbetweening.training.job import run_cli
+from inbetweening.training.retarget_task import is_retarget, train_retarget
 from inbetweening.training.train import train
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="train")
 def main(cfg: DictConfig) -> float | None:
-    return run_cli(train, cfg)
+    return run_cli(train_retarget if is_retarget(cfg) else train, cfg)
 
 
 if __name__ == "__main__":

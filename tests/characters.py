@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from inbetweening.data.bvh import BVH
-from inbetweening.geometry.quaternion import qinv, qmul, qrot
+from inbetweening.geometry.quaternion import qinv, qmul, qrot, remove_discontinuities
 from inbetweening.geometry.skeleton import Skeleton, fk
-from inbetweening.runtime.retarget import tpose
+from inbetweening.runtime.retarget import euler_sign, tpose
 
 UE = {"Hips": "pelvis", "Spine": "spine_01", "Chest": "spine_03", "Neck": "neck_01", "Head": "head",
       "Shoulder_L": "clavicle_l", "UpperArm_L": "upperarm_l", "LowerArm_L": "lowerarm_l", "Hand_L": "hand_l",
@@ -115,3 +115,23 @@ def character(model: Skeleton, root: np.ndarray, local_q: np.ndarray, names: dic
     empty = BVH(bones, np.array(parents), offsets, channels, {b: np.array([0.0, 0.02, 0.0]) for b in leaves}, 1 / 30,
                 np.zeros((1, 6 * n_out)), "character.bvh")
     return empty.with_motion(lq, positions), {s: names[s] for s in model.names}
+
+
+def model_walk(model: Skeleton, frames: int = 121, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A walk-like motion of the model's skeleton ``(root (F, 3), local_q (F, J, 4))``: from the T-pose (an upright
+    body), every joint swinging at its own period (``seed``), the root turning and moving forward, with the signs a
+    file's Euler angles give the first frame (the network reads ``q`` and ``-q`` differently)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames)[:, None, None]
+    base = tpose(model, {n: i for i, n in enumerate(model.names)})
+    local = np.array([base[0]] + [qmul(qinv(base[model.parents[j]]), base[j]) for j in range(1, model.num_joints)])
+    ang = 0.35 * np.sin(2 * np.pi * t / rng.uniform(25, 45, (1, model.num_joints, 1))
+                        + rng.uniform(0, 6, (1, model.num_joints, 3)))
+    norm = np.linalg.norm(ang, axis=-1, keepdims=True)
+    wiggle = np.concatenate([np.cos(norm / 2), np.sin(norm / 2) * ang / np.maximum(norm, 1e-9)], -1)
+    q = qmul(local[None], wiggle)
+    yaw = np.stack([np.cos(t[:, 0, 0] / 80), 0 * t[:, 0, 0], np.sin(t[:, 0, 0] / 80), 0 * t[:, 0, 0]], -1)
+    q[:, 0] = qmul(yaw, q[:, 0])
+    root = np.stack([40 * np.sin(t[:, 0, 0] / 30), 95 + 2 * np.sin(t[:, 0, 0] / 4), 2.5 * t[:, 0, 0]], -1)
+    q[:1] = euler_sign(q[:1])
+    return root, remove_discontinuities(q, axis=0)

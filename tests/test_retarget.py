@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from characters import character
+from characters import character, model_walk
 from inbetweening.geometry.interp import interpolate_keyframes
-from inbetweening.geometry.quaternion import qrot, remove_discontinuities
+from inbetweening.geometry.quaternion import qrot
 from inbetweening.runtime import FillRuntime, InbetweenError
-from inbetweening.runtime.retarget import Retarget, euler_sign, tpose
+from inbetweening.runtime.retarget import Retarget
 from inbetweening.runtime.torch_backend import TorchBackend
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "bn2_reference" / "model.ckpt"
@@ -36,25 +36,7 @@ def backend():
 @pytest.fixture(scope="module")
 def motion(backend):
     """A walk of the model's skeleton: the root turning, the legs and arms swinging."""
-    sk = backend.info.skeleton
-    rng = np.random.default_rng(0)
-    f = 121
-    t = np.arange(f)[:, None, None]
-    slot = {n: i for i, n in enumerate(sk.names)}
-    base = tpose(sk, slot)  # start from the T-pose: an upright body
-    local = np.array([base[0]] + [_local(base, sk.parents, j) for j in range(1, sk.num_joints)])
-    ang = 0.35 * np.sin(2 * np.pi * t / rng.uniform(25, 45, (1, sk.num_joints, 1)) + rng.uniform(0, 6, (1, sk.num_joints, 3)))
-    wiggle = np.concatenate([np.cos(np.linalg.norm(ang, axis=-1, keepdims=True) / 2),
-                             np.sin(np.linalg.norm(ang, axis=-1, keepdims=True) / 2) * ang /
-                             np.maximum(np.linalg.norm(ang, axis=-1, keepdims=True), 1e-9)], -1)
-    from inbetweening.geometry.quaternion import qmul
-
-    q = qmul(local[None], wiggle)
-    yaw = np.stack([np.cos(t[:, 0, 0] / 80), 0 * t[:, 0, 0], np.sin(t[:, 0, 0] / 80), 0 * t[:, 0, 0]], -1)
-    q[:, 0] = qmul(yaw, q[:, 0])
-    root = np.stack([40 * np.sin(t[:, 0, 0] / 30), 95 + 2 * np.sin(t[:, 0, 0] / 4), 2.5 * t[:, 0, 0]], -1)
-    q[:1] = euler_sign(q[:1])  # the signs a file's Euler angles give (the network reads q and -q differently)
-    return root, remove_discontinuities(q, axis=0)
+    return model_walk(backend.info.skeleton)
 
 
 def _local(g, parents, j):

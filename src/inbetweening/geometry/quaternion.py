@@ -143,12 +143,12 @@ def remove_discontinuities(q: Array, axis: int = 0) -> Array:
         qm = torch.movedim(q, axis, 0)
         dots = (qm[1:] * qm[:-1]).sum(-1)
         step = torch.where(dots < 0, -1.0, 1.0).to(q.dtype)
-        sign = torch.cat([torch.ones_like(step[:1]), torch.cumprod(step, 0)], 0)
+        sign = torch.cat([torch.ones_like(qm[:1, ..., 0]), torch.cumprod(step, 0)], 0)  # (a single frame too)
         return torch.movedim(qm * sign[..., None], 0, axis)
     qm = np.moveaxis(q, axis, 0)
     dots = (qm[1:] * qm[:-1]).sum(-1)
     step = np.where(dots < 0, -1.0, 1.0)
-    sign = np.concatenate([np.ones_like(step[:1]), np.cumprod(step, 0)], 0)
+    sign = np.concatenate([np.ones_like(qm[:1, ..., 0]), np.cumprod(step, 0)], 0)  # (a single frame too)
     return np.moveaxis(qm * sign[..., None], 0, axis)
 
 

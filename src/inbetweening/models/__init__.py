@@ -11,6 +11,7 @@ from .baselines import Interpolation, ZeroVelocity
 from .frame_transformer import FrameTransformer
 from .graph_transformer import GraphTransformer
 from .resnet_lstm import ResNetLSTM
+from .retarget_lstm import RetargetLSTM
 from .st_transformer import STTransformer
 from .unet1d import UNet1D
 
@@ -23,6 +24,8 @@ MODELS: dict[str, type[InbetweenModel]] = {
     "zero_velocity": ZeroVelocity,
     "interpolation": Interpolation,
 }
+# retargeting networks (task=retarget): source motion features -> target motion features, per frame over time
+RETARGETERS: dict[str, type] = {"retarget_lstm": RetargetLSTM}
 
 
 def build_model(name: str, **kwargs) -> InbetweenModel:
@@ -30,6 +33,17 @@ def build_model(name: str, **kwargs) -> InbetweenModel:
     if name not in MODELS:
         raise ValueError(f"unknown model {name!r}; available: {sorted(MODELS)}")
     return MODELS[name](**kwargs)
+
+
+def build_retargeter(model_cfg: dict, input_dim: int, output_dim: int):
+    """The retargeting network of a model config (``name`` + constructor values) for these feature sizes;
+    ValueError naming ``model.name`` when it is not a retargeting network."""
+    cfg = dict(model_cfg)
+    name = cfg.pop("name")
+    if name not in RETARGETERS:
+        raise ValueError(f"model.name: {name!r} is not a retargeting network; task=retarget takes one of "
+                         f"{sorted(RETARGETERS)}")
+    return RETARGETERS[name](input_dim=input_dim, output_dim=output_dim, **cfg)
 
 
 def build_network(model_cfg: dict, skeleton, layout: dict | None = None) -> InbetweenModel:
@@ -50,14 +64,17 @@ def build_network(model_cfg: dict, skeleton, layout: dict | None = None) -> Inbe
 
 __all__ = [
     "MODELS",
+    "RETARGETERS",
     "FrameTransformer",
     "GraphTransformer",
     "InbetweenModel",
     "Interpolation",
     "ResNetLSTM",
+    "RetargetLSTM",
     "STTransformer",
     "UNet1D",
     "ZeroVelocity",
     "build_model",
+    "build_retargeter",
     "build_network",
 ]

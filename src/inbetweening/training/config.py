@@ -248,11 +248,12 @@ def validate(cfg: DictConfig) -> None:
     mask = _get(cfg, "mask.name")
     if mask not in MASK_NAMES:
         raise ConfigError(f"mask.name: unknown mask {mask!r}; choose one of {list(MASK_NAMES)}")
-    from inbetweening.models import MODELS
+    from inbetweening.models import MODELS, RETARGETERS
 
     name = _get(cfg, "model.name")
     if name not in MODELS:
-        raise ConfigError(f"model.name: unknown model {name!r}; choose one of {sorted(MODELS)}")
+        hint = " (a retargeting network: use it with task=retarget)" if name in RETARGETERS else ""
+        raise ConfigError(f"model.name: unknown model {name!r}{hint}; choose one of {sorted(MODELS)}")
     _check_model(cfg, name)
     for key in POSITIVE_INT_KEYS:
         v = _get(cfg, key)
