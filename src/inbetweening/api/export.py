@@ -128,7 +128,8 @@ def check_onnx(model, path: str | Path, batch: int = 3, gap: int = 7, seed: int 
     return float(np.abs(got - ref).max())
 
 
-INFERENCE_KEYS = ("state_dict", "hyper_parameters", "pytorch-lightning_version", "epoch", "global_step")
+# what an inference copy keeps; blend_fit: the do-no-harm blend's fit table (the weights themselves are hyper-parameters)
+INFERENCE_KEYS = ("state_dict", "hyper_parameters", "pytorch-lightning_version", "epoch", "global_step", "blend_fit")
 
 
 def export_checkpoint(src: str | Path, dst: str | Path) -> dict:
