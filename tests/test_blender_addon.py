@@ -21,7 +21,7 @@ from inbetweening.geometry.quaternion import euler_to_quat_np
 pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parents[1]
-CKPT = REPO / "models" / "bn2_reference" / "model.ckpt"
+CKPT = REPO / "models" / "bn2_partial" / "model.ckpt"  # the bundled model (blender/build.py)
 BN2 = Path(os.environ.get("BANDAI_NAMCO_PATH", REPO.parent / "shared" / "datasets" / "bandai-namco-2.zip"))
 BN2_CLIP = "Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk-turn-right_active_026.bvh"
 SCRIPT = REPO / "tests" / "blender" / "bpy_fill_check.py"
@@ -340,7 +340,7 @@ def test_a_changed_share_refills_gaps_left_of_the_key_in_blender(bpy_exe, built,
     assert r["first"]["gaps"] == 12 and [x for x in lines if "network" in x] == [f"{a}–{a + 10}: network 90 %"
                                                                               for a in range(1, 112, 10)]
     feet = [x for x in lines if x.startswith("feet planted: ")]  # the walk's planted feet (the contact rule)
-    assert len(feet) == 12 and sum("L none" not in x for x in feet) >= 4
+    assert len(feet) == 12 and sum(x != "feet planted: L none · R none" for x in feet) >= 4
     assert r["refill"]["refilled"] == [[a, a + 10] for a in range(31, 112, 10)] and r["refill"]["kept"] == 3
     shares = {line.split(":")[0]: line for line in r["panel"][1:]}
     assert all(shares[f"{a}–{a + 10}"].endswith("network 90 %  (kept)") for a in (1, 11, 21))

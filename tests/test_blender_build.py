@@ -15,7 +15,7 @@ import torch
 from inbetweening.predictor import masks
 
 REPO = Path(__file__).resolve().parents[1]
-CKPT = REPO / "models" / "bn2_reference" / "model.ckpt"
+CKPT = REPO / "models" / "bn2_partial" / "model.ckpt"  # the bundled model (blender/build.py)
 EXT = REPO / "src" / "inbetweening" / "blender" / "extension"
 
 

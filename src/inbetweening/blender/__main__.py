@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from inbetweening.cli.args import UsageError, fail, parse_args
 
 USAGE = """\
-usage: python -m inbetweening.blender build OUT_DIR [ckpt_path=models/bn2_reference/model.ckpt]
+usage: python -m inbetweening.blender build OUT_DIR [ckpt_path=models/bn2_partial/model.ckpt]
                                          [platforms=linux-x64,windows-x64,macos-arm64] [onnxruntime=1.19.2]
                                          (platforms may also name macos-x64)
                                          [wheels=CACHE_DIR]

@@ -34,7 +34,7 @@ DEFAULT_PLATFORMS = ("linux-x64", "windows-x64", "macos-arm64")
 PYTHON_VERSION = "3.11"
 ONNXRUNTIME = "1.19.2"  # the newest with a cp311 wheel for macOS 11 on arm64 (Blender 4.2's minimum macOS)
 SKIP_WHEELS = ("numpy",)  # Blender bundles numpy
-DEFAULT_CKPT = "models/bn2_reference/model.ckpt"
+DEFAULT_CKPT = "models/bn2_partial/model.ckpt"  # trained for partial keys: hand edits of some bones are ones
 
 
 class BuildError(ValueError):
