@@ -1,7 +1,7 @@
 """Where a training step of the shipped model goes, and what the cheap levers buy (issue 36, item 3).
 
     python benchmarks/train_step_profile.py [--data bandai_namco|synthetic] [--steps 4] [--warmup 2] [--rounds 3]
-        [--variants fp32 bf16 compile explicit] [--profile-steps 3] [--set KEY=VALUE ...] [--write]
+        [--variants fp32 bf16 compile explicit bf16+explicit] [--profile-steps 3] [--set KEY=VALUE ...] [--write]
 
 * config: ``python train.py experiment=bn2_best model.checkpoint_layers=false data=<--data>`` composed as
   ``train.py`` does (Hydra compose of ``conf/train.yaml``), built with
@@ -12,16 +12,18 @@
   window gathering, task draw), ``encode`` (the predictor's canonical frame + FK features, part of forward),
   ``forward`` (``module.training_step``: encode, mask, network, loss), ``backward``, ``optimiser``
   (``step`` + scheduler + ``zero_grad``);
-* operators: ``torch.profiler`` over ``--profile-steps`` float32 steps, self CPU time per operator;
+* operators: ``torch.profiler`` over ``--profile-steps`` steps of each ``--profile`` variant (default: the first),
+  self CPU time per operator;
 * FLOPs: ``FlopCounterMode`` (matrix products and the fused CPU attention, ``SDPA_CPU_FLOPS`` of
-  ``train_throughput.py``) over one step; GFLOP/s in the matrix kernels = their FLOPs / their profiled self time;
-  the reference peak is a 1024 x 1024 float32 matmul on the same thread;
+  ``train_throughput.py``) over the same batches; GFLOP/s in the matrix kernels = their FLOPs / their profiled self
+  time; the reference peak is a 1024 x 1024 float32 matmul on the same thread;
 * levers, interleaved A/B: ``--rounds`` rounds, each running every variant for ``--steps`` steps on the same batches
   (the order rotated every round); each variant trains its own copy of the same initial module, so the losses of the
   first round compare numerics step by step.  Variants: ``fp32`` (eager, the baseline), ``bf16`` (forward + loss under
   ``torch.autocast("cpu", bfloat16)``, as ``trainer.precision=bf16-mixed``), ``compile`` (``compile=true``:
   the network's forward through ``torch.compile``; its compile time is the first warm-up step's excess),
-  ``explicit`` (the attention's explicit matmul-softmax-matmul path instead of the fused kernel).
+  ``explicit`` (``model.fused_attention=false``: the attention's explicit matmul-softmax-matmul path instead of the
+  fused kernel, spatial and temporal); levers combine with ``+`` (``bf16+explicit``).
 """
 from __future__ import annotations
 
@@ -53,7 +55,7 @@ from inbetweening.training.schedules import build_optimizers
 
 ROOT = Path(__file__).resolve().parents[1]
 SECTION = "## Training step: where the time goes"
-VARIANTS = ("fp32", "bf16", "compile", "explicit")
+LEVERS = ("fp32", "bf16", "compile", "explicit")  # a variant: one of them, or several joined by "+"
 PHASES = ("collate", "encode", "forward", "backward", "optimiser")
 MATMUL_OPS = ("aten::mm", "aten::addmm", "aten::bmm", "aten::baddbmm", "aten::addbmm")
 ATTN_OPS = ("aten::_scaled_dot_product_flash_attention_for_cpu",
@@ -95,12 +97,15 @@ class Runner:
 
     def __init__(self, cfg, dm, variant: str, total_steps: int):
         L.seed_everything(0, verbose=False)
-        self.variant = variant
+        self.variant, levers = variant, set(variant.split("+"))
+        if "explicit" in levers:  # model.fused_attention=false
+            cfg = cfg.copy()
+            with open_dict(cfg):
+                cfg.model.fused_attention = False
         self.module = make_module(cfg, dm)
         self.module.train()
-        if variant == "explicit":
-            self.module.net._fused = False
-        self.module.compile_network(variant == "compile")
+        self.module.compile_network("compile" in levers)
+        self.bf16 = "bf16" in levers
         opt = build_optimizers(self.module.optim_cfg, [p for p in self.module.parameters() if p.requires_grad],
                                lambda: total_steps)
         self.opt, self.sched = (opt["optimizer"], opt["lr_scheduler"]["scheduler"]) if isinstance(opt, dict) \
@@ -109,7 +114,7 @@ class Runner:
         self.losses: list[float] = []
 
     def autocast(self):
-        return torch.autocast("cpu", dtype=torch.bfloat16) if self.variant == "bf16" else contextlib.nullcontext()
+        return torch.autocast("cpu", dtype=torch.bfloat16) if self.bf16 else contextlib.nullcontext()
 
     def step(self, batch: dict, record: bool = True) -> float:
         t0 = time.perf_counter()
@@ -130,7 +135,7 @@ class Runner:
                 self.times["encode"].append(time.perf_counter() - te)
             for p, dt in (("forward", t1 - t0), ("backward", t2 - t1), ("optimiser", t3 - t2)):
                 self.times[p].append(dt)
-        self.losses.append(float(loss))
+        self.losses.append(float(loss.detach()))
         return t3 - t0
 
 
@@ -147,13 +152,34 @@ def op_profile(runner: Runner, batches: list[dict]) -> tuple[dict[str, float], f
     return self_s, wall
 
 
-def count_flops(runner: Runner, batch: dict) -> dict[str, float]:
-    """FLOPs of one float32 training step (forward + backward) per operator (``aten::<op>`` keys)."""
-    with FlopCounterMode(display=False, custom_mapping=SDPA_CPU_FLOPS) as fc:
-        loss = runner.module.training_step(batch, 0)
+def count_flops(runner: Runner, batches: list[dict]) -> dict[str, float]:
+    """FLOPs of float32 training steps (forward + backward) on ``batches``, summed, per operator (``aten::<op>``)."""
+    out: dict[str, float] = {}
+    for batch in batches:
+        with FlopCounterMode(display=False, custom_mapping=SDPA_CPU_FLOPS) as fc:
+            runner.module.training_step(batch, 0).backward()
+        runner.module.zero_grad(set_to_none=True)
+        for op, v in fc.get_flop_counts().get("Global", {}).items():
+            key = f"aten::{str(op).split('.')[1]}"
+            out[key] = out.get(key, 0.0) + float(v)
+    return out
+
+
+def grad_diff(base: Runner, other: Runner, batch: dict) -> tuple[float, float]:
+    """Numerics of one step: ``other`` takes ``base``'s weights; relative L2 difference of its loss and of its
+    gradient (all parameters as one vector) against ``base``'s on ``batch``."""
+    other.module.load_state_dict(base.module.state_dict())
+    out = []
+    for r in (base, other):
+        r.opt.zero_grad(set_to_none=True)
+        with r.autocast():
+            loss = r.module.training_step(batch, 0)
         loss.backward()
-    runner.module.zero_grad(set_to_none=True)
-    return {f"aten::{str(op).split('.')[1]}": float(v) for op, v in fc.get_flop_counts().get("Global", {}).items()}
+        g = torch.cat([p.grad.flatten() for p in r.module.parameters() if p.grad is not None])
+        out.append((float(loss.detach()), g))
+        r.opt.zero_grad(set_to_none=True)
+    (lb, gb), (lo, go) = out
+    return abs(lo - lb) / abs(lb), float((go - gb).norm() / gb.norm())
 
 
 def med(xs: list[float]) -> float:
@@ -193,13 +219,18 @@ def run(args) -> dict:
     for rnd in range(args.rounds):
         for v in order[rnd % len(order):] + order[:rnd % len(order)]:
             ts = [runners[v].step(b) for b in timed]
-            res["steps"][v].append(med(ts))
-            print(f"round {rnd + 1} {v}: {med(ts) * 1e3:.0f} ms/step", file=sys.stderr)
+            res["steps"][v].append(sum(ts) / len(ts))  # the mean over the same batches (their lengths differ)
+            print(f"round {rnd + 1} {v}: {sum(ts) / len(ts) * 1e3:.0f} ms/step", file=sys.stderr)
         res["ref"].append(ref.sample())
-    res["losses"] = {v: r.losses[:len(timed)] for v, r in runners.items()}
+    res["losses"] = {v: list(r.losses) for v, r in runners.items()}  # the same batches in the same order
     res["phases"] = {v: {p: med(ts) for p, ts in r.times.items()} for v, r in runners.items()}
-    res["flops"] = count_flops(runners[order[0]], timed[0])
-    res["ops"], res["prof_wall"] = op_profile(runners[args.profile or order[0]], prof_b)
+    res["grad"] = {v: grad_diff(runners[order[0]], r, timed[0]) for v, r in runners.items()}
+    res["flops_timed"] = sum(count_flops(runners[order[0]], timed).values()) / len(timed)
+    res["profiled"] = args.profile or [order[0]]
+    res["flops"] = {v: count_flops(runners[v], prof_b) for v in res["profiled"]}
+    res["ops"], res["prof_wall"] = {}, {}
+    for v in res["profiled"]:
+        res["ops"][v], res["prof_wall"][v] = op_profile(runners[v], prof_b)
     res["prof_steps"] = len(prof_b)
     res["ref"].append(ref.sample())
     res["bf16_ref"] = bf16_matmul()
@@ -219,6 +250,32 @@ def bf16_matmul(n: int = 1024, repeats: int = 5) -> float:
     return 2.0 * n**3 / min(ts) / 1e9
 
 
+def profile_lines(args, res: dict, v: str, ref: float) -> list[str]:
+    """The top-operator table and the matrix-product rates of profiled variant ``v``."""
+    ops, fl, n = res["ops"][v], res["flops"][v], res["prof_steps"]
+    kind, peak = ("bf16", res["bf16_ref"]) if "bf16" in v.split("+") else ("fp32", ref)
+    tot = sum(ops.values()) or 1.0
+    top = sorted(ops.items(), key=lambda kv: -kv[1])[:args.top]
+    lines = ["", f"**Top operators by self CPU time, {v}** (`torch.profiler`, {n} steps, "
+             f"{res['prof_wall'][v] / n * 1e3:,.0f} ms/step under the profiler):", "",
+             "| operator | ms/step | share |", "|---|---:|---:|"]
+    lines += [f"| `{k}` | {t / n * 1e3:,.1f} | {100 * t / tot:.1f}% |" for k, t in top]
+    lines += ["", f"**Matrix products, {v}** (FLOPs counted on the same {n} batches with `FlopCounterMode`; "
+              "`linear`, `matmul` and `einsum` dispatch to `mm/addmm/bmm`):", "",
+              f"| kernels | share of self CPU | GFLOP/step | GFLOP/s | % of the 1024² {kind} matmul |", "|---|---:|---:|---:|---:|"]
+    other = tot
+    for name, keys in (("mm / addmm / bmm", MATMUL_OPS), ("fused attention (SDPA fwd + bwd)", ATTN_OPS)):
+        secs, flops = sum(ops.get(k, 0.0) for k in keys), sum(fl.get(k, 0.0) for k in keys)
+        other -= secs
+        if secs:
+            rate = flops / secs / 1e9
+            lines.append(f"| {name} | {100 * secs / tot:.1f}% | {flops / n / 1e9:.1f} | {rate:.0f} | "
+                         f"{100 * rate / peak:.0f}% |")
+    lines.append(f"| everything else (element-wise, softmax, norms, copies, casts, FK, Adam) | {100 * other / tot:.1f}% "
+                 f"| - | - | - |")
+    return lines
+
+
 def report(args, res: dict, cmd: str) -> str:
     b, t, j, _ = res["shape"]
     base = args.variants[0]
@@ -234,7 +291,7 @@ def report(args, res: dict, cmd: str) -> str:
         f"{res['windows']:,} training windows",
         f"- Command:\n\n```\n{cmd}\n```",
         "",
-        f"**Phases of a float32 step** (median over {args.rounds} rounds x {args.steps} steps; the optimiser's "
+        f"**Phases of a float32 step** (medians over {args.rounds} rounds x {args.steps} steps; the optimiser's "
         f"schedule is the run's {3600} steps):",
         "",
         "| phase | ms | share of collate + step |",
@@ -246,38 +303,19 @@ def report(args, res: dict, cmd: str) -> str:
             ("backward", ph["backward"]), ("optimiser (AdamW + schedule + zero_grad)", ph["optimiser"])]
     lines += [f"| {name} | {s * 1e3:,.0f} | {100 * s / whole:.1f}% |" for name, s in rows]
     lines.append(f"| total | {whole * 1e3:,.0f} | 100% |")
-    ops, wall = res["ops"], res["prof_wall"]
-    tot = sum(ops.values()) or 1.0
-    top = sorted(ops.items(), key=lambda kv: -kv[1])[:args.top]
-    lines += ["", f"**Top operators by self CPU time** (`torch.profiler`, {res['prof_steps']} {args.profile or base} steps, "
-              f"{wall / res['prof_steps'] * 1e3:,.0f} ms/step under the profiler):", "",
-              "| operator | ms/step | share |", "|---|---:|---:|"]
-    lines += [f"| `{k}` | {v / res['prof_steps'] * 1e3:,.1f} | {100 * v / tot:.1f}% |" for k, v in top]
-    mm_s, at_s = sum(ops.get(k, 0.0) for k in MATMUL_OPS), sum(ops.get(k, 0.0) for k in ATTN_OPS)
-    fl = res["flops"]
-    mm_f, at_f, all_f = sum(fl.get(k, 0.0) for k in MATMUL_OPS), sum(fl.get(k, 0.0) for k in ATTN_OPS), sum(fl.values())
-    n = res["prof_steps"]
-    mm_rate = mm_f * n / mm_s / 1e9 if mm_s else float("nan")
-    at_rate = at_f * n / at_s / 1e9 if at_s else float("nan")
-    lines += ["", "**Matrix products and FLOPs** (one float32 step; `mm/addmm/bmm` are what `linear`, `matmul` and "
-              "`einsum` dispatch to):", "",
-              "| | share of self CPU | GFLOP/step | GFLOP/s | % of the 1024² fp32 matmul |", "|---|---:|---:|---:|---:|",
-              f"| mm / addmm / bmm kernels | {100 * mm_s / tot:.1f}% | {mm_f / 1e9:.1f} | {mm_rate:.0f} "
-              f"| {100 * mm_rate / ref:.0f}% |",
-              f"| fused attention (SDPA fwd + bwd) | {100 * at_s / tot:.1f}% | {at_f / 1e9:.1f} | {at_rate:.0f} "
-              f"| {100 * at_rate / ref:.0f}% |",
-              f"| everything else (element-wise, norms, copies, FK, Adam) | {100 * (tot - mm_s - at_s) / tot:.1f}% | - "
-              f"| - | - |",
-              f"| whole step (unprofiled median {step * 1e3:,.0f} ms) | 100% | {all_f / 1e9:.1f} "
-              f"| {all_f / step / 1e9:.0f} | {100 * all_f / step / 1e9 / ref:.0f}% |",
-              "", f"Reference: 1024 x 1024 float32 matmul, 1 thread, median {ref:.0f} GFLOP/s (range "
-              f"{min(res['ref']):.0f}-{max(res['ref']):.0f}, sampled between rounds); bfloat16 {res['bf16_ref']:.0f} "
-              f"GFLOP/s.  FLOPs by op: " + ", ".join(f"`{k[6:]}` {v / 1e9:.2f} G" for k, v in
-                                                     sorted(fl.items(), key=lambda kv: -kv[1])) + "."]
+    for v in res["profiled"]:
+        lines += profile_lines(args, res, v, ref)
+    step_f = res["flops_timed"]
+    lines += ["", f"Whole step, {base}, the timed steps unprofiled: {step_f / 1e9:.1f} GFLOP/step (matrix products and "
+              f"attention) in {step * 1e3:,.0f} ms = {step_f / step / 1e9:.0f} GFLOP/s, "
+              f"{100 * step_f / step / 1e9 / ref:.0f}% of the 1024² float32 matmul.  Reference: 1024 x 1024 float32 "
+              f"matmul, 1 thread, median {ref:.0f} GFLOP/s (range {min(res['ref']):.0f}-{max(res['ref']):.0f}, sampled "
+              f"between rounds); bfloat16 {res['bf16_ref']:.0f} GFLOP/s."]
     lines += ["", f"**Levers, interleaved** ({args.rounds} rounds, each variant {args.steps} steps per round on the "
               f"same batches, order rotated; ratio = variant's step time / {base}'s in the same round):", "",
-              "| variant | first step (s) | median ms/step | forward | backward | optimiser | ratio median (min-max) "
-              f"| loss after {args.steps} steps | max rel. loss diff |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+              "| variant | first step (s) | ms/step | forward | backward | optimiser | ratio median (min-max) "
+              f"| loss after {args.warmup + args.rounds * args.steps} steps | max rel. loss diff | one step: rel. loss diff | one step: rel. gradient diff |",
+              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for v in args.variants:
         ratios = [a / c for a, c in zip(res["steps"][v], res["steps"][base])]
         p = res["phases"][v]
@@ -285,25 +323,28 @@ def report(args, res: dict, cmd: str) -> str:
         diff = max(abs(x - y) / abs(y) for x, y in zip(lv, lb))
         lines.append(f"| {v} | {res['first_step'][v]:.1f} | {med(res['steps'][v]) * 1e3:,.0f} | {p['forward'] * 1e3:,.0f} "
                      f"| {p['backward'] * 1e3:,.0f} | {p['optimiser'] * 1e3:,.0f} | {med(ratios):.2f} "
-                     f"({min(ratios):.2f}-{max(ratios):.2f}) | {lv[-1]:.5f} | {diff:.1e} |")
+                     f"({min(ratios):.2f}-{max(ratios):.2f}) | {lv[-1]:.5f} | {diff:.1e} | {res['grad'][v][0]:.1e} "
+                     f"| {res['grad'][v][1]:.1e} |")
     return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", default="bandai_namco", choices=("bandai_namco", "synthetic"))
-    ap.add_argument("--variants", nargs="+", default=["fp32", "bf16", "explicit"], choices=VARIANTS,
-                    help="the first is the baseline of the ratios and the profiled one")
+    ap.add_argument("--variants", nargs="+", default=["fp32", "bf16", "explicit", "bf16+explicit"],
+                    help=f"levers {LEVERS}, or several joined by '+'; the first is the baseline of the ratios")
     ap.add_argument("--steps", type=int, default=4, help="timed steps per variant per round")
     ap.add_argument("--warmup", type=int, default=2, help="untimed steps per variant first (compile happens there)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--profile-steps", type=int, default=3)
-    ap.add_argument("--profile", default=None, choices=VARIANTS, help="the variant profiled (default: the first)")
+    ap.add_argument("--profile", nargs="+", default=None, help="the variants profiled (default: the first)")
     ap.add_argument("--top", type=int, default=15, help="operators listed")
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help="more config overrides")
     ap.add_argument("--write", action="store_true", help="write the section of BENCHMARKS.md")
     args = ap.parse_args(argv)
-    if args.profile and args.profile not in args.variants:
+    if any(lv not in LEVERS for v in args.variants for lv in v.split("+")):
+        ap.error(f"--variants: levers are {LEVERS}, joined by '+'")
+    if args.profile and not set(args.profile) <= set(args.variants):
         ap.error("--profile must be one of --variants")
     if min(args.steps, args.warmup, args.rounds, args.profile_steps) < 1:
         ap.error("--steps, --warmup, --rounds and --profile-steps must be >= 1")
