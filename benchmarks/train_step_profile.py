@@ -201,7 +201,7 @@ def run(args) -> dict:
         draw_batches(dm, 1)  # the loader's first batch (sampler set-up) is not a step's
         batches, collate = draw_batches(dm, n_batches)
     res["collate"], res["shape"], res["windows"] = collate, tuple(batches[0]["q"].shape), len(dm.clip_windows)
-    total = int(cfg.trainer.max_steps)
+    total = res["total_steps"] = int(cfg.trainer.max_steps)
     ref = MatmulReference()
     res["ref"] = [ref.sample()]
     runners = {v: Runner(cfg, dm, v, total) for v in args.variants}
@@ -262,7 +262,8 @@ def profile_lines(args, res: dict, v: str, ref: float) -> list[str]:
     lines += [f"| `{k}` | {t / n * 1e3:,.1f} | {100 * t / tot:.1f}% |" for k, t in top]
     lines += ["", f"**Matrix products, {v}** (FLOPs counted on the same {n} batches with `FlopCounterMode`; "
               "`linear`, `matmul` and `einsum` dispatch to `mm/addmm/bmm`):", "",
-              f"| kernels | share of self CPU | GFLOP/step | GFLOP/s | % of the 1024² {kind} matmul |", "|---|---:|---:|---:|---:|"]
+              f"| kernels | share of self CPU | GFLOP/step | GFLOP/s | % of the 1024² {kind} matmul |",
+              "|---|---:|---:|---:|---:|"]
     other = tot
     for name, keys in (("mm / addmm / bmm", MATMUL_OPS), ("fused attention (SDPA fwd + bwd)", ATTN_OPS)):
         secs, flops = sum(ops.get(k, 0.0) for k in keys), sum(fl.get(k, 0.0) for k in keys)
@@ -292,7 +293,7 @@ def report(args, res: dict, cmd: str) -> str:
         f"- Command:\n\n```\n{cmd}\n```",
         "",
         f"**Phases of a float32 step** (medians over {args.rounds} rounds x {args.steps} steps; the optimiser's "
-        f"schedule is the run's {3600} steps):",
+        f"schedule is the run's {res['total_steps']:,} steps):",
         "",
         "| phase | ms | share of collate + step |",
         "|---|---:|---:|",
@@ -314,7 +315,8 @@ def report(args, res: dict, cmd: str) -> str:
     lines += ["", f"**Levers, interleaved** ({args.rounds} rounds, each variant {args.steps} steps per round on the "
               f"same batches, order rotated; ratio = variant's step time / {base}'s in the same round):", "",
               "| variant | first step (s) | ms/step | forward | backward | optimiser | ratio median (min-max) "
-              f"| loss after {args.warmup + args.rounds * args.steps} steps | max rel. loss diff | one step: rel. loss diff | one step: rel. gradient diff |",
+              f"| loss after {args.warmup + args.rounds * args.steps} steps | max rel. loss diff "
+              "| one step: rel. loss diff | one step: rel. gradient diff |",
               "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for v in args.variants:
         ratios = [a / c for a, c in zip(res["steps"][v], res["steps"][base])]

@@ -174,13 +174,13 @@ def test_explicit_attention_gives_the_fused_values_and_gradients(monkeypatch):
     """``fused_attention=false`` (the speed option for bf16 autocast on the CPU) runs no fused kernel, spatial or
     temporal, and computes the same outputs and gradients."""
     x, known = make_batch()
+    calls, sdpa = [], F.scaled_dot_product_attention
+    monkeypatch.setattr(F, "scaled_dot_product_attention", lambda *a, **k: calls.append(1) or sdpa(*a, **k))
     outs = []
     for fused in (True, False):
         torch.manual_seed(0)
         model = tiny(fused_attention=fused, residual_to_interpolation=False).train()
-        calls = []
-        sdpa = F.scaled_dot_product_attention
-        monkeypatch.setattr(F, "scaled_dot_product_attention", lambda *a, **k: calls.append(1) or sdpa(*a, **k))
+        calls.clear()
         out = model(x, known)
         out.square().sum().backward()
         assert bool(calls) == fused
