@@ -170,6 +170,26 @@ def test_attention_matches_sdpa_reference():
     assert torch.allclose(attn(x, attn_mask=additive), _reference(attn, x, additive), atol=1e-5)
 
 
+def test_explicit_attention_gives_the_fused_values_and_gradients(monkeypatch):
+    """``fused_attention=false`` (the speed option for bf16 autocast on the CPU) runs no fused kernel, spatial or
+    temporal, and computes the same outputs and gradients."""
+    x, known = make_batch()
+    calls, sdpa = [], F.scaled_dot_product_attention
+    monkeypatch.setattr(F, "scaled_dot_product_attention", lambda *a, **k: calls.append(1) or sdpa(*a, **k))
+    outs = []
+    for fused in (True, False):
+        torch.manual_seed(0)
+        model = tiny(fused_attention=fused, residual_to_interpolation=False).train()
+        calls.clear()
+        out = model(x, known)
+        out.square().sum().backward()
+        assert bool(calls) == fused
+        outs.append((out.detach(), [p.grad for p in model.parameters()]))
+    (o1, g1), (o2, g2) = outs
+    assert torch.allclose(o1, o2, atol=1e-5)
+    assert all(torch.allclose(a, b, atol=1e-4, rtol=1e-4) for a, b in zip(g1, g2))
+
+
 def test_batch_norm_flattens_leading_dims():
     norm = Norm("batch", 8)
     x = torch.randn(2, 3, 4, 8)

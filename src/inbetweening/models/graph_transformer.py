@@ -46,15 +46,15 @@ class GraphTransformerLayer(nn.Module):
         self.ffn_norm = AddNorm(d_model, norm, dropout)
 
     def forward(self, h: Tensor, prob_mask: Tensor | None = None, attn_mask: Tensor | None = None,
-                fused: bool | None = None) -> Tensor:
-        """``h (B, T, J, D), prob_mask / attn_mask (J, J) | None -> (B, T, J, D)``; ``fused``: see
-        :meth:`MultiHeadAttention.forward`."""
+                fused: bool | None = None, fused_temporal: bool | None = None) -> Tensor:
+        """``h (B, T, J, D), prob_mask / attn_mask (J, J) | None -> (B, T, J, D)``; ``fused`` (spatial) and
+        ``fused_temporal``: see :meth:`MultiHeadAttention.forward`."""
         j, d = h.shape[-2], h.shape[-1]
         t = h.shape[1]
         s = h.reshape(-1, j, d)  # (B*T, J, D)
         s = self.spatial_norm(s, self.spatial(s, prob_mask=prob_mask, attn_mask=attn_mask, fused=fused))
         tm = s.reshape(-1, t, j, d).transpose(1, 2).reshape(-1, t, d)  # (B*J, T, D)
-        tm = self.temporal_norm(tm, self.temporal(tm))
+        tm = self.temporal_norm(tm, self.temporal(tm, fused=fused_temporal))
         h = tm.reshape(-1, j, t, d).transpose(1, 2)  # (B, T, J, D)
         return self.ffn_norm(h, self.ffn(h))
 
@@ -78,6 +78,10 @@ class GraphTransformer(InbetweenModel):
         activation: feed-forward activation (``gelu``, ``relu``, ``silu``, ``tanh``).
         checkpoint_layers: while training, keep only each layer's input for the backward pass and recompute the
             layer there (activation checkpointing): a fraction of the memory for about one more forward pass.
+        fused_attention: attention through PyTorch's fused ``scaled_dot_product_attention`` where the masks allow it
+            (``True``), or always the explicit matmul-softmax-matmul path (``False``: the same values; under bf16
+            autocast on the CPU the fused kernel's backward is slow, BENCHMARKS.md "Training step: where the time
+            goes").
     """
 
     OUTPUT_HEAD = ("out_weight", "out_bias")
@@ -97,6 +101,7 @@ class GraphTransformer(InbetweenModel):
         pos_encoding: str = "sinusoidal",
         activation: str = "gelu",
         checkpoint_layers: bool = True,
+        fused_attention: bool = True,
         **common: Any,
     ):
         super().__init__(num_joints, adjacency, **common)
@@ -110,7 +115,8 @@ class GraphTransformer(InbetweenModel):
         self.binary_graph = bool(((adj == 0) | (adj == 1)).all())
         # the masks are fixed: whether the fused attention applies is decided once (not per layer call, which would
         # read the mask's values and split a torch.compile graph at every layer)
-        self._fused = fused_attention_ok(*self._graph_masks(), None)
+        self._fused_temporal = bool(fused_attention)
+        self._fused = self._fused_temporal and fused_attention_ok(*self._graph_masks(), None)
 
         # per-joint input projection (J separate Linear layers as one batched einsum)
         self.in_weight = nn.Parameter(torch.empty(num_joints, self.input_dim, d_model))
@@ -161,11 +167,12 @@ class GraphTransformer(InbetweenModel):
         h = h + self.joint_embed + self.flag_embed(known.long())
         h = h + self.time_embed(x.shape[1])[:, None, :]
         prob_mask, attn_mask = self._graph_masks()
-        fused = self._fused
+        fused, fused_temporal = self._fused, self._fused_temporal
         recompute = self.checkpoint_layers and self.training and torch.is_grad_enabled()
         for layer in self.layers:
             if recompute:  # keep only each layer's input for backward; its activations are recomputed there
-                h = checkpoint(layer, h, prob_mask=prob_mask, attn_mask=attn_mask, fused=fused, use_reentrant=False)
+                h = checkpoint(layer, h, prob_mask=prob_mask, attn_mask=attn_mask, fused=fused,
+                               fused_temporal=fused_temporal, use_reentrant=False)
             else:
-                h = layer(h, prob_mask=prob_mask, attn_mask=attn_mask, fused=fused)
+                h = layer(h, prob_mask=prob_mask, attn_mask=attn_mask, fused=fused, fused_temporal=fused_temporal)
         return torch.einsum("btjd,jdf->btjf", h, self.out_weight) + self.out_bias
