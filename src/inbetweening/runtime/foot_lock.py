@@ -42,8 +42,6 @@ from inbetweening.geometry.skeleton import Skeleton
 __all__ = ["BLEND_FRAMES", "MIN_RUN", "SHORT_GAP", "contact_rule", "detected_contacts", "key_contacts", "legs", "lock_feet"]
 
 BLEND_FRAMES = 4  # frames over which a lock is blended in and out
-PLANTED_MARGIN = 0.1  # fill contact in longer gaps: a foot within this share of the contact height of its planted level
-PLANTED_SPEED = 3.0  # ... and slower than this many times the contact speed (a sliding fill is still planted)
 MIN_RUN = 3  # detected contact: shorter runs (and shorter holes in a run) are dropped (filled)
 SHORT_GAP = 8  # gaps shorter than this take the keys' contact, not a model's prediction
 
@@ -171,11 +169,6 @@ def detected_contacts(skeleton: Skeleton, contact: FootContact, fps: float, root
       holds it planted throughout (the keys say the foot did not leave the ground between them);
     * elsewhere the data's rule on the filled motion itself (:func:`~inbetweening.data.contacts.planted_frames`, its
       speed limit times ``speed_factor``), runs and holes shorter than ``min_run`` frames cleaned;
-    * in gaps of :data:`SHORT_GAP` frames or more, also where the filled foot is as low as it stands at the keys: within
-      :data:`PLANTED_MARGIN` of the contact height of its median height at the keys where it is planted, and slower
-      than :data:`PLANTED_SPEED` times the contact speed.  A fill slides where the real foot is planted, so the speed
-      rule alone misses most of those frames (on Bandai-Namco-2 with keys every 30 frames it kept the skating at 13
-      cm/s, this rule brings it to 7, RESULTS.md section 12.4); in short gaps it cost joint error;
     * on the keys, the keys' own."""
     gp = skeleton.pose(np.asarray(root, np.float64), np.asarray(local_q, np.float64))[1]
     out = np.zeros(gp.shape[:-1])
@@ -184,17 +177,8 @@ def detected_contacts(skeleton: Skeleton, contact: FootContact, fps: float, root
     at_keys = key_contacts(skeleton, contact, fps, root, local_q, keys)
     if feet:
         flags = planted_frames(gp[:, feet], fps, contact.height, contact.speed * speed_factor)
-        loose = planted_frames(gp[:, feet], fps, contact.height, contact.speed * PLANTED_SPEED)
-        long_gaps = np.zeros(len(gp), dtype=bool)
-        for a, b in zip(keys, keys[1:]):
-            long_gaps[a + 1 : b] = b - a - 1 >= SHORT_GAP
         for i, j in enumerate(feet):
-            planted_keys = [k for k in keys if at_keys[k, j] > 0.5]
-            f = flags[:, i].copy()
-            if planted_keys:
-                level = np.median(gp[planted_keys, j, 1]) + PLANTED_MARGIN * contact.height
-                f |= long_gaps & loose[:, i] & (gp[:, j, 1] < level)
-            f = _clean_runs(f, min_run)
+            f = _clean_runs(flags[:, i], min_run)
             for a, b in zip(keys, keys[1:]):
                 if at_keys[a, j] > 0.5 and at_keys[b, j] > 0.5 and np.linalg.norm(gp[b, j] - gp[a, j]) < 0.25 * contact.height:
                     f[a : b + 1] = True
