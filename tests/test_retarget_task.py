@@ -15,7 +15,6 @@ from inbetweening.data.bvh_writer import write_bvh
 from retarget_fixtures import ROOT, rig_of, source_clips, source_skeleton
 
 
-
 @pytest.mark.parametrize("config, extra", [("train", ["callbacks=none", "logger=none"]), ("train", []), ("eval", [])])
 def test_the_task_composes(config, extra, tmp_path):
     from conftest import compose_cfg

@@ -222,6 +222,21 @@ def scenario(cfg: dict, sc: dict, out_dir: str) -> dict:
     return res
 
 
+def run_script(run, out_name: str) -> None:
+    """The body of a one-scenario check script: ``CONFIG.json`` (``sys.argv[1]``: ``zip``, ``out``, ...) read, the
+    extension installed, ``run(cfg)`` (its dict, or ``{"crash": traceback}``) written to ``out/out_name``; then the
+    process ends at once (Blender's module teardown is not needed)."""
+    cfg = json.load(open(sys.argv[1]))
+    install(cfg["zip"])
+    try:
+        res = run(cfg)
+    except Exception:
+        res = {"crash": traceback.format_exc()}
+    json.dump(res, open(os.path.join(cfg["out"], out_name), "w"), indent=1)
+    sys.stdout.flush()
+    os._exit(0)
+
+
 def main() -> None:
     cfg = json.load(open(sys.argv[1]))
     out_dir = cfg["out"]

@@ -12,7 +12,6 @@ import importlib
 import json
 import os
 import sys
-import traceback
 
 import bpy
 import numpy as np
@@ -245,20 +244,17 @@ def humanoid() -> dict:
     return res
 
 
+def everything(cfg: dict) -> dict:
+    res = scenario(cfg)
+    if cfg.get("human"):
+        res["human"] = humanoid()
+    if cfg.get("weights"):
+        res["weights"] = weights(cfg)
+    return res
+
+
 def main() -> None:
-    cfg = json.load(open(sys.argv[1]))
-    chk.install(cfg["zip"])
-    try:
-        res = scenario(cfg)
-        if cfg.get("human"):
-            res["human"] = humanoid()
-        if cfg.get("weights"):
-            res["weights"] = weights(cfg)
-    except Exception:
-        res = {"crash": traceback.format_exc()}
-    json.dump(res, open(os.path.join(cfg["out"], "loop.json"), "w"), indent=1)
-    sys.stdout.flush()
-    os._exit(0)
+    chk.run_script(everything, "loop.json")
 
 
 if __name__ == "__main__":

@@ -7,10 +7,8 @@ tests/test_blender_addon.py:
 """
 from __future__ import annotations
 
-import json
 import os
 import sys
-import traceback
 
 import bpy
 import numpy as np
@@ -87,15 +85,7 @@ def scenario(cfg: dict) -> dict:
 
 
 def main() -> None:
-    cfg = json.load(open(sys.argv[1]))
-    chk.install(cfg["zip"])
-    try:
-        res = scenario(cfg)
-    except Exception:
-        res = {"crash": traceback.format_exc()}
-    json.dump(res, open(os.path.join(cfg["out"], "partial.json"), "w"), indent=1)
-    sys.stdout.flush()
-    os._exit(0)
+    chk.run_script(scenario, "partial.json")
 
 
 if __name__ == "__main__":

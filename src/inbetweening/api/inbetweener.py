@@ -76,7 +76,8 @@ def _keep_partial_rows(out: BVH, bvh: BVH, part: dict[int, list[str]], first: in
     for t, bones in part.items():
         for b in bones:
             j = bvh.names.index(b)
-            out.motion[t - first, ends[j] - len(bvh.channels[j]) : ends[j]] = bvh.motion[t, ends[j] - len(bvh.channels[j]) : ends[j]]
+            cols = slice(ends[j] - len(bvh.channels[j]), ends[j])
+            out.motion[t - first, cols] = bvh.motion[t, cols]
 
 
 def _bone_map(bvh: BVH, bone_map):

@@ -85,8 +85,9 @@ examples:
 """
 
 OPTIONS = {
-    "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "partial": parse_partial_keys, "gap": int, "max_gap": int,
-    "segment": parse_bool, "foot_lock": parse_bool, "self_check": parse_bool, "render": str, "render_dpi": int, "device": str, "force": parse_bool,
+    "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "partial": parse_partial_keys,
+    "gap": int, "max_gap": int, "segment": parse_bool, "foot_lock": parse_bool, "self_check": parse_bool,
+    "render": str, "render_dpi": int, "device": str, "force": parse_bool,
     "threads": int, "bone_map": str,
 }
 ALIASES = {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "in": "input", "out": "output", "o": "output",

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MIN_INTERVAL", "PARTIAL", "SCHEDULES", "partial_interval", "KeyposeSchedule", "check_schedule", "extreme_keyframes", "keyframe_indices",
+__all__ = ["MIN_INTERVAL", "PARTIAL", "SCHEDULES", "partial_interval", "KeyposeSchedule", "check_schedule",
+           "extreme_keyframes", "keyframe_indices",
            "mean_joint_speed", "needs_positions", "random_keyframes", "schedule_keyframes"]
 
 MIN_INTERVAL = 2  # the shortest interval a config may name (a key every K frames; K = 1 generates nothing)

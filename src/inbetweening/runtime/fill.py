@@ -358,8 +358,8 @@ class FillRuntime:
             kept[a + 1 : b] = True
         contact, locked, feet = None, False, []
         rule = contact_rule(info.contact, info.skeleton, root, q, keys)
-        if rule.feet:
-            feet = list(rule.indices(info.skeleton.names, "the model's feet"))  # on the filled span alone: frames before the first key are context, never feet to lock
+        if rule.feet:  # on the filled span alone: frames before the first key are context, never feet to lock
+            feet = list(rule.indices(info.skeleton.names, "the model's feet"))
             s, e = keys[0], keys[-1] + 1
             span = [k - s for k in keys]
             detected = detected_contacts(info.skeleton, rule, info.fps, root[s:e], q[s:e], span)
