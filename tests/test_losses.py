@@ -126,3 +126,23 @@ def test_loss_weights_scale_each_term_and_zero_removes_it():
         assert float(total0) == pytest.approx(sum(w[k] * alone[k] for k in w if k != term), rel=1e-12), term
         if term != "l1":  # disabled terms are not even computed (l1 is always logged)
             assert term not in terms0
+
+
+def test_reduce_windows_weighs_every_window_the_same():
+    """loss.reduce: frames pools every predicted value of the batch (a long gap outweighs a short one); windows
+    averages each window first, so a 1-frame gap counts as much as an 8-frame one."""
+    gt = _features()
+    pred = gt.clone()
+    mask = torch.zeros(2, 12, 22, dtype=torch.bool)
+    mask[0, 2:10] = True   # window 0: an 8-frame gap, error 0
+    mask[1, 5] = True      # window 1: a 1-frame gap, error 7 over 7 features
+    pred[1, 5, :, 0] += 7.0
+    frames, _ = L.total_loss(pred, gt, mask, {"l1": 1.0}, REP)
+    windows, _ = L.total_loss(pred, gt, mask, {"l1": 1.0, "reduce": "windows"}, REP)
+    assert float(frames) == pytest.approx(1.0 / 9)
+    assert float(windows) == pytest.approx(0.5)
+    empty = mask.clone()
+    empty[1] = False  # a window with nothing to predict does not count
+    assert float(L.total_loss(pred, gt, empty, {"l1": 1.0, "reduce": "windows"}, REP)[0]) == 0.0
+    with pytest.raises(ValueError, match="loss.reduce"):
+        L.total_loss(pred, gt, mask, {"l1": 1.0, "reduce": "clips"}, REP)

@@ -12,7 +12,7 @@ from inbetweening.data.windows import N_PAST
 from inbetweening.predictor.masks import MASK_NAMES
 from inbetweening.predictor.predictor import CENTRES
 from inbetweening.representation import DEFAULT_REPRESENTATION, REPRESENTATIONS
-from inbetweening.training.losses import LOSS_TERMS
+from inbetweening.training.losses import LOSS_TERMS, REDUCTIONS
 
 
 class ConfigError(ValueError):
@@ -286,6 +286,10 @@ def validate(cfg: DictConfig) -> None:
     if per not in ("batch", "sample"):
         raise ConfigError(f"data.transition_per: must be 'batch' or 'sample', got {per!r}")
     for k, v in (_get(cfg, "loss") or {}).items():
+        if k == "reduce":
+            if v not in REDUCTIONS:
+                raise ConfigError(f"loss.reduce: must be one of {list(REDUCTIONS)}, got {v!r}")
+            continue
         if k not in LOSS_TERMS:
             raise ConfigError(f"loss.{k}: unknown loss term; known: {list(LOSS_TERMS)}")
         if float(v) < 0:
