@@ -23,8 +23,8 @@ How a gap is generated (the conditions the model was trained under):
 earlier fill's output; the runtime computes the self-check and the weights as for a fill of every gap and generates the
 gaps :func:`.plan.chosen_gaps` names (the changed ones, those whose weight changed, those whose context was generated
 now), in the same order and with the same context as a fill of every gap; the other gaps' frames come back exactly as
-given (:attr:`Filled.generated`).  The feet are locked over the whole span, into the generated gaps only: contact is
-found on the span as it is (the kept gaps hold the earlier, locked output), and the kept frames are never moved.
+given (:attr:`Filled.generated`).  The feet are found and locked gap by gap, each between its two keys, so a generated
+gap is locked as a fill of every gap locks it, and the kept frames are never moved.
 
 Arrays are ``root (F, 3)``, ``local_q (F, J, 4)`` (wxyz) in the model's skeleton: in the project's frame (Y up, cm),
 or with ``file_frame=True`` in the training files' frame (:class:`~inbetweening.data.convention.FileConvention`,
@@ -41,7 +41,7 @@ from inbetweening.geometry import canonical
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_known, interpolate_pose
 from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities, slerp_np
 
-from .foot_lock import SHORT_GAP, contact_rule, detected_contacts, key_contacts, lock_feet
+from .foot_lock import clip_feet, gap_contacts, lock_feet
 from .model import Backend, InbetweenError, ModelInfo
 from .partial import check_partial, known_values
 from .plan import GapPlan, check_keys, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
@@ -92,7 +92,11 @@ class _Clip:
         self.base = base  # with partial keys: every joint interpolated between its own known values (root, q)
         self.exact_root, self.exact_q = exact_root, exact_q
         self.only, self.previous = only, previous
-        self.contact = np.full(q.shape[:2], np.nan)
+        self.contact = np.full(q.shape[:2], np.nan)  # the model's contact channels on generated frames
+        self.feet = None  # what the keys say of the feet (foot_lock.ClipFeet), None: no feet found
+        self.planted = np.full(q.shape[:2], np.nan)  # the contact each generated gap was locked on
+        self.gap_ending: dict[int, tuple[int, int]] = {}  # key b -> the generated key gap (a, b)
+        self.key_pose: dict[int, tuple] = {}  # key -> (root, q) as given, in the project's frame
         self.weights: dict[tuple[int, int], float] = {}
         self.checks: list[Check] = []
         self.generated: list[tuple[int, int]] = []
@@ -172,6 +176,7 @@ class FillRuntime:
         for c in work:
             self._choose(c)
         total, done = sum(len(c.todo) for c in work), 0
+        lock = self.foot_lock if foot_lock is None else bool(foot_lock)
         for step in range(max((len(c.todo) for c in work), default=0)):
             groups: dict[int, list] = {}
             for c in work:
@@ -181,10 +186,12 @@ class FillRuntime:
             for items in groups.values():
                 for i in range(0, len(items), size):
                     self._generate(items[i : i + size])
+                    for c, _, b in items[i : i + size]:
+                        if b in c.gap_ending:  # a key gap done: its feet, before the next gap takes it as context
+                            self._feet(c, *c.gap_ending[b], lock)
                     done += len(items[i : i + size])
                     if progress is not None:
                         progress(done, total)
-        lock = self.foot_lock if foot_lock is None else bool(foot_lock)
         return [self._finish(c, lock, file_frame) for c in work]
 
     # ------------------------------------------------------------------ stages
@@ -212,6 +219,8 @@ class FillRuntime:
         first = keys[0]
         bad = ~(np.isfinite(r[:first]).all(-1) & np.isfinite(q[:first]).all((-1, -2)))
         r[:first][bad], q[:first][bad] = r[first], q[first]  # no usable context there: the first key's pose
+        feet = clip_feet(info.contact, info.skeleton, info.fps, r, q, keys)  # on the keys as given
+        key_pose = {k: (r[k].copy(), q[k].copy()) for k in keys}  # (the locked feet meet them exactly)
         q[: keys[-1] + 1] = qnormalize(q[: keys[-1] + 1])
         plan = plan_gaps(keys, limit, seg, info.trained_gap)
         base = None
@@ -219,7 +228,11 @@ class FillRuntime:
             base = interpolate_known(r, q, known_values(partial, keys, len(r), j))
             for t in partial:  # what the windows show: the keyed joints, the others interpolated
                 r[t], q[t] = base[0][t], base[1][t]
-        return _Clip(r, q, keys, plan, exact_root, exact_q, only, previous, partial, base)
+        c = _Clip(r, q, keys, plan, exact_root, exact_q, only, previous, partial, base)
+        c.feet, c.key_pose = feet, key_pose
+        if feet is not None:
+            c.planted[keys] = feet.at_keys[keys]
+        return c
 
     def windows(self, roots: Sequence[np.ndarray], qs: Sequence[np.ndarray], spans: Sequence[tuple[int, int]],
                 partials: Sequence[dict] | None = None):
@@ -308,6 +321,7 @@ class FillRuntime:
         c.generated = chosen_gaps(c.keys, c.shares, c.only, c.previous, self.info.n_past,
                                   lambda a, b: bool(finite[a + 1 : b].all()))
         c.todo = [w for g in c.generated for w in windows[g]]
+        c.gap_ending = {b: (a, b) for a, b in c.generated}
         chosen = set(c.generated)
         for a, b, points in c.plan.pseudo:
             if (a, b) in chosen and c.base is not None:  # each joint between its own known values
@@ -342,43 +356,41 @@ class FillRuntime:
             if pc is not None:
                 c.contact[a + 1 : b] = pc[i]
 
+    def _feet(self, c: _Clip, a: int, b: int, lock: bool) -> None:
+        """The contact of the generated key gap ``(a, b)`` (:func:`.foot_lock.gap_contacts`), and with ``lock`` its feet
+        locked in place, between its two keys (never moved, nor the partial keys: their keyed joints stay exact)."""
+        if c.feet is None:
+            return
+        predicted = c.contact[a + 1 : b] if self.info.has_contacts and not np.isnan(c.contact[a + 1 : b]).any() else None
+        c.planted[a + 1 : b] = gap_contacts(self.info.skeleton, c.feet, self.info.fps, c.root, c.q, a, b, predicted)
+        if lock:
+            fixed = [0, b - a] + [t - a for t in c.partial if a < t < b]
+            r, q = c.root[a : b + 1].copy(), c.q[a : b + 1].copy()
+            (r[0], q[0]), (r[-1], q[-1]) = c.key_pose[a], c.key_pose[b]
+            r, q = lock_feet(self.info.skeleton, r, q, fixed, c.planted[a : b + 1], c.feet.feet)
+            c.root[a + 1 : b], c.q[a + 1 : b] = r[1:-1], q[1:-1]
+
     def _finish(self, c: _Clip, lock: bool, file_frame: bool) -> Filled:
-        """Keys exact, the keys' own contacts, feet locked (into the generated gaps), back to the file's frame; keys,
-        outside frames and the frames of gaps not generated exactly the input."""
+        """Keys exact, back to the file's frame; keys, outside frames and the frames of gaps not generated exactly the
+        input; the contact: the keys' own on keys, what each generated gap was locked on, the rule on kept gaps as they
+        are."""
         info = self.info
         keys = c.keys
-        root, q = c.root, c.q
         if file_frame and not info.convention.is_project:
             exact_r, exact_q = info.convention.to_project(c.exact_root[keys], c.exact_q[keys])
         else:
             exact_r, exact_q = c.exact_root[keys], c.exact_q[keys]
+        root, q = c.root.copy(), c.q.copy()
         root[keys], q[keys] = exact_r, exact_q
         kept = np.zeros(len(root), dtype=bool)
+        contact, feet = None, []
+        if c.feet is not None:
+            feet, contact = list(c.feet.feet), c.planted.copy()
         for a, b in sorted(set(key_gaps(keys)) - set(c.generated)):
             kept[a + 1 : b] = True
-        contact, locked, feet = None, False, []
-        rule = contact_rule(info.contact, info.skeleton, root, q, keys)
-        if rule.feet:  # on the filled span alone: frames before the first key are context, never feet to lock
-            feet = list(rule.indices(info.skeleton.names, "the model's feet"))
-            s, e = keys[0], keys[-1] + 1
-            span = [k - s for k in keys]
-            detected = detected_contacts(info.skeleton, rule, info.fps, root[s:e], q[s:e], span)
-            contact = np.full(c.contact.shape, np.nan)
-            if info.has_contacts and not np.isnan(c.contact).all():
-                labels = key_contacts(info.skeleton, rule, info.fps, root, q, keys)
-                contact = np.where(np.isnan(c.contact), labels, c.contact)
-                for a, b in zip(keys, keys[1:]):  # short gaps: what the keys say
-                    if b - a - 1 < SHORT_GAP:
-                        contact[a + 1 : b] = detected[a + 1 - s : b - s]
-                contact[s:e][kept[s:e]] = detected[kept[s:e]]  # kept gaps: the rule on them as they are
-            else:
-                contact[s:e] = detected
-            if lock:
-                # never moved: the keys, the kept gaps and the partial keys (their keyed joints are put back below)
-                fixed = np.flatnonzero(kept[s:e]).tolist() + span + [t - s for t in c.partial]
-                root, q = root.copy(), q.copy()
-                root[s:e], q[s:e] = lock_feet(info.skeleton, root[s:e], q[s:e], fixed, contact[s:e], feet)
-                locked = True
+            if c.feet is not None:
+                contact[a + 1 : b] = gap_contacts(info.skeleton, c.feet, info.fps, root, q, a, b)
+        locked = lock and c.feet is not None
         if file_frame and not info.convention.is_project:
             root, q = info.convention.to_file(root, q)
         outside = np.ones(len(root), dtype=bool)

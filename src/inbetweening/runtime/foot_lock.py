@@ -1,29 +1,32 @@
 """Foot locking: where a foot is planted, hold it still and bend the leg to reach it.
 
-Where the foot is planted: the model's contact channels where it has them, else the data's contact rule on the fill
-itself (:func:`detected_contacts`: the foot low and slow).  The feet and the rule are the model's data's; a model that
-recorded none (trained before they were) gets them from its skeleton and the keys (:func:`contact_rule`: the feet by
-name or as the lowest limbs' ends, the built-in rule scaled to the keys' body height).
+Where the foot is planted, gap by gap between two keys (:func:`gap_contacts`): the model's contact channels where it
+has them, else the data's contact rule on the fill itself (the foot low and slow, or as low as it stands at the keys).
+The feet and the rule are the model's data's; a model that recorded none (trained before they were) gets them from its
+skeleton and the keys (:func:`contact_rule`: the feet by name or as the lowest limbs' ends, the built-in rule scaled to
+the keys' body height).
 
-For each leg (a foot joint of the data's :class:`~inbetweening.data.contacts.FootContact` whose parent and
-grandparent are the knee and the hip; the other foot joints of the leg, e.g. the toes, follow it), the frames where
-the predicted contact of that joint is above one half form *contact runs*.  In a run the ankle is held at one
-position: a keyframe's where the run holds one (so the locked foot meets the key exactly; between two keys of a run
-it moves straight from one key's position to the other's), else the mean of the generated positions.  The leg is
-solved with a two-bone IK (:func:`inbetweening.geometry.ik.two_bone_ik`) so the
-ankle reaches it, the foot keeping its global rotation; over ``blend`` frames on each side of a run the target is
-blended from the generated position to the locked one.  Optionally (``move_root``), where a locked ankle is out of the
-leg's reach from the generated hip, the root of that frame is moved by the shortfall (the legs' mean, smoothed over
+The runtime locks each gap as soon as it is generated, between its two keys, so the next gap's context holds planted
+feet and a re-fill of some gaps locks them as a fill of every gap does.  For each leg (a foot joint of the data's
+:class:`~inbetweening.data.contacts.FootContact` whose parent and grandparent are the knee and the hip; the other foot
+joints of the leg, e.g. the toes, follow it), the frames where the predicted contact of that joint is above one half
+form *contact runs*.  In a run the ankle is held at one position: a keyframe's where the run holds one (so the locked
+foot meets the key exactly; between two keys of a run it moves straight from one key's position to the other's), else
+the mean of the generated positions.  The leg is solved with a two-bone IK (:func:`inbetweening.geometry.ik.two_bone_ik`)
+so the ankle reaches it, the foot keeping its global rotation; over ``blend`` frames on each side of a run the target
+is blended from the generated position to the locked one.  Optionally (``move_root``), where a locked ankle is out of
+the leg's reach from the generated hip, the root of that frame is moved by the shortfall (the legs' mean, smoothed over
 ``blend`` frames either side) before the legs are solved.  Keyframes are never changed: only the hip, knee and ankle
 rotations (and with ``move_root`` the root) of generated frames.
 
 Short gaps (under :data:`SHORT_GAP` frames) of a model with contact channels take the contact the keys say
-(:func:`detected_contacts`) instead of the prediction: with keys every 5 frames the predicted contact raised the joint
+(:func:`gap_contacts`) instead of the prediction: with keys every 5 frames the predicted contact raised the joint
 error of the shipped contact model by 3 % (RESULTS.md section 12).
 """
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -39,9 +42,12 @@ from inbetweening.data.errors import DatasetError
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["BLEND_FRAMES", "MIN_RUN", "SHORT_GAP", "contact_rule", "detected_contacts", "key_contacts", "legs", "lock_feet"]
+__all__ = ["BLEND_FRAMES", "MIN_RUN", "PLANTED_MARGIN", "PLANTED_SPEED", "SHORT_GAP", "ClipFeet", "clip_feet",
+           "contact_rule", "gap_contacts", "key_contacts", "legs", "lock_feet"]
 
 BLEND_FRAMES = 4  # frames over which a lock is blended in and out
+PLANTED_MARGIN = 0.1  # fill contact in longer gaps: a foot within this share of the contact height of its planted level
+PLANTED_SPEED = 3.0  # ... and slower than this many times the contact speed (a sliding fill is still planted)
 MIN_RUN = 3  # detected contact: shorter runs (and shorter holes in a run) are dropped (filled)
 SHORT_GAP = 8  # gaps shorter than this take the keys' contact, not a model's prediction
 
@@ -161,29 +167,70 @@ def _clean_runs(flags: np.ndarray, min_run: int) -> np.ndarray:
     return out
 
 
-def detected_contacts(skeleton: Skeleton, contact: FootContact, fps: float, root: np.ndarray, local_q: np.ndarray,
-                      known_frames: Sequence[int], min_run: int = MIN_RUN, speed_factor: float = 1.0) -> np.ndarray:
-    """Foot contact ``(F, J)`` for a model without contact channels, 1/0 on the feet and 0 elsewhere:
+@dataclass
+class ClipFeet:
+    """What the keys of one clip say about its feet: the contact ``rule`` (:func:`contact_rule`) and its foot joints
+    ``feet``, the keys' own contact ``at_keys (F, J)`` (:func:`key_contacts`) and each foot's planted ``levels (J,)``
+    (its median height at the keys where it is planted, plus :data:`PLANTED_MARGIN` of the contact height; ``-inf``
+    where it is planted at no key)."""
 
-    * a gap whose two keys both have the foot planted (:func:`key_contacts`) within ``contact.height`` of each other
-      holds it planted throughout (the keys say the foot did not leave the ground between them);
-    * elsewhere the data's rule on the filled motion itself (:func:`~inbetweening.data.contacts.planted_frames`, its
-      speed limit times ``speed_factor``), runs and holes shorter than ``min_run`` frames cleaned;
-    * on the keys, the keys' own."""
-    gp = skeleton.pose(np.asarray(root, np.float64), np.asarray(local_q, np.float64))[1]
-    out = np.zeros(gp.shape[:-1])
-    feet = list(contact.indices(skeleton.names, "the model's feet"))
-    keys = list(known_frames)
-    at_keys = key_contacts(skeleton, contact, fps, root, local_q, keys)
-    if feet:
-        flags = planted_frames(gp[:, feet], fps, contact.height, contact.speed * speed_factor)
-        for i, j in enumerate(feet):
-            f = _clean_runs(flags[:, i], min_run)
-            for a, b in zip(keys, keys[1:]):
-                if at_keys[a, j] > 0.5 and at_keys[b, j] > 0.5 and np.linalg.norm(gp[b, j] - gp[a, j]) < 0.25 * contact.height:
-                    f[a : b + 1] = True
-            out[:, j] = f
-    out[keys] = at_keys[keys]
+    rule: FootContact
+    feet: list[int]
+    at_keys: np.ndarray
+    levels: np.ndarray
+
+
+def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.ndarray, local_q: np.ndarray,
+              known_frames: Sequence[int]) -> ClipFeet | None:
+    """:class:`ClipFeet` from the keys alone, ``None`` when no feet can be found (:func:`contact_rule`)."""
+    keys = sorted(known_frames)
+    rule = contact_rule(contact, skeleton, root, local_q, keys)
+    if not rule.feet:
+        return None
+    feet = list(rule.indices(skeleton.names, "the model's feet"))
+    at_keys = key_contacts(skeleton, rule, fps, root, local_q, keys)
+    heights = skeleton.pose(np.asarray(root, np.float64)[keys], np.asarray(local_q, np.float64)[keys])[1][..., 1]
+    levels = np.full(skeleton.num_joints, -np.inf)
+    for j in feet:
+        planted = at_keys[keys, j] > 0.5
+        if planted.any():
+            levels[j] = np.median(heights[planted, j]) + PLANTED_MARGIN * rule.height
+    return ClipFeet(rule, feet, at_keys, levels)
+
+
+def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarray, local_q: np.ndarray, a: int,
+                 b: int, predicted: np.ndarray | None = None, min_run: int = MIN_RUN) -> np.ndarray:
+    """Foot contact ``(b - a - 1, J)`` of the gap between keys ``a`` and ``b``, judged on frames ``a .. b`` and what the
+    keys say alone (so a re-fill of some gaps finds in a gap what a fill of every gap finds there): ``predicted``, the
+    model's contact channels there, where it has them and the gap is :data:`SHORT_GAP` frames or longer; else, 1/0 on
+    the feet and 0 elsewhere:
+
+    * a gap whose two keys both have the foot planted within a quarter of the contact height of each other holds it
+      planted throughout (the keys say the foot did not leave the ground between them);
+    * elsewhere the data's rule on the filled motion itself (:func:`~inbetweening.data.contacts.planted_frames`), runs
+      and holes shorter than ``min_run`` frames cleaned;
+    * in gaps of :data:`SHORT_GAP` frames or more, also where the filled foot is as low as it stands at the keys
+      (below its planted level) and slower than :data:`PLANTED_SPEED` times the contact speed.  A fill slides where
+      the real foot is planted, so the speed rule alone misses most of those frames (RESULTS.md section 12.4); in
+      short gaps it cost joint error."""
+    n = b - a - 1
+    if predicted is not None and n >= SHORT_GAP:
+        return np.asarray(predicted, np.float64)
+    out = np.zeros((n, skeleton.num_joints))
+    if n < 1:
+        return out
+    rule = feet.rule
+    gp = skeleton.pose(np.asarray(root[a : b + 1], np.float64), np.asarray(local_q[a : b + 1], np.float64))[1]
+    for j in feet.feet:
+        seg = gp[:, j : j + 1]
+        f = planted_frames(seg, fps, rule.height, rule.speed)[:, 0]
+        if n >= SHORT_GAP:
+            loose = planted_frames(seg, fps, rule.height, rule.speed * PLANTED_SPEED)[:, 0]
+            f |= loose & (seg[:, 0, 1] < feet.levels[j])
+        f = _clean_runs(f, min_run)
+        if feet.at_keys[a, j] > 0.5 and feet.at_keys[b, j] > 0.5 and np.linalg.norm(gp[-1, j] - gp[0, j]) < 0.25 * rule.height:
+            f[:] = True
+        out[:, j] = f[1:-1]
     return out
 
 
