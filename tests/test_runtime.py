@@ -276,6 +276,52 @@ def test_a_refill_locks_the_feet_over_the_span_into_the_generated_gaps_only():
     assert (out.contact[37:48, foot] > 0.5).all() and np.abs(feet[37:48] - feet[36]).max() < 1e-6  # ... and held
 
 
+def walking_on_the_spot(frames=81, lift=0.5):
+    """The foot 2 cm above the floor, the body gliding forward at 36 cm/s (faster than the contact speed, 30 cm/s)."""
+    root, q = motion(frames, seed=11)
+    q[:] = q[10]
+    foot = SK.names.index("foot")
+    y = 2.0 - SK.pose(np.zeros((1, 3)), q[:1])[1][0, foot, 1]
+    root[:] = np.stack([np.full(frames, 90.0), np.full(frames, y), 1.2 * np.arange(frames)], -1)
+    model = info(trained_gap=12, contact=FootContact(("foot",), 10.0, 30.0))
+    return root, q, foot, FillRuntime(Lift(model, lift=lift), self_check=False)
+
+
+def test_a_foot_as_low_as_at_the_keys_is_planted_in_longer_gaps():
+    """Too fast for the contact rule, as low as at the keys: planted in a gap of 9 frames (the planted level), the
+    lift mid-gap taken out by the lock (the foot moves straight from one key's place to the next); with keys every 6
+    frames (gaps under 8) the speed rule alone decides and nothing is locked."""
+    root, q, foot, rt = walking_on_the_spot()
+    keys = list(range(0, 81, 10))
+    free = rt.fill(root, q, keys, foot_lock=False)
+    out = rt.fill(root, q, keys)
+    heights = SK.pose(free.root, free.local_q)[1][:, foot, 1]
+    assert heights[5] > 2.4 and (out.contact[1:80, foot] == 1).all()
+    assert np.abs(SK.pose(out.root, out.local_q)[1][:81, foot, 1] - 2.0).max() < 1e-6
+    short = list(range(0, 79, 6))
+    dense = rt.fill(root, q, short)
+    assert (dense.contact[np.setdiff1d(np.arange(78), short), foot] == 0).all()
+
+
+def test_a_refill_with_the_feet_locked_is_a_fill_of_every_gap():
+    """Feet found and locked gap by gap as each gap is generated: key 40 moved and its gaps re-filled from the
+    earlier (locked) output give what a fill of every gap gives, the gaps before it kept bit for bit."""
+    root, q, foot, rt = walking_on_the_spot()
+    keys = list(range(0, 81, 10))
+    before = rt.fill(root, q, keys)
+    changed = root.copy()
+    changed[40, 1] -= 0.3
+    fresh = rt.fill(changed, q, keys)
+    given_r = before.root.copy()
+    given_r[40] = changed[40]
+    out = rt.fill(given_r, before.local_q, keys, only={(30, 40), (40, 50)}, previous=before.shares)
+    assert out.generated == [(a, a + 10) for a in range(30, 80, 10)] and (out.contact[1:80, foot] == 1).all()
+    assert np.array_equal(out.root[:31], before.root[:31]) and np.array_equal(out.local_q[:31], before.local_q[:31])
+    np.testing.assert_allclose(out.local_q, fresh.local_q, atol=1e-9)
+    np.testing.assert_allclose(out.root, fresh.root, atol=1e-9)
+    assert np.abs(out.root[31:40] - before.root[31:40]).max() > 0.1  # the re-filled gap did change
+
+
 def hparams(**kw) -> dict:
     rng = np.random.default_rng(0)
     return {"model": {"name": "interpolation"}, "skeleton": SK.to_dict(), "pos_mean": rng.normal(0, 5, 18).tolist(),

@@ -367,7 +367,8 @@ class FillRuntime:
             fixed = [0, b - a] + [t - a for t in c.partial if a < t < b]
             r, q = c.root[a : b + 1].copy(), c.q[a : b + 1].copy()
             (r[0], q[0]), (r[-1], q[-1]) = c.key_pose[a], c.key_pose[b]
-            r, q = lock_feet(self.info.skeleton, r, q, fixed, c.planted[a : b + 1], c.feet.feet)
+            r, q = lock_feet(self.info.skeleton, r, q, fixed, c.planted[a : b + 1], c.feet.feet,
+                             ends=c.feet.goes_on(a, b))
             c.root[a + 1 : b], c.q[a + 1 : b] = r[1:-1], q[1:-1]
 
     def _finish(self, c: _Clip, lock: bool, file_frame: bool) -> Filled:

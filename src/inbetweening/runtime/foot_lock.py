@@ -104,7 +104,7 @@ def _reach_shift(skeleton: Skeleton, gp: np.ndarray, plans: list, n: int, blend:
 
 def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_frames: Sequence[int],
               contact: np.ndarray, feet: Sequence[int], blend: int = BLEND_FRAMES,
-              move_root: bool = False) -> tuple[np.ndarray, np.ndarray]:
+              move_root: bool = False, ends: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(root (F, 3), local_q (F, J, 4))`` with the feet locked (module docstring); ``contact (F, J)`` (contact in
     [0, 1]; keyframes: their own), ``feet``: foot joint indices; ``move_root``: move the root where a locked ankle is
     out of reach (off by default: on Bandai-Namco-2 it raised the joint error at every schedule and did not lower the
@@ -112,6 +112,7 @@ def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_f
     q = np.array(local_q, dtype=np.float64)
     root_out = np.array(root, dtype=np.float64)
     n = len(root)
+    go_on = np.zeros((2, q.shape[1]), dtype=bool) if ends is None else np.asarray(ends, dtype=bool)
     generated = np.ones(n, dtype=bool)
     generated[list(known_frames)] = False
     keys = np.flatnonzero(~generated)
@@ -122,7 +123,7 @@ def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_f
         target = np.full((n, 3), np.nan)
         weight = np.zeros(n)
         for s, e in _runs(planted):
-            if not generated[s:e].any():
+            if not generated[s:e].any() and not ((s == 0 and go_on[0, ankle]) or (e == n and go_on[1, ankle])):
                 continue
             inside = keys[(keys >= s) & (keys < e)]
             if len(inside):  # through the keys' own positions (held before the first and after the last)
@@ -170,14 +171,24 @@ def _clean_runs(flags: np.ndarray, min_run: int) -> np.ndarray:
 @dataclass
 class ClipFeet:
     """What the keys of one clip say about its feet: the contact ``rule`` (:func:`contact_rule`) and its foot joints
-    ``feet``, the keys' own contact ``at_keys (F, J)`` (:func:`key_contacts`) and each foot's planted ``levels (J,)``
+    ``feet``, the keys' own contact ``at_keys (F, J)`` (:func:`key_contacts`), each foot's planted ``levels (J,)``
     (its median height at the keys where it is planted, plus :data:`PLANTED_MARGIN` of the contact height; ``-inf``
-    where it is planted at no key)."""
+    where it is planted at no key) and ``held {(a, b): (J,) bool}``: per key gap, whether both keys have the foot
+    planted within a quarter of the contact height of each other (the keys say it stayed down)."""
 
     rule: FootContact
     feet: list[int]
     at_keys: np.ndarray
     levels: np.ndarray
+    held: dict
+
+    def goes_on(self, a: int, b: int) -> np.ndarray:
+        """``(2, J)``: whether a foot planted at key ``a`` (row 0) or key ``b`` (row 1) of the gap ``(a, b)`` stays
+        planted beyond it, through the gap before ``a`` or after ``b`` (the keys say so: :attr:`held`)."""
+        gaps = sorted(self.held)
+        i = gaps.index((a, b))
+        none = np.zeros(len(self.levels), dtype=bool)
+        return np.stack([self.held[gaps[i - 1]] if i > 0 else none, self.held[gaps[i + 1]] if i + 1 < len(gaps) else none])
 
 
 def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.ndarray, local_q: np.ndarray,
@@ -189,13 +200,17 @@ def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.nda
         return None
     feet = list(rule.indices(skeleton.names, "the model's feet"))
     at_keys = key_contacts(skeleton, rule, fps, root, local_q, keys)
-    heights = skeleton.pose(np.asarray(root, np.float64)[keys], np.asarray(local_q, np.float64)[keys])[1][..., 1]
+    gp = skeleton.pose(np.asarray(root, np.float64)[keys], np.asarray(local_q, np.float64)[keys])[1]
     levels = np.full(skeleton.num_joints, -np.inf)
+    held = {g: np.zeros(skeleton.num_joints, dtype=bool) for g in zip(keys, keys[1:])}
     for j in feet:
         planted = at_keys[keys, j] > 0.5
         if planted.any():
-            levels[j] = np.median(heights[planted, j]) + PLANTED_MARGIN * rule.height
-    return ClipFeet(rule, feet, at_keys, levels)
+            levels[j] = np.median(gp[planted, j, 1]) + PLANTED_MARGIN * rule.height
+        for i, g in enumerate(zip(keys, keys[1:])):
+            near = np.linalg.norm(gp[i + 1, j] - gp[i, j]) < 0.25 * rule.height
+            held[g][j] = bool(planted[i] and planted[i + 1] and near)
+    return ClipFeet(rule, feet, at_keys, levels, held)
 
 
 def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarray, local_q: np.ndarray, a: int,
@@ -228,7 +243,7 @@ def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarra
             loose = planted_frames(seg, fps, rule.height, rule.speed * PLANTED_SPEED)[:, 0]
             f |= loose & (seg[:, 0, 1] < feet.levels[j])
         f = _clean_runs(f, min_run)
-        if feet.at_keys[a, j] > 0.5 and feet.at_keys[b, j] > 0.5 and np.linalg.norm(gp[-1, j] - gp[0, j]) < 0.25 * rule.height:
+        if feet.held[(a, b)][j]:
             f[:] = True
         out[:, j] = f[1:-1]
     return out
