@@ -109,7 +109,8 @@ def test_model_v2_predicts_contacts_and_carries_the_blend(path, step):
 @needs_bn2
 def test_model_v2_locks_only_the_legs_of_generated_frames():
     """A real test clip filled from keys every 30 frames with and without foot locking: keys bit-exact in both, and
-    the lock changes only hip, knee and ankle rotations of generated frames (never the root or the upper body)."""
+    the lock changes only hip, knee and ankle rotations of generated frames (never the root or the upper body; the
+    first gap shows it: later gaps take the locked gaps before them as context)."""
     from inbetweening.runtime.foot_lock import legs
 
     ib = Inbetweener.from_checkpoint(V2_CKPT)
@@ -120,7 +121,7 @@ def test_model_v2_locks_only_the_legs_of_generated_frames():
     root, q = clip.root_pos[:91], clip.local_q[:91]
     (r1, q1), (r0, q0) = (ib.fill_arrays(root, q, keys, foot_lock=lock) for lock in (True, False))
     assert np.array_equal(r1[keys], root[keys]) and np.array_equal(q1[keys], q[keys])
-    assert np.array_equal(r1, r0)
+    assert np.array_equal(r1[:31], r0[:31])
     leg = sorted({j for chain in legs(sk, list(ib.predictor.contact.indices(sk.names, "feet"))) for j in chain})
     rest = [j for j in range(sk.num_joints) if j not in leg]
-    assert np.array_equal(q1[:, rest], q0[:, rest]) and not np.array_equal(q1[:, leg], q0[:, leg])
+    assert np.array_equal(q1[:31, rest], q0[:31, rest]) and not np.array_equal(q1[:31, leg], q0[:31, leg])
