@@ -290,7 +290,7 @@ def walking_on_the_spot(frames=81, lift=0.5):
 def test_a_foot_as_low_as_at_the_keys_is_planted_in_longer_gaps():
     """Too fast for the contact rule, as low as at the keys: planted in a gap of 9 frames (the planted level), the
     lift mid-gap taken out by the lock (the foot moves straight from one key's place to the next); with keys every 6
-    frames (gaps under 8) the speed rule alone decides and nothing is locked."""
+    frames (gaps under 8) or every 25 (gaps of 20 or more) the speed rule alone decides and nothing is locked."""
     root, q, foot, rt = walking_on_the_spot()
     keys = list(range(0, 81, 10))
     free = rt.fill(root, q, keys, foot_lock=False)
@@ -301,6 +301,8 @@ def test_a_foot_as_low_as_at_the_keys_is_planted_in_longer_gaps():
     short = list(range(0, 79, 6))
     dense = rt.fill(root, q, short)
     assert (dense.contact[np.setdiff1d(np.arange(78), short), foot] == 0).all()
+    sparse = rt.fill(root, q, [0, 25, 50, 75])  # gaps of 24 frames: over PLANTED_MAX_GAP, the speed rule alone
+    assert (sparse.contact[np.setdiff1d(np.arange(75), [0, 25, 50]), foot] == 0).all()
 
 
 def test_a_refill_with_the_feet_locked_is_a_fill_of_every_gap():

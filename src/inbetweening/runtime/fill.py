@@ -41,7 +41,7 @@ from inbetweening.geometry import canonical
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_known, interpolate_pose
 from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities, slerp_np
 
-from .foot_lock import clip_feet, gap_contacts, lock_feet
+from .foot_lock import ClipFeet, clip_feet, gap_contacts, lock_gap
 from .model import Backend, InbetweenError, ModelInfo
 from .partial import check_partial, known_values
 from .plan import GapPlan, check_keys, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
@@ -86,17 +86,19 @@ class _Clip:
     """A clip being filled: working arrays in the project's frame, its plan and what a re-fill keeps, the windows to
     generate, the predicted contact."""
 
-    def __init__(self, root, q, keys, plan: GapPlan, exact_root, exact_q, only, previous, partial=None, base=None):
+    def __init__(self, root, q, keys, plan: GapPlan, exact_root, exact_q, only, previous, partial=None, base=None,
+                 feet: ClipFeet | None = None):
         self.root, self.q, self.keys, self.plan = root, q, keys, plan
         self.partial = partial or {}  # partial keys {frame: (J,) bool}
         self.base = base  # with partial keys: every joint interpolated between its own known values (root, q)
         self.exact_root, self.exact_q = exact_root, exact_q
         self.only, self.previous = only, previous
         self.contact = np.full(q.shape[:2], np.nan)  # the model's contact channels on generated frames
-        self.feet = None  # what the keys say of the feet (foot_lock.ClipFeet), None: no feet found
-        self.planted = np.full(q.shape[:2], np.nan)  # the contact each generated gap was locked on
+        self.feet = feet  # what the keys say of the feet, None: no feet found
+        self.planted = np.full(q.shape[:2], np.nan)  # the contact each generated gap was locked on (keys: their own)
+        if feet is not None:
+            self.planted[keys] = feet.at_keys[keys]
         self.gap_ending: dict[int, tuple[int, int]] = {}  # key b -> the generated key gap (a, b)
-        self.key_pose: dict[int, tuple] = {}  # key -> (root, q) as given, in the project's frame
         self.weights: dict[tuple[int, int], float] = {}
         self.checks: list[Check] = []
         self.generated: list[tuple[int, int]] = []
@@ -220,7 +222,6 @@ class FillRuntime:
         bad = ~(np.isfinite(r[:first]).all(-1) & np.isfinite(q[:first]).all((-1, -2)))
         r[:first][bad], q[:first][bad] = r[first], q[first]  # no usable context there: the first key's pose
         feet = clip_feet(info.contact, info.skeleton, info.fps, r, q, keys)  # on the keys as given
-        key_pose = {k: (r[k].copy(), q[k].copy()) for k in keys}  # (the locked feet meet them exactly)
         q[: keys[-1] + 1] = qnormalize(q[: keys[-1] + 1])
         plan = plan_gaps(keys, limit, seg, info.trained_gap)
         base = None
@@ -228,11 +229,7 @@ class FillRuntime:
             base = interpolate_known(r, q, known_values(partial, keys, len(r), j))
             for t in partial:  # what the windows show: the keyed joints, the others interpolated
                 r[t], q[t] = base[0][t], base[1][t]
-        c = _Clip(r, q, keys, plan, exact_root, exact_q, only, previous, partial, base)
-        c.feet, c.key_pose = feet, key_pose
-        if feet is not None:
-            c.planted[keys] = feet.at_keys[keys]
-        return c
+        return _Clip(r, q, keys, plan, exact_root, exact_q, only, previous, partial, base, feet)
 
     def windows(self, roots: Sequence[np.ndarray], qs: Sequence[np.ndarray], spans: Sequence[tuple[int, int]],
                 partials: Sequence[dict] | None = None):
@@ -359,17 +356,12 @@ class FillRuntime:
     def _feet(self, c: _Clip, a: int, b: int, lock: bool) -> None:
         """The contact of the generated key gap ``(a, b)`` (:func:`.foot_lock.gap_contacts`), and with ``lock`` its feet
         locked in place, between its two keys (never moved, nor the partial keys: their keyed joints stay exact)."""
-        if c.feet is None:
-            return
         predicted = c.contact[a + 1 : b] if self.info.has_contacts and not np.isnan(c.contact[a + 1 : b]).any() else None
-        c.planted[a + 1 : b] = gap_contacts(self.info.skeleton, c.feet, self.info.fps, c.root, c.q, a, b, predicted)
-        if lock:
-            fixed = [0, b - a] + [t - a for t in c.partial if a < t < b]
-            r, q = c.root[a : b + 1].copy(), c.q[a : b + 1].copy()
-            (r[0], q[0]), (r[-1], q[-1]) = c.key_pose[a], c.key_pose[b]
-            r, q = lock_feet(self.info.skeleton, r, q, fixed, c.planted[a : b + 1], c.feet.feet,
-                             ends=c.feet.goes_on(a, b))
-            c.root[a + 1 : b], c.q[a + 1 : b] = r[1:-1], q[1:-1]
+        if c.feet is not None:
+            c.planted[a + 1 : b] = gap_contacts(self.info.skeleton, c.feet, self.info.fps, c.root, c.q, a, b, predicted)
+        if lock and c.feet is not None:
+            c.root[a + 1 : b], c.q[a + 1 : b] = lock_gap(self.info.skeleton, c.feet, c.root, c.q, c.planted, a, b,
+                                                         [t for t in c.partial if a < t < b])
 
     def _finish(self, c: _Clip, lock: bool, file_frame: bool) -> Filled:
         """Keys exact, back to the file's frame; keys, outside frames and the frames of gaps not generated exactly the

@@ -42,12 +42,13 @@ from inbetweening.data.errors import DatasetError
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["BLEND_FRAMES", "MIN_RUN", "PLANTED_MARGIN", "PLANTED_SPEED", "SHORT_GAP", "ClipFeet", "clip_feet",
-           "contact_rule", "gap_contacts", "key_contacts", "legs", "lock_feet"]
+__all__ = ["BLEND_FRAMES", "MIN_RUN", "PLANTED_MARGIN", "PLANTED_MAX_GAP", "PLANTED_SPEED", "SHORT_GAP", "ClipFeet", "clip_feet",
+           "contact_rule", "gap_contacts", "key_contacts", "legs", "lock_feet", "lock_gap"]
 
 BLEND_FRAMES = 4  # frames over which a lock is blended in and out
 PLANTED_MARGIN = 0.1  # fill contact in longer gaps: a foot within this share of the contact height of its planted level
 PLANTED_SPEED = 3.0  # ... and slower than this many times the contact speed (a sliding fill is still planted)
+PLANTED_MAX_GAP = 20  # ... in gaps shorter than this (in longer ones it held feet that had left, RESULTS.md 12.4)
 MIN_RUN = 3  # detected contact: shorter runs (and shorter holes in a run) are dropped (filled)
 SHORT_GAP = 8  # gaps shorter than this take the keys' contact, not a model's prediction
 
@@ -173,14 +174,16 @@ class ClipFeet:
     """What the keys of one clip say about its feet: the contact ``rule`` (:func:`contact_rule`) and its foot joints
     ``feet``, the keys' own contact ``at_keys (F, J)`` (:func:`key_contacts`), each foot's planted ``levels (J,)``
     (its median height at the keys where it is planted, plus :data:`PLANTED_MARGIN` of the contact height; ``-inf``
-    where it is planted at no key) and ``held {(a, b): (J,) bool}``: per key gap, whether both keys have the foot
-    planted within a quarter of the contact height of each other (the keys say it stayed down)."""
+    where it is planted at no key), ``held {(a, b): (J,) bool}``: per key gap, whether both keys have the foot
+    planted within a quarter of the contact height of each other (the keys say it stayed down), and ``key_pose {key:
+    (root, local_q)}``: the keys as given (a locked foot meets them exactly)."""
 
     rule: FootContact
     feet: list[int]
     at_keys: np.ndarray
     levels: np.ndarray
     held: dict
+    key_pose: dict
 
     def goes_on(self, a: int, b: int) -> np.ndarray:
         """``(2, J)``: whether a foot planted at key ``a`` (row 0) or key ``b`` (row 1) of the gap ``(a, b)`` stays
@@ -210,7 +213,20 @@ def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.nda
         for i, g in enumerate(zip(keys, keys[1:])):
             near = np.linalg.norm(gp[i + 1, j] - gp[i, j]) < 0.25 * rule.height
             held[g][j] = bool(planted[i] and planted[i + 1] and near)
-    return ClipFeet(rule, feet, at_keys, levels, held)
+    key_pose = {k: (np.array(root[k], np.float64), np.array(local_q[k], np.float64)) for k in keys}
+    return ClipFeet(rule, feet, at_keys, levels, held, key_pose)
+
+
+def lock_gap(skeleton: Skeleton, feet: ClipFeet, root: np.ndarray, local_q: np.ndarray, contact: np.ndarray, a: int,
+             b: int, fixed: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """Frames ``a + 1 .. b - 1`` of ``root (F, 3)``, ``local_q (F, J, 4)`` with the feet of the gap between keys ``a``
+    and ``b`` locked on ``contact (F, J)`` (:func:`lock_feet`, between the keys as given; ``fixed``: frames inside
+    the gap never moved, e.g. partial keys)."""
+    r, q = np.array(root[a : b + 1], np.float64), np.array(local_q[a : b + 1], np.float64)
+    (r[0], q[0]), (r[-1], q[-1]) = feet.key_pose[a], feet.key_pose[b]
+    r, q = lock_feet(skeleton, r, q, [0, b - a] + [t - a for t in fixed], contact[a : b + 1], feet.feet,
+                     ends=feet.goes_on(a, b))
+    return r[1:-1], q[1:-1]
 
 
 def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarray, local_q: np.ndarray, a: int,
@@ -224,10 +240,10 @@ def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarra
       planted throughout (the keys say the foot did not leave the ground between them);
     * elsewhere the data's rule on the filled motion itself (:func:`~inbetweening.data.contacts.planted_frames`), runs
       and holes shorter than ``min_run`` frames cleaned;
-    * in gaps of :data:`SHORT_GAP` frames or more, also where the filled foot is as low as it stands at the keys
-      (below its planted level) and slower than :data:`PLANTED_SPEED` times the contact speed.  A fill slides where
-      the real foot is planted, so the speed rule alone misses most of those frames (RESULTS.md section 12.4); in
-      short gaps it cost joint error."""
+    * in gaps of :data:`SHORT_GAP` to :data:`PLANTED_MAX_GAP` - 1 frames, also where the filled foot is as low as it
+      stands at the keys (below its planted level) and slower than :data:`PLANTED_SPEED` times the contact speed.  A
+      fill slides where the real foot is planted, so the speed rule alone misses most of those frames (RESULTS.md
+      section 12.4); in shorter gaps it cost joint error, in longer ones it held feet that had left."""
     n = b - a - 1
     if predicted is not None and n >= SHORT_GAP:
         return np.asarray(predicted, np.float64)
@@ -239,7 +255,7 @@ def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarra
     for j in feet.feet:
         seg = gp[:, j : j + 1]
         f = planted_frames(seg, fps, rule.height, rule.speed)[:, 0]
-        if n >= SHORT_GAP:
+        if SHORT_GAP <= n < PLANTED_MAX_GAP:
             loose = planted_frames(seg, fps, rule.height, rule.speed * PLANTED_SPEED)[:, 0]
             f |= loose & (seg[:, 0, 1] < feet.levels[j])
         f = _clean_runs(f, min_run)
