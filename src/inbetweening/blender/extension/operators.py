@@ -208,8 +208,8 @@ def foot_lock_property():
     """The ``foot_lock`` option (the operator's and the panel's settings share it)."""
     return BoolProperty(
         name="Lock Feet",
-        description="Hold the feet still where they are planted (the model's predicted contact, or the keys and the "
-                    "fill's own foot speed for a model without contact channels)",
+        description="Hold the feet still where they are planted (the model's predicted contact, or for a model "
+                    "without contact channels the keys and the fill's own foot: slow, or as low as at the keys)",
         default=True)
 
 
