@@ -106,6 +106,24 @@ def test_a_run_between_two_keys_moves_from_one_key_to_the_other():
     assert reached.all() and np.array_equal(out[known], q[known])
 
 
+def test_a_foot_planted_only_at_the_end_key_blends_in_where_it_goes_on():
+    """One gap, its end key the only planted frame: the lock leaves the gap alone unless ``ends`` says the foot stays
+    planted beyond that key (the keys of the next gap hold it down); then the frames before it are pulled towards it."""
+    root, q = _clip(seed=2)
+    root, q = root[:11], q[:11]
+    contact = np.zeros((11, len(NAMES)))
+    left = NAMES.index("LeftFoot")
+    contact[10, left] = 1.0
+    alone = lock_feet(SK, root, q, [0, 10], contact, FEET)
+    assert np.array_equal(alone[1], q)
+    ends = np.zeros((2, len(NAMES)), dtype=bool)
+    ends[1, left] = True
+    _, out = lock_feet(SK, root, q, [0, 10], contact, FEET, ends=ends)
+    gp0, gp1 = SK.pose(root, q)[1][:, left], SK.pose(root, out)[1][:, left]
+    d0, d1 = (np.linalg.norm(g[6:10] - gp0[10], axis=1) for g in (gp0, gp1))
+    assert (d1 < d0).all() and np.array_equal(out[[0, 10]], q[[0, 10]])
+
+
 @pytest.mark.parametrize("lock", [True, False])
 def test_inbetweener_locks_feet_with_a_contact_model(tiny_contact_checkpoint, lock):
     """A model with contact channels: the Inbetweener locks by default (keys exact either way); foot_lock=False is

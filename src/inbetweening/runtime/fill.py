@@ -96,8 +96,7 @@ class _Clip:
         self.contact = np.full(q.shape[:2], np.nan)  # the model's contact channels on generated frames
         self.feet = feet  # what the keys say of the feet, None: no feet found
         self.planted = np.full(q.shape[:2], np.nan)  # the contact each generated gap was locked on (keys: their own)
-        if feet is not None:
-            self.planted[keys] = feet.at_keys[keys]
+        self.planted[keys] = np.nan if feet is None else feet.at_keys[keys]
         self.gap_ending: dict[int, tuple[int, int]] = {}  # key b -> the generated key gap (a, b)
         self.weights: dict[tuple[int, int], float] = {}
         self.checks: list[Check] = []
@@ -356,10 +355,11 @@ class FillRuntime:
     def _feet(self, c: _Clip, a: int, b: int, lock: bool) -> None:
         """The contact of the generated key gap ``(a, b)`` (:func:`.foot_lock.gap_contacts`), and with ``lock`` its feet
         locked in place, between its two keys (never moved, nor the partial keys: their keyed joints stay exact)."""
-        predicted = c.contact[a + 1 : b] if self.info.has_contacts and not np.isnan(c.contact[a + 1 : b]).any() else None
-        if c.feet is not None:
-            c.planted[a + 1 : b] = gap_contacts(self.info.skeleton, c.feet, self.info.fps, c.root, c.q, a, b, predicted)
-        if lock and c.feet is not None:
+        if c.feet is None:
+            return
+        pc = c.contact[a + 1 : b] if self.info.has_contacts and not np.isnan(c.contact[a + 1 : b]).any() else None
+        c.planted[a + 1 : b] = gap_contacts(self.info.skeleton, c.feet, self.info.fps, c.root, c.q, a, b, pc)
+        if lock:
             c.root[a + 1 : b], c.q[a + 1 : b] = lock_gap(self.info.skeleton, c.feet, c.root, c.q, c.planted, a, b,
                                                          [t for t in c.partial if a < t < b])
 

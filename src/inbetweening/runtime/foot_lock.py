@@ -175,8 +175,10 @@ class ClipFeet:
     ``feet``, the keys' own contact ``at_keys (F, J)`` (:func:`key_contacts`), each foot's planted ``levels (J,)``
     (its median height at the keys where it is planted, plus :data:`PLANTED_MARGIN` of the contact height; ``-inf``
     where it is planted at no key), ``held {(a, b): (J,) bool}``: per key gap, whether both keys have the foot
-    planted within a quarter of the contact height of each other (the keys say it stayed down), and ``key_pose {key:
-    (root, local_q)}``: the keys as given (a locked foot meets them exactly)."""
+    planted within a quarter of the contact height of each other (the keys say it stayed down), ``key_pose {key:
+    (root, local_q)}``: the keys as given (a locked foot meets them exactly), and ``ends {(a, b): (2, J) bool}``:
+    whether a foot planted at key ``a`` (row 0) or ``b`` (row 1) stays planted beyond it, through the gap before ``a``
+    or after ``b`` (:attr:`held` of that gap)."""
 
     rule: FootContact
     feet: list[int]
@@ -184,14 +186,7 @@ class ClipFeet:
     levels: np.ndarray
     held: dict
     key_pose: dict
-
-    def goes_on(self, a: int, b: int) -> np.ndarray:
-        """``(2, J)``: whether a foot planted at key ``a`` (row 0) or key ``b`` (row 1) of the gap ``(a, b)`` stays
-        planted beyond it, through the gap before ``a`` or after ``b`` (the keys say so: :attr:`held`)."""
-        gaps = sorted(self.held)
-        i = gaps.index((a, b))
-        none = np.zeros(len(self.levels), dtype=bool)
-        return np.stack([self.held[gaps[i - 1]] if i > 0 else none, self.held[gaps[i + 1]] if i + 1 < len(gaps) else none])
+    ends: dict
 
 
 def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.ndarray, local_q: np.ndarray,
@@ -214,7 +209,10 @@ def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.nda
             near = np.linalg.norm(gp[i + 1, j] - gp[i, j]) < 0.25 * rule.height
             held[g][j] = bool(planted[i] and planted[i + 1] and near)
     key_pose = {k: (np.array(root[k], np.float64), np.array(local_q[k], np.float64)) for k in keys}
-    return ClipFeet(rule, feet, at_keys, levels, held, key_pose)
+    gaps, none = list(held), np.zeros(skeleton.num_joints, dtype=bool)
+    ends = {g: np.stack([held[gaps[i - 1]] if i > 0 else none, held[gaps[i + 1]] if i + 1 < len(gaps) else none])
+            for i, g in enumerate(gaps)}
+    return ClipFeet(rule, feet, at_keys, levels, held, key_pose, ends)
 
 
 def lock_gap(skeleton: Skeleton, feet: ClipFeet, root: np.ndarray, local_q: np.ndarray, contact: np.ndarray, a: int,
@@ -225,7 +223,7 @@ def lock_gap(skeleton: Skeleton, feet: ClipFeet, root: np.ndarray, local_q: np.n
     r, q = np.array(root[a : b + 1], np.float64), np.array(local_q[a : b + 1], np.float64)
     (r[0], q[0]), (r[-1], q[-1]) = feet.key_pose[a], feet.key_pose[b]
     r, q = lock_feet(skeleton, r, q, [0, b - a] + [t - a for t in fixed], contact[a : b + 1], feet.feet,
-                     ends=feet.goes_on(a, b))
+                     ends=feet.ends[(a, b)])
     return r[1:-1], q[1:-1]
 
 
