@@ -366,15 +366,16 @@ def test_cli_errors_exit_2_with_one_line(tiny_checkpoint, tmp_path, monkeypatch,
 
 
 def test_cli_defaults_to_the_shipped_model(tiny_checkpoint, tmp_path, monkeypatch, capsys):
-    """Without ckpt_path the shipped model (models/bn2_reference/model.ckpt) fills the clip; where it is absent
-    (an installed package without the repository) ckpt_path is required."""
-    assert predict.default_checkpoint() == predict.SHIPPED_MODEL and predict.SHIPPED_MODEL.is_file()
+    """Without ckpt_path the shipped ensemble (models/bn2_reference and models/bn2_v2) fills the clip; where a model of
+    it is absent (an installed package without the repository) ckpt_path is required."""
+    assert predict.default_checkpoint() == [str(p) for p in predict.SHIPPED_MODELS]
+    assert [p.parent.name for p in predict.SHIPPED_MODELS] == ["bn2_reference", "bn2_v2"]
     write_bvh(_clip(60), tmp_path / "clip.bvh")
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(predict, "SHIPPED_MODEL", Path(tiny_checkpoint))
+    monkeypatch.setattr(predict, "SHIPPED_MODELS", (Path(tiny_checkpoint), Path(tiny_checkpoint)))
     assert predict.run(["input=clip.bvh", "keyframes=0,30,59", "output=o.bvh"]) == 0
     assert (tmp_path / "o.bvh").is_file() and str(tiny_checkpoint) in capsys.readouterr().out
-    monkeypatch.setattr(predict, "SHIPPED_MODEL", tmp_path / "absent.ckpt")
+    monkeypatch.setattr(predict, "SHIPPED_MODELS", (Path(tiny_checkpoint), tmp_path / "absent.ckpt"))
     with pytest.raises(SystemExit) as exc:
         predict.run(["input=clip.bvh", "keyframes=0,30,59", "output=o2.bvh"])
     assert exc.value.code == 2 and "missing ckpt_path=..." in capsys.readouterr().err

@@ -3,6 +3,7 @@
     from inbetweening import Inbetweener
 
     ib = Inbetweener.from_checkpoint("run/checkpoints/best.ckpt")
+    ib = Inbetweener.from_checkpoint(["a.ckpt", "b.ckpt"])  # an ensemble: the models' mean (runtime.ensemble)
     out = ib.fill("clip.bvh", keyframes=[0, 30, 75])    # keep frames 0, 30, 75; generate the rest
     out = ib.fill("keys.bvh", gap=30)                  # every input frame is a key; 30 new frames between each pair
     write_bvh(out, "filled.bvh")
@@ -40,6 +41,7 @@ from inbetweening.data.errors import DatasetError
 from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.runtime import FillRuntime, InbetweenError
+from inbetweening.runtime.ensemble import EnsembleBackend
 from inbetweening.runtime.plan import check_keys
 from inbetweening.runtime.torch_backend import TorchBackend
 
@@ -136,11 +138,13 @@ class Inbetweener:
     Args:
         model: a :class:`~inbetweening.predictor.predictor.Predictor` (what :meth:`from_checkpoint` loads) or a
             trained :class:`~inbetweening.training.module.InbetweenModule` (its predictor is used); moved to
-            ``eval`` mode.
+            ``eval`` mode.  A list of them (models of one skeleton): their ensemble
+            (:class:`~inbetweening.runtime.ensemble.EnsembleBackend`); ``module``/``predictor`` are the first's.
         max_gap: longest transition generated in one window; default ``trained_gap``.  May be raised up to
             ``max_frames - n_past - 1`` of the network (beyond what it was trained on: quality not guaranteed).
         segment: split longer gaps (``True``, default) or raise :class:`InbetweenError`.
-        trained_gap: the longest transition the model saw in training; default ``train_window - n_past - 1``.
+        trained_gap: the longest transition the model saw in training; default ``train_window - n_past - 1`` (a list,
+            one per model of an ensemble).
         foot_lock: hold the feet where the model predicts contact (:mod:`inbetweening.runtime.foot_lock`; models whose
             representation has contact channels, on data with feet); ``False``: the network's output as it is.
         self_check: scale the network's share of each gap by how well it predicts the caller's own keys
@@ -149,28 +153,39 @@ class Inbetweener:
 
     def __init__(self, model, max_gap: int | None = None, segment: bool = True, trained_gap: int | None = None,
                  foot_lock: bool = True, self_check: bool = True):
-        self.backend = TorchBackend(model, trained_gap)
+        models = list(model) if isinstance(model, (list, tuple)) else [model]
+        gaps = list(trained_gap) if isinstance(trained_gap, (list, tuple)) else [trained_gap] * len(models)
+        if not models or len(gaps) != len(models):
+            raise InbetweenError(f"Inbetweener: {len(models)} models and {len(gaps)} trained gaps")
+        members = [TorchBackend(m, g) for m, g in zip(models, gaps)]
+        self.backend = members[0] if len(members) == 1 else EnsembleBackend(members)
         self.runtime = FillRuntime(self.backend, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
                                    self_check=self_check)
-        self.module, self.predictor = self.backend.module, self.backend.predictor
+        self.module, self.predictor = members[0].module, members[0].predictor
         info = self.runtime.info
         self.skeleton: Skeleton = info.skeleton
         self.n_past, self.fps = info.n_past, info.fps
         self.trained_gap, self.hard_max_gap = info.trained_gap, info.hard_max_gap
 
     @classmethod
-    def from_checkpoint(cls, path: str | Path, device: str | torch.device = "cpu", **kw) -> Inbetweener:
-        """Load a training checkpoint's predictor (``CheckpointError`` for missing or wrong files).
+    def from_checkpoint(cls, path: str | Path | list, device: str | torch.device = "cpu", **kw) -> Inbetweener:
+        """Load a training checkpoint's predictor (``CheckpointError`` for missing or wrong files); a list of paths:
+        their ensemble (``ModelError`` naming the checkpoint that does not fit the first one).
 
         ``kw`` go to the constructor (``max_gap``, ``segment``, ``foot_lock``, ``self_check``); ``trained_gap`` defaults to the data
         module's ``transition_max`` recorded in the checkpoint.
         """
         from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint, trained_gap
+        from inbetweening.runtime.ensemble import ensemble_info
 
-        ckpt = read_checkpoint(str(path))
-        if "trained_gap" not in kw and trained_gap(ckpt):
-            kw["trained_gap"] = trained_gap(ckpt)
-        return cls(load_predictor(str(path), device, ckpt=ckpt), **kw)
+        paths = [str(p) for p in path] if isinstance(path, (list, tuple)) else [str(path)]
+        ckpts = [read_checkpoint(p) for p in paths]
+        models = [load_predictor(p, device, ckpt=c) for p, c in zip(paths, ckpts)]
+        gaps = kw.pop("trained_gap", [trained_gap(c) or None for c in ckpts])
+        if len(models) == 1:
+            return cls(models[0], trained_gap=gaps[0] if isinstance(gaps, list) else gaps, **kw)
+        ensemble_info([TorchBackend(m, g).info for m, g in zip(models, gaps)], paths)  # a misfit named by its path
+        return cls(models, trained_gap=gaps, **kw)
 
     @property
     def device(self) -> torch.device:

@@ -37,6 +37,17 @@ def parse_int_list(text: str) -> list[int]:
     return out
 
 
+def parse_paths(text: str) -> str | list[str]:
+    """``"a.ckpt"`` -> ``"a.ckpt"``; ``"[a.ckpt,b.ckpt]"`` or ``"a.ckpt,b.ckpt"`` -> ``["a.ckpt", "b.ckpt"]``."""
+    body = text.strip()
+    if body.startswith("[") and body.endswith("]"):
+        body = body[1:-1]
+    parts = [p.strip() for p in body.split(",") if p.strip()]
+    if not parts:
+        raise ValueError("no path given")
+    return parts[0] if len(parts) == 1 else parts
+
+
 def parse_partial_keys(text: str) -> dict[int, list[str]]:
     """``"45:UpperArm_L,LowerArm_L,Hand_L;60:UpperLeg_R"`` -> ``{45: ["UpperArm_L", "LowerArm_L", "Hand_L"], 60:
     ["UpperLeg_R"]}``: partial keys, a frame and the bones keyed there, ``;`` between frames."""

@@ -11,10 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool, parse_int_list, parse_partial_keys
+from inbetweening.cli.args import (UsageError, fail, parse_args, parse_bool, parse_int_list, parse_partial_keys,
+                                   parse_paths)
 
 USAGE = """\
-usage: python -m inbetweening.predict [ckpt_path=<model.ckpt>] input=<clip.bvh> output=<out.bvh>
+usage: python -m inbetweening.predict [ckpt_path=<model.ckpt>|[a.ckpt,b.ckpt]] input=<clip.bvh> output=<out.bvh>
                                       (keyframes=<list> | gap=<n>) [options]
 
 Fill the frames between keyframes with a trained in-betweening model and write a BVH file with the input's
@@ -48,8 +49,9 @@ joint rotations by slerp), then the segments are generated left to right, each o
 previous one as its 10 context frames.  Your keyframes are never changed.  segment=false refuses such gaps.
 
 options:
-  ckpt_path=PATH        checkpoint (.ckpt) of an in-betweening model (default: the shipped Bandai-Namco-2
-                        model, models/bn2_reference/model.ckpt of this repository; its skeleton only)
+  ckpt_path=PATH        checkpoint (.ckpt) of an in-betweening model, or a list [a.ckpt,b.ckpt] of models of one
+                        skeleton filling as an ensemble (their mean); default: the shipped Bandai-Namco-2
+                        ensemble of this repository, [models/bn2_reference/model.ckpt,models/bn2_v2/model.ckpt]
   input=PATH            BVH clip: the model's skeleton, or any humanoid character (its bones are matched to the
                         model's joints and the keys retargeted; the map used is printed and saved next to the
                         output as <output>.bone_map.yaml)                                  (required)
@@ -85,7 +87,7 @@ examples:
 """
 
 OPTIONS = {
-    "ckpt_path": str, "input": str, "output": str, "keyframes": parse_int_list, "partial": parse_partial_keys,
+    "ckpt_path": parse_paths, "input": str, "output": str, "keyframes": parse_int_list, "partial": parse_partial_keys,
     "gap": int, "max_gap": int, "segment": parse_bool, "foot_lock": parse_bool, "self_check": parse_bool,
     "render": str, "render_dpi": int, "device": str, "force": parse_bool,
     "threads": int, "bone_map": str,
@@ -144,13 +146,14 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80, conta
                       dpi=dpi, title=title, **kw)
 
 
-SHIPPED_MODEL = Path(__file__).resolve().parents[3] / "models" / "bn2_reference" / "model.ckpt"
+_MODELS = Path(__file__).resolve().parents[3] / "models"
+SHIPPED_MODELS = (_MODELS / "bn2_reference" / "model.ckpt", _MODELS / "bn2_v2" / "model.ckpt")
 
 
-def default_checkpoint() -> Path | None:
-    """The shipped model (``models/bn2_reference/model.ckpt`` of a source checkout), ``None`` when absent (an
-    installed package without the repository)."""
-    return SHIPPED_MODEL if SHIPPED_MODEL.is_file() else None
+def default_checkpoint() -> list[str] | None:
+    """The shipped ensemble (``models/bn2_reference`` and ``models/bn2_v2`` of a source checkout, RESULTS.md section
+    12.8), ``None`` when absent (an installed package without the repository)."""
+    return [str(p) for p in SHIPPED_MODELS] if all(p.is_file() for p in SHIPPED_MODELS) else None
 
 
 def run(argv: Sequence[str]) -> int:
@@ -163,7 +166,7 @@ def run(argv: Sequence[str]) -> int:
         return 0
     shipped = "ckpt_path" not in args and default_checkpoint() is not None
     if shipped:
-        args["ckpt_path"] = str(default_checkpoint())
+        args["ckpt_path"] = default_checkpoint()
     missing = [k for k in ("ckpt_path", "input", "output") if k not in args]
     if missing:
         fail(f"missing {', '.join(f'{k}=...' for k in missing)} (see --help)")
@@ -175,9 +178,10 @@ def run(argv: Sequence[str]) -> int:
         fail(f"input: {args['input']} does not exist")
     from inbetweening.atomic import same_file
 
+    models = args["ckpt_path"] if isinstance(args["ckpt_path"], list) else [args["ckpt_path"]]
     for key in ("output", "render"):
-        for src in ("input", "ckpt_path"):
-            if key in args and same_file(args[src], args[key]) and not args.get("force", False):
+        for src, path in [("input", args["input"])] + [("ckpt_path", m) for m in models]:
+            if key in args and same_file(path, args[key]) and not args.get("force", False):
                 fail(f"{key}: {args[key]} is the {src} file; writing it would destroy the {src} "
                      f"(choose another {key}, or --force to overwrite)")
     if "render" in args and Path(args["render"]).suffix.lower() not in RENDER_FORMATS:  # before any work is done
@@ -191,6 +195,7 @@ def run(argv: Sequence[str]) -> int:
     from inbetweening.data.bvh import BVHError, read_bvh
     from inbetweening.data.bvh_writer import write_bvh
     from inbetweening.predictor.checkpoint import CheckpointError
+    from inbetweening.runtime.model import ModelError
 
     if str(device).startswith("cuda") and not torch.cuda.is_available():
         fail(f"device: {device} requested but CUDA is not available (use device=cpu)")
@@ -219,7 +224,7 @@ def run(argv: Sequence[str]) -> int:
             saved.write_text(res.bone_map.to_yaml())
             print(f"{clip.source}: another skeleton than the model's; bone map (saved to {saved}):")
             print(res.bone_map.summary())
-    except (CheckpointError, InbetweenError, BVHError, OSError) as e:
+    except (CheckpointError, InbetweenError, ModelError, BVHError, OSError) as e:
         fail(e)
     n_gen = res.num_frames - len(res.known_frames)
     msg = (f"wrote {out}: {res.num_frames} frames ({len(res.known_frames)} keyframes, {n_gen} generated; "
@@ -228,7 +233,8 @@ def run(argv: Sequence[str]) -> int:
         msg += f"; long gaps split at frames {res.pseudo_keyframes}"
     print(msg + f") in {time.perf_counter() - t0:.1f} s")
     if shipped:
-        print(f"model: {args['ckpt_path']} (the shipped Bandai-Namco-2 model; ckpt_path=... chooses another)")
+        print(f"model: the ensemble of {', '.join(models)} (the shipped Bandai-Namco-2 models; ckpt_path=... chooses "
+              "another)")
     if "render" in args:
         try:
             fps = 1.0 / res.bvh.frame_time if res.bvh.frame_time > 0 else ib.fps

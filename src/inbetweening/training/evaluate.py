@@ -30,6 +30,9 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
         return evaluate_keyframes(cfg)
     out = output_dir(cfg)
     ckpt_path = cfg.get("ckpt_path")
+    if ckpt_path is not None and not isinstance(ckpt_path, str):
+        raise ConfigError(f"ckpt_path: an ensemble ({list(ckpt_path)}) fills through the runtime and is scored with "
+                          "protocol=keyframes; the LAFAN1 protocol scores one network's windows: give one checkpoint")
     if not ckpt_path:
         name = cfg.model.name
         if name not in B.BASELINES:
@@ -72,21 +75,29 @@ def with_baselines(name: str, metrics: dict, dm: InbetweenDataModule, lengths) -
 # ------------------------------------------------------------------------------------------ keyframes protocol
 def animator_fill(model, foot_lock: bool = True, self_check: bool = True):
     """The animator's fill (the fill runtime, :class:`~inbetweening.runtime.FillRuntime`, with the torch backend) of
-    ``model``, a checkpoint path or a predictor (feet locked unless ``foot_lock=False``; the self-check of the do-no-harm
-    blend unless ``self_check=False``): ``(fill, predictor)``,
+    ``model``, a checkpoint path, a predictor, or a list of checkpoint paths (their ensemble,
+    :mod:`inbetweening.runtime.ensemble`; the first one's predictor is returned) (feet locked unless
+    ``foot_lock=False``; the self-check of the do-no-harm blend unless ``self_check=False``): ``(fill, predictor)``,
     ``fill(root, local_q, keys, partial=None) -> (root, local_q)``: what ``predict``, the Python API and Blender fill
     with (``partial``: partial keys, ``{frame: joints}``)."""
     from inbetweening.runtime import FillRuntime
+    from inbetweening.runtime.ensemble import EnsembleBackend
     from inbetweening.runtime.torch_backend import TorchBackend
 
-    backend = TorchBackend(model) if isinstance(model, torch.nn.Module) else TorchBackend.from_checkpoint(model)
+    if isinstance(model, torch.nn.Module):
+        backend = first = TorchBackend(model)
+    elif isinstance(model, str):
+        backend = first = TorchBackend.from_checkpoint(model)
+    else:
+        members = [TorchBackend.from_checkpoint(str(p)) for p in model]
+        backend, first = EnsembleBackend(members, [str(p) for p in model]), members[0]
     runtime = FillRuntime(backend, foot_lock=foot_lock, self_check=self_check)
 
     def fill(root, local_q, keys, partial=None):
         out = runtime.fill(root, local_q, keys, partial=partial)
         return out.root, out.local_q
 
-    return fill, backend.predictor
+    return fill, first.predictor
 
 
 def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
@@ -100,10 +111,13 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     data = dm.load_data()
     ckpt_path, name, fill = cfg.get("ckpt_path"), cfg.model.name, None
     if ckpt_path:
+        ckpt_path = ckpt_path if isinstance(ckpt_path, str) else [str(p) for p in ckpt_path]
         fill, predictor = animator_fill(ckpt_path, foot_lock=bool(cfg.get("foot_lock", True)),
                                         self_check=bool(cfg.get("self_check", True)))
         check_skeleton(ckpt_path, predictor, data)
         name = predictor.model_cfg.get("name", "model")
+        if not isinstance(ckpt_path, str):
+            name = f"ensemble of {len(ckpt_path)} ({name} first)"
     elif name not in B.BASELINES:
         raise ConfigError(f"ckpt_path: required for model {name!r} (or use model=zero_velocity|interpolation)")
     elif name == "zero_velocity":
