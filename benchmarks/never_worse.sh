@@ -2,7 +2,8 @@
 # Never worse than interpolation, planted feet (RESULTS.md section 12): the keyframes-only protocol, per clip, on both
 # Bandai-Namco-2 splits, K = 5/15/30/45, random, extremes, for the shipped models with the fill's defaults (the
 # self-check of the do-no-harm blend, feet locked) and, for the v1 models, as before (self_check=false
-# foot_lock=false: the calibrated weight per gap length alone, no locking).  One job at a time, 5-12 min per run
+# foot_lock=false: the calibrated weight per gap length alone, no locking), and the v1 + v2 ensembles (section 12.8;
+# the standard split's is predict's default).  One job at a time, 5-12 min per run
 # on the 2-core CPU.  Table: python benchmarks/never_worse_table.py <out dir>
 #   bash benchmarks/never_worse.sh <out dir>
 set -euo pipefail
@@ -10,6 +11,8 @@ OUT=${1:?out dir}
 SCHEDULES='keyframe_intervals=[5,15,30,45,random,extremes]'
 mkdir -p "$OUT"
 runs=(
+  "standard_ensemble   [models/bn2_reference/model.ckpt,models/bn2_v2/model.ckpt]          standard"
+  "content_ensemble    [models/bn2_content/model.ckpt,models/bn2_v2_content/model.ckpt]    content"
   "content_v1      models/bn2_content/model.ckpt     content"
   "standard_v1     models/bn2_reference/model.ckpt   standard"
   "standard_v2     models/bn2_v2/model.ckpt          standard"
@@ -20,6 +23,6 @@ runs=(
 for r in "${runs[@]}"; do
   set -- $r; name=$1; ckpt=$2; split=$3; shift 3
   [ -f "$OUT/$name/benchmark.json" ] && continue
-  python eval.py ckpt_path=$ckpt data=bandai_namco data.split=$split protocol=keyframes "$SCHEDULES" threads=1 \
+  python eval.py "ckpt_path=$ckpt" data=bandai_namco data.split=$split protocol=keyframes "$SCHEDULES" threads=1 \
     "$@" hydra.run.dir="$OUT/$name" > "$OUT/$name.log" 2>&1
 done

@@ -10,13 +10,14 @@ import torch
 from omegaconf import DictConfig
 
 from inbetweening.evaluation import benchmark as B
+from inbetweening.geometry.quaternion import slerp_np
 from inbetweening.training.builders import make_datamodule, make_trainer, output_dir
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.job import check_skeleton, use_threads, write_benchmark
 from inbetweening.training.module import load_module
 
-__all__ = ["animator_fill", "evaluate", "evaluate_keyframes", "score_keyframes", "with_baselines"]
+__all__ = ["animator_fill", "ensemble_transitions", "evaluate", "evaluate_ensemble", "evaluate_keyframes", "score_keyframes", "with_baselines"]
 
 log = logging.getLogger("inbetweening")
 
@@ -31,8 +32,7 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
     out = output_dir(cfg)
     ckpt_path = cfg.get("ckpt_path")
     if ckpt_path is not None and not isinstance(ckpt_path, str):
-        raise ConfigError(f"ckpt_path: an ensemble ({list(ckpt_path)}) fills through the runtime and is scored with "
-                          "protocol=keyframes; the LAFAN1 protocol scores one network's windows: give one checkpoint")
+        return evaluate_ensemble(cfg, [str(p) for p in ckpt_path])
     if not ckpt_path:
         name = cfg.model.name
         if name not in B.BASELINES:
@@ -59,6 +59,48 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
     write_benchmark(out / "benchmark.json", dataset, name, n, metrics, dm.hparams.split)
     print(f"\nBenchmark: {dataset}, split {dm.hparams.split}, {n} test windows -> {out / 'benchmark.json'}")
     print(B.format_table({name: metrics}, cfg.data.test_lengths))
+    return metrics
+
+
+def ensemble_transitions(paths: list[str]):
+    """The LAFAN1 protocol's predictor (:func:`~inbetweening.evaluation.benchmark.evaluate_transitions`) of the ensemble
+    of the checkpoints ``paths`` (:mod:`inbetweening.runtime.ensemble`): each window predicted through the fill
+    runtime (:meth:`~inbetweening.runtime.FillRuntime.predict_windows`) and blended with the interpolation by the
+    ensemble's weight for the length, as a single model's windows are scored; ``(predict_fn, first predictor)``."""
+    from inbetweening.runtime import FillRuntime
+    from inbetweening.runtime.ensemble import EnsembleBackend
+    from inbetweening.runtime.torch_backend import TorchBackend
+
+    members = [TorchBackend.from_checkpoint(p) for p in paths]
+    runtime = FillRuntime(EnsembleBackend(members, paths), foot_lock=False, self_check=False)
+
+    def predict_fn(root, local_q, n):
+        pr, pq, _ = runtime.predict_windows(root, local_q)
+        w = runtime.info.blend_weight(n)
+        if w is None or w >= 1.0:
+            return pr, pq
+        ir, iq = B.interpolation(root, local_q, n, runtime.info.n_past)
+        return ir + w * (pr - ir), slerp_np(iq, pq, np.full(pq.shape[:-1], w))
+
+    return predict_fn, members[0].predictor
+
+
+def evaluate_ensemble(cfg: DictConfig, paths: list[str]) -> dict[str, float]:
+    """The LAFAN1 protocol for an ensemble (``ckpt_path=[a,b,...]``, :func:`ensemble_transitions`): ``benchmark.json``
+    and the table with zero-velocity and interpolation on the same windows; returns the ensemble's metrics."""
+    dm = make_datamodule(cfg)
+    dm.prepare_data()
+    dm.setup("test")
+    predict_fn, predictor = ensemble_transitions(paths)
+    check_skeleton(paths, predictor, dm.data)
+    lengths = tuple(cfg.data.test_lengths)
+    metrics = B.evaluate_transitions(dm.test_benchmark_set(), predict_fn, lengths)
+    name = f"ensemble of {len(paths)}"
+    out = output_dir(cfg)
+    write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split)
+    print(f"\nBenchmark: {dm.data.name}, split {dm.hparams.split}, {len(dm.test_set)} test windows, {name}: "
+          f"{', '.join(paths)} -> {out / 'benchmark.json'}")
+    print(B.format_table(with_baselines(name, metrics, dm, lengths), cfg.data.test_lengths))
     return metrics
 
 
