@@ -149,10 +149,10 @@ def bundle_models(ckpt_path, out_dir: Path, log=print) -> tuple[list[Path], list
         ensemble_info([ModelInfo.from_metadata(m, str(p)) for m, p in zip(metas, paths)], [str(p) for p in paths])
     except ModelError as e:
         raise BuildError(f"ckpt_path: {e}") from None
+    what = ("the ensemble of these members (inbetweening.runtime.ensemble: each weighted per gap length by its "
+            "calibrated blend weight)" if len(members) > 1 else "this model")
     index = {"fill": "ensemble" if len(members) > 1 else "single", "members": members,
-             "about": ("the extension fills with the ensemble of these members (inbetweening.runtime.ensemble: each "
-                       "weighted per gap length by its calibrated blend weight)" if len(members) > 1 else
-                       "the extension fills with this model") + "; a model file chosen in the extension's Model field is used instead"}
+             "about": f"the extension fills with {what}; a model file chosen in its Model field is used instead"}
     (out_dir / MODELS_INDEX).write_text(json.dumps(index, indent=1))
     return [*files, out_dir / MODELS_INDEX], metas
 
