@@ -36,12 +36,12 @@ def main() -> None:
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
     from inbetweening.blender.bpyenv import bpy_python
-    from inbetweening.blender.build import DEFAULT_CKPT, build
+    from inbetweening.blender.build import DEFAULT_CKPTS, build
 
     exe = bpy_python()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        (zip_path,) = build(tmp / "dist", ROOT / DEFAULT_CKPT, platforms=["linux-x64"], log=lambda *a: None)
+        (zip_path,) = build(tmp / "dist", [ROOT / c for c in DEFAULT_CKPTS], platforms=["linux-x64"], log=lambda *a: None)
         with zipfile.ZipFile(args.data) as zf:
             long = next(n for n in sorted(zf.namelist()) if n.endswith(".bvh") and zf.read(n).count(b"\n") > 440)
             (tmp / "long.bvh").write_bytes(zf.read(long))

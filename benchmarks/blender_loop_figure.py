@@ -34,11 +34,11 @@ def main() -> None:
                                                      str(ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip")))
     args = ap.parse_args()
     from inbetweening.blender.bpyenv import bpy_python
-    from inbetweening.blender.build import DEFAULT_CKPT, build, export
+    from inbetweening.blender.build import DEFAULT_CKPTS, build, export
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        (zip_path,) = build(tmp / "dist", ROOT / DEFAULT_CKPT, platforms=["linux-x64"], log=lambda *a: None)
+        (zip_path,) = build(tmp / "dist", [ROOT / c for c in DEFAULT_CKPTS], platforms=["linux-x64"], log=lambda *a: None)
         export(ROOT / "models" / "bn2_v2" / "model.ckpt", tmp / "v2.onnx")
         with zipfile.ZipFile(args.data) as zf:
             (tmp / "clip.bvh").write_bytes(zf.read(CLIP))

@@ -1,21 +1,28 @@
-"""The Blender extension without Blender: the build command's argument errors, the runtime wheel it bundles (the
-project's own runtime modules, importable and filling without PyTorch), and what the extension's sources import.
-The ONNX backend against the torch one: tests/test_runtime_backends.py."""
+"""The Blender extension without Blender: the build command's argument errors, the models it bundles (by default the
+ensemble of bn2_partial and bn2_v2) and the model the extension fills with (:func:`load_model`: their ensemble, or a
+user's model file alone), the runtime wheel it bundles (the project's own runtime modules, importable and filling
+without PyTorch), and what the extension's sources import.  The ONNX backend against the torch one:
+tests/test_runtime_backends.py."""
 from __future__ import annotations
 
 import ast
+import importlib.util
+import json
 import subprocess
 import sys
+import types
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
 from inbetweening.predictor import masks
 
 REPO = Path(__file__).resolve().parents[1]
-CKPT = REPO / "models" / "bn2_partial" / "model.ckpt"  # the bundled model (blender/build.py)
+CKPTS = [REPO / "models" / name / "model.ckpt" for name in ("bn2_partial", "bn2_v2")]  # the bundled ensemble
+CKPT = CKPTS[0]
 EXT = REPO / "src" / "inbetweening" / "blender" / "extension"
 
 
@@ -33,6 +40,11 @@ def cli(*args, cwd=REPO):
     (("build", "OUT", "onnxruntime=latest"), "not a version number"),
     (("build", "OUT", "colour=red"), "unknown option 'colour'"),
     (("build", "OUT", "ckpt_path=/nonexistent/model.ckpt", "platforms=linux-x64"), "does not exist"),
+    (("build", "OUT", f"ckpt_path=[{CKPT},/nonexistent/model.ckpt]", "platforms=linux-x64"),
+     "ckpt_path: /nonexistent/model.ckpt does not exist"),
+    (("build", "OUT", f"ckpt_path=[{CKPT},{CKPT}]", "platforms=linux-x64"), f"ckpt_path: {CKPT} is given twice"),
+    (("build", "OUT", "ckpt_path=[]"), "ckpt_path: no path given"),
+    (("export", f"ckpt_path=[{CKPT},{CKPTS[1]}]", "output=model.onnx"), "export takes one checkpoint"),
     (("export", "ckpt_path=x.ckpt"), "missing output=..."),
     (("export", f"ckpt_path={CKPT}", "output=model.txt"), "must end in .onnx"),
 ])
@@ -104,3 +116,99 @@ def test_extension_sources_need_no_torch():
                 continue
             assert all(n.split(".")[0] in allowed for n in names), (f.name, names)
             assert all(n in bundled for n in names if n.startswith("inbetweening")), (f.name, names)
+
+
+def test_cli_ensemble_of_two_skeletons_is_one_line_exit_2(tiny_checkpoint, tmp_path):
+    proc = cli("build", tmp_path / "out", f"ckpt_path=[{CKPT},{tiny_checkpoint}]", "platforms=linux-x64")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1, proc.stderr
+    assert proc.stderr.startswith(f"error: ckpt_path: ensemble: {tiny_checkpoint} has another skeleton than {CKPT}")
+    assert not (tmp_path / "out").exists() or not list((tmp_path / "out").iterdir())
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """The linux-x64 zip built with the defaults (the bundled ensemble), no wheels downloaded."""
+    from inbetweening.blender import build
+
+    out = tmp_path_factory.mktemp("dist")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(build, "download_wheels", lambda *a, **k: [])
+        mp.chdir(REPO)  # the default checkpoints are relative to the repository
+        (zip_path,) = build.build(out, platforms=["linux-x64"], log=lambda *a: None)
+    with zipfile.ZipFile(zip_path) as z:
+        z.extractall(out / "ext")
+    return zip_path, out / "ext"
+
+
+def test_the_build_bundles_both_members_and_says_so(built):
+    from inbetweening.blender.build import DEFAULT_CKPTS
+
+    zip_path, ext = built
+    assert [Path(c) for c in DEFAULT_CKPTS] == [c.relative_to(REPO) for c in CKPTS]
+    names = set(zipfile.ZipFile(zip_path).namelist())
+    assert {f"model/{f}" for f in ("model.onnx", "model.json", "model_2.onnx", "model_2.json", "models.json")} <= names
+    index = json.loads((ext / "model" / "models.json").read_text())
+    assert index["fill"] == "ensemble"
+    members = index["members"]
+    assert [m["onnx"] for m in members] == ["model.onnx", "model_2.onnx"]
+    assert [m["source_checkpoint"] for m in members] == list(DEFAULT_CKPTS)
+    assert [m["predicts_contact"] for m in members] == [False, True]
+    for m in members:
+        meta = json.loads((ext / "model" / m["json"]).read_text())
+        assert meta["source_checkpoint"] == m["source_checkpoint"]
+        assert m["onnxruntime_vs_pytorch_max_abs_diff"] == meta["onnxruntime_vs_pytorch_max_abs_diff"] < 1e-4
+    licence = (ext / "model" / "MODEL_LICENSE.txt").read_text()
+    assert licence.startswith("The weights of the 2 bundled models were all trained on Bandai-Namco") and "CC BY-NC" in licence
+
+
+def extension_model(monkeypatch, model_dir: Path):
+    """The extension's model.py, imported outside Blender (``bpy.path.abspath`` the identity), its bundled models in
+    ``model_dir``."""
+    monkeypatch.setitem(sys.modules, "bpy", types.SimpleNamespace(path=types.SimpleNamespace(abspath=lambda p: p)))
+    spec = importlib.util.spec_from_file_location("extension_model_under_test", EXT / "model.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    monkeypatch.setattr(mod, "MODEL_DIR", str(model_dir))
+    return mod
+
+
+def test_the_extension_fills_with_the_ensemble_of_the_bundled_models(built, monkeypatch):
+    """The bundled default is the runtime's EnsembleBackend of the two ONNX members, the same model as the command
+    line's ensemble of the two checkpoints (``Inbetweener.from_checkpoint([...])``); a model file chosen in the Model
+    field is one OnnxBackend."""
+    from inbetweening.api.export import window_example
+    from inbetweening.api.inbetweener import Inbetweener
+    from inbetweening.runtime.ensemble import EnsembleBackend
+    from inbetweening.runtime.onnx_backend import OnnxBackend
+
+    _, ext = built
+    mod = extension_model(monkeypatch, ext / "model")
+    model = mod.load_model("")
+    assert isinstance(model, EnsembleBackend) and mod.load_model("") is model  # cached
+    assert [Path(m.path).name for m in model.members] == ["model.onnx", "model_2.onnx"]
+    assert all(isinstance(m, OnnxBackend) for m in model.members)
+    ib = Inbetweener.from_checkpoint(CKPTS)
+    assert isinstance(ib.backend, EnsembleBackend) and model.info == ib.backend.info and model.info.has_contacts
+    for gap in (5, 30):
+        root, q, known, _ = window_example(ib.predictor, 2, gap, seed=gap)
+        got = model.predict(root.numpy(), q.numpy(), known.numpy(), None)
+        ref = ib.backend.predict(root.numpy(), q.numpy(), known.numpy(), None)
+        sl = slice(ib.n_past, ib.n_past + gap)
+        for a, b in zip(got, ref):
+            assert np.abs(np.asarray(a)[:, sl] - np.asarray(b)[:, sl]).max() < 1e-4, gap
+    assert model.calls == 2
+
+    own = mod.load_model(str(ext / "model" / "model_2.onnx"))  # a user's model file: that model alone
+    assert isinstance(own, OnnxBackend) and own.info == ib.backend.members[1].info
+
+
+def test_a_bad_bundled_model_list_is_one_model_error(built, monkeypatch, tmp_path):
+    from inbetweening.runtime.model import ModelError
+
+    (tmp_path / "models.json").write_text('{"members": [{"file": "model.onnx"}]}')
+    mod = extension_model(monkeypatch, tmp_path)
+    with pytest.raises(ModelError, match=r"models.json: not a list of bundled models \(KeyError"):
+        mod.load_model("")
+    (tmp_path / "models.json").unlink()  # a build without the list: its model.onnx alone
+    with pytest.raises(ModelError, match="model file not found"):
+        mod.load_model("")

@@ -3,7 +3,8 @@ re-filled, undo, Discard Edits, Auto Re-fill, the Last Fill panel).  Driven by t
 
     python bpy_loop_check.py CONFIG.json   (the bpy venv's python; BLENDER_USER_RESOURCES set to a temp dir)
 
-CONFIG: {"zip", "bvh", "out", "model_path" (optional), "every", "only_panel", "human", "weights" (a real clip)}.
+CONFIG: {"zip", "bvh", "out", "model_path" (optional), "every", "only_panel", "human", "weights" (a real clip),
+"turn" (the hips' turn at key 71 there, radians; default 1)}.
 Writes ``out/loop.json``.
 """
 from __future__ import annotations
@@ -195,7 +196,7 @@ def scenario(cfg: dict) -> dict:
 
 
 def weights(cfg: dict) -> dict:
-    """A real clip keyed every 10 frames, filled; the hips of key 71 turned by 1 rad and filled again: the self-check
+    """A real clip keyed every 10 frames, filled; the hips of key 71 turned (``turn`` rad) and filled again: the self-check
     at 61, 71 and 81 changes, and with it the network share of gaps up to three gaps away on either side, so gaps left
     of the key's own are re-filled too; the re-fill against a fill of every gap (the record dropped)."""
     mod, _ = chk.model_names()
@@ -206,7 +207,7 @@ def weights(cfg: dict) -> dict:
     chk.thin(obj, set(range(1, 122, 10)))
     res = {"first": fill(mod), "panel_first": panel()}
     fc = chk.channelbag(obj).fcurves.find(HIPS[0], index=HIPS[1])
-    next(k for k in fc.keyframe_points if abs(k.co[0] - 71) < 1e-4).co[1] += 1.0
+    next(k for k in fc.keyframe_points if abs(k.co[0] - 71) < 1e-4).co[1] += float(cfg.get("turn", 1.0))
     fc.update()
     changed = curves(obj)
     res["refill"] = fill(mod)

@@ -1,5 +1,6 @@
-"""Build the Blender extension: per-platform zips with the add-on, the model as ONNX + JSON metadata, the fill runtime
-as a wheel of its own (:func:`runtime_wheel`: the project's own ``inbetweening.runtime`` and the modules it imports,
+"""Build the Blender extension: per-platform zips with the add-on, the models as ONNX + JSON metadata (by default the
+ensemble of :data:`DEFAULT_CKPTS`, what the extension fills with: :func:`bundle_models`), the fill runtime as a wheel
+of its own (:func:`runtime_wheel`: the project's own ``inbetweening.runtime`` and the modules it imports,
 not a copy) and the ``onnxruntime`` wheels (with their dependencies, except numpy: Blender's own is used)."""
 from __future__ import annotations
 
@@ -34,7 +35,10 @@ DEFAULT_PLATFORMS = ("linux-x64", "windows-x64", "macos-arm64")
 PYTHON_VERSION = "3.11"
 ONNXRUNTIME = "1.19.2"  # the newest with a cp311 wheel for macOS 11 on arm64 (Blender 4.2's minimum macOS)
 SKIP_WHEELS = ("numpy",)  # Blender bundles numpy
-DEFAULT_CKPT = "models/bn2_partial/model.ckpt"  # trained for partial keys: hand edits of some bones are ones
+# the bundled ensemble (runtime/ensemble.py), as the command line fills by default (cli/predict.py SHIPPED_MODELS) but
+# with bn2_partial first, bn2_reference trained for partial keys (hand edits of some bones are ones); RESULTS.md 12.8
+DEFAULT_CKPTS = ("models/bn2_partial/model.ckpt", "models/bn2_v2/model.ckpt")
+MODELS_INDEX = "models.json"  # model/models.json: the bundled members, in order (the extension's model.py reads it)
 
 
 class BuildError(ValueError):
@@ -73,8 +77,18 @@ def download_wheels(platform: str, version: str = ONNXRUNTIME, cache: Path | Non
     return [folder / n for n in names]
 
 
-def export_model(ckpt_path: str | Path, out_dir: Path) -> tuple[Path, Path, dict]:
-    """Export the checkpoint's window graph to ``out_dir/model.onnx`` and its metadata to ``model.json``."""
+def source_name(ckpt_path: str | Path) -> str:
+    """How the metadata names a checkpoint: its path relative to the working folder when inside it (the repository's
+    ``models/bn2_v2/model.ckpt``), else its folder and name (no absolute path of the builder's machine)."""
+    path = Path(ckpt_path).resolve()
+    try:
+        return path.relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return f"{path.parent.name}/{path.name}"
+
+
+def export_model(ckpt_path: str | Path, out_dir: Path, stem: str = "model") -> tuple[Path, Path, dict]:
+    """Export the checkpoint's window graph to ``out_dir/<stem>.onnx`` and its metadata to ``<stem>.json``."""
     from inbetweening.api.export import export_window_onnx
     from inbetweening.api.inbetweener import Inbetweener
 
@@ -83,15 +97,64 @@ def export_model(ckpt_path: str | Path, out_dir: Path) -> tuple[Path, Path, dict
         raise BuildError(f"ckpt_path: {ckpt_path} does not exist")
     try:
         ib = Inbetweener.from_checkpoint(ckpt_path)
-        info = export_window_onnx(ib, out_dir / "model.onnx", extra={"source_checkpoint": ckpt_path.name})
+        info = export_window_onnx(ib, out_dir / f"{stem}.onnx", extra={"source_checkpoint": source_name(ckpt_path)})
     except (ValueError, OSError) as e:  # CheckpointError, ExportError, InbetweenError are ValueErrors
         raise BuildError(f"ckpt_path: {e}") from None
     if info["max_abs_diff"] is None or info["max_abs_diff"] > 1e-4:
-        raise BuildError(f"the exported graph differs from PyTorch by {info['max_abs_diff']}")
+        raise BuildError(f"ckpt_path: the graph exported from {ckpt_path} differs from PyTorch by {info['max_abs_diff']}")
     meta = {k: json.loads(v) for k, v in info["metadata"].items()}
     meta["onnxruntime_vs_pytorch_max_abs_diff"] = info["max_abs_diff"]
-    (out_dir / "model.json").write_text(json.dumps(meta, indent=1))
-    return out_dir / "model.onnx", out_dir / "model.json", meta
+    (out_dir / f"{stem}.json").write_text(json.dumps(meta, indent=1))
+    return out_dir / f"{stem}.onnx", out_dir / f"{stem}.json", meta
+
+
+def checkpoints(ckpt_path) -> list[Path]:
+    """``ckpt_path`` (one path or a list) as a list of existing, distinct checkpoint files; :class:`BuildError`
+    naming the first that is missing or repeated."""
+    paths = [Path(ckpt_path)] if isinstance(ckpt_path, (str, Path)) else [Path(p) for p in ckpt_path]
+    if not paths:
+        raise BuildError("ckpt_path: no checkpoint given")
+    seen = set()
+    for p in paths:
+        if not p.is_file():
+            raise BuildError(f"ckpt_path: {p} does not exist")
+        if p.resolve() in seen:
+            raise BuildError(f"ckpt_path: {p} is given twice")
+        seen.add(p.resolve())
+    return paths
+
+
+def bundle_models(ckpt_path, out_dir: Path, log=print) -> tuple[list[Path], list[dict]]:
+    """Export each checkpoint of ``ckpt_path`` (one, or a list: their ensemble) into ``out_dir``: the first as
+    ``model.onnx`` + ``model.json``, the others as ``model_2.onnx`` + ``model_2.json``, ..., and the index
+    :data:`MODELS_INDEX` (each member's files, source checkpoint, onnxruntime-vs-PyTorch difference, dataset, trained
+    gap and whether it predicts foot contact).  Members that are not models of one skeleton and data fail the build,
+    naming the checkpoint.  Returns the files written (for the zip's ``model/`` folder) and each member's metadata."""
+    from inbetweening.runtime.ensemble import ensemble_info
+    from inbetweening.runtime.model import ModelError, ModelInfo
+
+    paths = checkpoints(ckpt_path)
+    files, metas, members = [], [], []
+    for i, ckpt in enumerate(paths):
+        log(f"exporting {ckpt} to ONNX")
+        onnx_path, json_path, meta = export_model(ckpt, out_dir, "model" if i == 0 else f"model_{i + 1}")
+        log(f"  onnxruntime vs PyTorch: max abs diff {meta['onnxruntime_vs_pytorch_max_abs_diff']:.2g}")
+        files += [onnx_path, json_path]
+        metas.append(meta)
+        members.append({"onnx": onnx_path.name, "json": json_path.name, "source_checkpoint": meta["source_checkpoint"],
+                        "onnxruntime_vs_pytorch_max_abs_diff": meta["onnxruntime_vs_pytorch_max_abs_diff"],
+                        "dataset": meta.get("dataset", ""), "trained_gap": meta.get("trained_gap"),
+                        "predicts_contact": "contact_out" in (meta.get("outputs") or ())})
+    try:
+        ensemble_info([ModelInfo.from_metadata(m, str(p)) for m, p in zip(metas, paths)], [str(p) for p in paths])
+    except ModelError as e:
+        raise BuildError(f"ckpt_path: {e}") from None
+    what = ("the ensemble of these members (inbetweening.runtime.ensemble: each weighted per gap length by its "
+            "calibrated blend weight)" if len(members) > 1 else "this model")
+    index = {"fill": "ensemble" if len(members) > 1 else "single", "members": members,
+             "about": f"the extension fills with {what}; a model file chosen in its Model field is used instead"}
+    (out_dir / MODELS_INDEX).write_text(json.dumps(index, indent=1))
+    return [*files, out_dir / MODELS_INDEX], metas
 
 
 def _module_file(name: str) -> Path | None:
@@ -190,18 +253,26 @@ def _version() -> str:
         return "0.1.0"
 
 
-def model_licence(meta: dict) -> str:
-    ds = str(meta.get("dataset", ""))
-    if "bandai" in ds.lower():
-        return ("The bundled model's weights were trained on Bandai-Namco-Research-Motiondataset-2 (Bandai Namco "
-                "Research Inc.; Kobayashi et al., arXiv:2306.08861), licensed CC BY-NC 4.0. Use the model and what it "
-                "generates for non-commercial purposes only, with attribution.\n")
-    return (f"The bundled model was trained on the dataset {ds!r}; its weights carry that dataset's licence terms.\n")
+def model_licence(meta) -> str:
+    """The licence note of the bundled models' weights (``meta``: one model's metadata, or a list of them)."""
+    metas = [meta] if isinstance(meta, dict) else list(meta)
+    sets = sorted({str(m.get("dataset", "")) for m in metas})
+    one = len(metas) == 1
+    the = "The bundled model's weights were" if one else f"The weights of the {len(metas)} bundled models were all"
+    if all("bandai" in ds.lower() for ds in sets):
+        return (f"{the} trained on Bandai-Namco-Research-Motiondataset-2 (Bandai Namco Research Inc.; Kobayashi et al., "
+                f"arXiv:2306.08861), licensed CC BY-NC 4.0. Use the {'model' if one else 'models'} and what "
+                f"{'it generates' if one else 'they generate'} for non-commercial purposes only, with attribution.\n")
+    names = ", ".join(repr(ds) for ds in sets)
+    return (f"The bundled {'model was' if one else 'models were'} trained on the dataset{'s' if len(sets) > 1 else ''} "
+            f"{names}; {'its' if one else 'their'} weights carry {'that dataset' if len(sets) == 1 else 'those datasets'}'s "
+            "licence terms.\n")
 
 
-def build(out_dir: str | Path, ckpt_path: str | Path = DEFAULT_CKPT, platforms=DEFAULT_PLATFORMS,
+def build(out_dir: str | Path, ckpt_path=DEFAULT_CKPTS, platforms=DEFAULT_PLATFORMS,
           onnxruntime: str = ONNXRUNTIME, wheels: str | Path | None = None, log=print) -> list[Path]:
-    """Write ``out_dir/inbetweening-<version>-<platform>.zip`` for each platform; returns their paths."""
+    """Write ``out_dir/inbetweening-<version>-<platform>.zip`` for each platform; returns their paths.  ``ckpt_path``:
+    the checkpoint to bundle, or a list of them (models of one skeleton): their ensemble (:func:`bundle_models`)."""
     out_dir = Path(out_dir)
     bad = [p for p in platforms if p not in PLATFORMS]
     if bad or not platforms:
@@ -214,13 +285,12 @@ def build(out_dir: str | Path, ckpt_path: str | Path = DEFAULT_CKPT, platforms=D
     version = _version()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        log(f"exporting {ckpt_path} to ONNX")
-        onnx_path, json_path, meta = export_model(ckpt_path, tmp)
-        log(f"  onnxruntime vs PyTorch: max abs diff {meta['onnxruntime_vs_pytorch_max_abs_diff']:.2g}")
+        (tmp / "model").mkdir()
+        model_files, metas = bundle_models(ckpt_path, tmp / "model", log)
         out_dir.mkdir(parents=True, exist_ok=True)
         manifest_in = (src / "blender_manifest.toml.in").read_text()
         readme = (src / "README.md").read_text()
-        licence = model_licence(meta)
+        licence = model_licence(metas)
         runtime = runtime_wheel(tmp, version)
         log(f"fill runtime: {runtime.name} ({len(runtime_modules())} modules of the package)")
         zips = []
@@ -237,8 +307,8 @@ def build(out_dir: str | Path, ckpt_path: str | Path = DEFAULT_CKPT, platforms=D
                     z.writestr(name, (src / name).read_text())
                 z.writestr("README.md", readme + "\n## Model licence\n\n" + licence)
                 z.writestr("model/MODEL_LICENSE.txt", licence)
-                z.write(onnx_path, "model/model.onnx")
-                z.write(json_path, "model/model.json")
+                for f in model_files:
+                    z.write(f, f"model/{f.name}")
                 for w in whls:
                     z.write(w, f"wheels/{w.name}", compress_type=zipfile.ZIP_STORED)
             os.replace(part, target)

@@ -68,13 +68,15 @@ def member_weights(infos: Sequence[ModelInfo], gap: int) -> np.ndarray:
 
 class EnsembleBackend:
     """The members' mean prediction (module docstring); ``members``: backends of one skeleton, ``where``: their names
-    for error messages (e.g. the checkpoint paths)."""
+    for error messages (e.g. the checkpoint paths).  ``calls``: the batches predicted, as a single backend counts them."""
 
     def __init__(self, members: Sequence[Backend], where: Sequence[str] | None = None):
         self.members = list(members)
         self.info = ensemble_info([m.info for m in self.members], where)
+        self.calls = 0
 
     def predict(self, root, local_q, known, weight):
+        self.calls += 1
         a = member_weights([m.info for m in self.members], np.shape(root)[1] - self.info.n_past - 1)
         outs = [m.predict(root, local_q, known, weight) for m in self.members]
         roots = sum(w * np.asarray(o[0], np.float64) for w, o in zip(a, outs))

@@ -20,7 +20,7 @@ from .bone_map_panel import (
     InbetweenBoneOverride,
     bone_map_message,
 )
-from .model import LICENCE, MODEL_DIR, bundled_model, load_model  # noqa: F401  (the extension's API)
+from .model import LICENCE, MODEL_DIR, bundled_model, bundled_models, load_model  # noqa: F401  (the extension's API)
 
 LAST_FILL: dict = {}  # the summary of the last fill (for benchmarks)
 
@@ -40,7 +40,7 @@ def make_rig(obj, info):
 
 def fill_range(context, obj, model, only_selected: bool, report_progress=True, foot_lock: bool = True,
                discard_edits: bool = False) -> dict:
-    """Fill the armature ``obj``'s in-betweens with the fill runtime (``model``: its ONNX backend); returns a summary
+    """Fill the armature ``obj``'s in-betweens with the fill runtime (``model``: :func:`load_model`'s); returns a summary
     dict.  Raises ``rig.RigError`` / ``BoneMapError`` / ``ModelError`` / ``InbetweenError`` before changing anything.
     Only what changed since the last fill is re-filled (the gaps whose inputs changed, and those the runtime adds:
     whose network share or context changed), and generated keys edited by hand are kept as keys (:mod:`.record`;
@@ -216,7 +216,7 @@ def foot_lock_property():
 def model_path_property():
     """The ``model_path`` option (the operator's and the panel's settings share it)."""
     return StringProperty(
-        name="Model", description="An exported in-betweening window model (.onnx); empty: the bundled model",
+        name="Model", description="An exported in-betweening window model (.onnx); empty: the bundled models' ensemble",
         default="", subtype="FILE_PATH")
 
 
@@ -300,7 +300,7 @@ class _Panel:
         if obj is None or obj.type != "ARMATURE":
             box.label(text="Select an armature", icon="INFO")
         if not settings.model_path:
-            for line in ("Bundled model: Bandai-Namco-2 skeleton,", "trained on CC BY-NC 4.0 data:",
+            for line in ("Bundled models: Bandai-Namco-2 skeleton,", "trained on CC BY-NC 4.0 data:",
                          "non-commercial use only."):
                 box.label(text=line)
 

@@ -83,8 +83,10 @@ def digest(*parts) -> str:
 
 
 def model_key(model) -> str:
-    """The model's identity: its metadata and file size (not its path: the .blend may move to another machine)."""
-    return digest(json.dumps(model.meta, sort_keys=True, default=str).encode(), str(os.path.getsize(model.path)).encode())
+    """The model's identity: its metadata and file size (not its path: the .blend may move to another machine); an
+    ensemble's: its members', in order."""
+    return digest(*[x for m in getattr(model, "members", [model])
+                    for x in (json.dumps(m.meta, sort_keys=True, default=str).encode(), str(os.path.getsize(m.path)).encode())])
 
 
 def settings_digest(model_key: str, foot_lock: bool, chans, fcurves, ancestors) -> str:
