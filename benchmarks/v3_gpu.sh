@@ -1,0 +1,208 @@
+#!/usr/bin/env bash
+# Model v3 from scratch on a lent GPU machine, as run: the v2 recipe with the loss averaged per window,
+#   python train.py experiment=bn2_v2 model.checkpoint_layers=false loss.reduce=windows trainer=gpu run_test=false
+# (4,800 steps, seed 42, validation every max_steps / 4; the test benchmark runs afterwards on the CPU machine, e.g.
+# `python eval.py ckpt_path=<calibrated or best>.ckpt data=bandai_namco`).  The GPU changes the wall time, not the
+# experiment: same steps, batches, seed and schedule as on the CPU (numerics differ a little).
+#
+# The machine has no network and takes at most 64 MiB per call, so what it lacks travels in the git-ignored .gpu/:
+#   .gpu/whl/*.whl          hydra-core 1.3.8, omegaconf 2.3.1, antlr4-python3-runtime 4.9.3, roma 1.8.0 (pure Python)
+#   .gpu/p1/part1.tar.xz    Bandai-Namco-2's BVH files (all 2,902: the loader refuses a dataset without test
+#                           windows), every other one by name, under Bandai-Namco-Research-Motiondataset-2/data/
+#   .gpu/p2/part2.tar.xz    the others and bn2_manifest.tsv (name, bytes, sha1 of every file of both parts)
+#   (xz -9e; python's tarfile/lzma unpack them; the json files beside the BVH files are not read)
+# Two calls on the same warm machine (/tmp persists between them; it goes back 30 s after a call):
+#   bash benchmarks/v3_gpu.sh part1               carry [.gpu/whl, .gpu/p1]: wheels to /tmp/site, part 1 to /tmp/bn,
+#                                                 GPU check, a speed probe of the recipe on the synthetic data
+#   bash benchmarks/v3_gpu.sh part2 <max_steps> [hydra overrides...]
+#                                                 carry [.gpu/whl, .gpu/p2]: part 2 to /tmp/bn, every file checked
+#                                                 against the manifest, /tmp/bn2.zip rebuilt, the training run in
+#                                                 /tmp/v3run; last.ckpt, the best checkpoint and the log are copied to
+#                                                 $OUT every 20 s (what was reached comes back if the call is stopped)
+# Variables (for a dry run on a CPU machine): PY (python3), TRAINER (gpu), OUT (required), SITE (/tmp/site; SKIP_WHEELS=1
+# skips the install), BN (/tmp/bn), ZIP (/tmp/bn2.zip), RUN (/tmp/v3run; its log $RUN.log), INBETWEENING_CACHE
+# (/tmp/cache), PROBE_STEPS (150), RESUME=1 (part2 on the same warm machine: continue $RUN from its last.ckpt instead of
+# starting afresh, reusing $ZIP; then only .gpu/whl need be carried).
+# As run (device time is short): `part2 4800 calibrate=false`, the do-no-harm blend fitted afterwards on the CPU machine
+# (`python calibrate.py ckpt_path=<best.ckpt> data=bandai_namco`, about 3 min; on the device it would run on its CPU).
+set -euo pipefail
+PY=${PY:-python3}
+TRAINER=${TRAINER:-gpu}
+SITE=${SITE:-/tmp/site}
+BN=${BN:-/tmp/bn}
+RUN=${RUN:-/tmp/v3run}
+ZIP=${ZIP:-/tmp/bn2.zip}
+PROBE_STEPS=${PROBE_STEPS:-150}
+OUT=${OUT:?set OUT to the folder whose files come back}
+G=.gpu
+PFX=Bandai-Namco-Research-Motiondataset-2/data
+export INBETWEENING_CACHE=${INBETWEENING_CACHE:-/tmp/cache}
+export PYTHONPATH=$SITE:src${PYTHONPATH:+:$PYTHONPATH}
+export PYTHONUNBUFFERED=1
+RECIPE=(experiment=bn2_v2 model.checkpoint_layers=false loss.reduce=windows trainer=$TRAINER run_test=false)
+# display only: Lightning's default (Rich) bar prints nothing until the end when stdout is no terminal; tqdm's prints
+# a line (steps done, steps/s) every 50 steps into the log
+PBAR=('++callbacks.progress_bar={_target_:lightning.pytorch.callbacks.TQDMProgressBar,refresh_rate:50}')
+mkdir -p "$OUT"
+now() { date +%s.%N; }
+secs() { "$PY" -c "import sys; print(f'{float(sys.argv[2]) - float(sys.argv[1]):.1f}')" "$1" "$2"; }
+
+wheels() {
+  if [[ ${SKIP_WHEELS:-0} == 1 ]]; then return; fi
+  if [[ -d $SITE/hydra && -d $SITE/omegaconf && -d $SITE/roma && -d $SITE/antlr4 ]]; then
+    echo "wheels: already in $SITE"; return
+  fi
+  "$PY" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target "$SITE" "$G"/whl/*.whl
+  echo "wheels: installed into $SITE"
+}
+
+extract() {  # python's tarfile + lzma (standard library): nothing else is certain to be there
+  local t0; t0=$(now)
+  "$PY" - "$1" "$BN" <<'EOF'
+import sys, tarfile
+with tarfile.open(sys.argv[1], "r:xz") as t:
+    if hasattr(tarfile, "data_filter"):
+        t.extractall(sys.argv[2], filter="data")
+    else:
+        t.extractall(sys.argv[2])
+EOF
+  echo "extracted $1 into $BN in $(secs "$t0" "$(now)") s ($(ls "$BN/$PFX" | wc -l) files there now)"
+}
+
+part1() {
+  local t0; t0=$(now)
+  wheels
+  mkdir -p "$BN"
+  extract "$G/p1/part1.tar.xz"
+  "$PY" -c 'import torch; print("cuda:", torch.cuda.is_available(), torch.cuda.get_device_name() if torch.cuda.is_available() else "-", "torch", torch.__version__)'
+  "$PY" -c 'import hydra, omegaconf, roma, lightning, inbetweening; print("imports ok: hydra", hydra.__version__, "from", hydra.__file__, "omegaconf", omegaconf.__version__, "roma", roma.__version__, "lightning", lightning.__version__)'
+  echo "setup took $(secs "$t0" "$(now)") s"
+  # speed probe: the same recipe on the synthetic data (generated, no files), one validation at the end
+  local p0 p1; p0=$(now)
+  set +e
+  "$PY" train.py "${RECIPE[@]}" data=synthetic logger=none callbacks=none "${PBAR[@]}" calibrate=false \
+    trainer.max_steps="$PROBE_STEPS" trainer.val_check_interval="$PROBE_STEPS" hydra.run.dir=/tmp/v3probe \
+    > "$OUT/probe.log" 2>&1
+  local rc=$?
+  set -e
+  p1=$(now)
+  tr '\r' '\n' < "$OUT/probe.log" | grep -av 'it/s' | tail -n 25 || true
+  local rate; rate=$(tr '\r' '\n' < "$OUT/probe.log" | grep -a '^Epoch' | grep -aoE '[0-9.]+it/s' | tail -1 || true)
+  local wall; wall=$(secs "$p0" "$p1")
+  echo "speed probe (rc $rc): $PROBE_STEPS steps in $wall s wall, start-up and the validation included;" \
+       "progress bar's last rate ${rate:-?} (steady state)"
+  "$PY" - "$wall" "$PROBE_STEPS" "${rate%it/s}" <<'EOF'
+import sys
+wall, n = float(sys.argv[1]), int(sys.argv[2])
+print(f"  overall {n / wall:.2f} steps/s")
+try:
+    r = float(sys.argv[3])
+    print(f"  steady {r:.2f} steps/s: training {n / r:.1f} s, start-up + validation {wall - n / r:.1f} s "
+          f"({100 * (wall - n / r) / wall:.0f} % of the wall time); 4,800 steps would train in {4800 / r / 60:.1f} min")
+except ValueError:
+    pass
+EOF
+  echo "part1 took $(secs "$t0" "$(now)") s in all"
+  return $rc
+}
+
+rebuild_zip() {  # every file of the manifest present with its size and sha1, then an uncompressed zip of them
+  "$PY" - "$BN" "$PFX" "$ZIP" <<'EOF'
+import hashlib, os, sys, zipfile
+bn, pfx, dst = sys.argv[1:]
+rows = [line.rstrip("\n").split("\t") for line in open(os.path.join(bn, "bn2_manifest.tsv"))]
+bad = []
+for name, size, sha in rows:
+    p = os.path.join(bn, pfx, name)
+    if not os.path.isfile(p) or os.path.getsize(p) != int(size):
+        bad.append(name)
+    elif hashlib.sha1(open(p, "rb").read()).hexdigest() != sha:
+        bad.append(name)
+if bad:
+    sys.exit(f"{len(bad)} of {len(rows)} files missing or different (e.g. {bad[0]}): was part1 extracted on this "
+             "machine? (a cold machine has lost /tmp/bn: run part1 and part2 again, back to back)")
+with zipfile.ZipFile(dst + ".tmp", "w", zipfile.ZIP_STORED) as z:
+    for name, _, _ in rows:
+        z.write(os.path.join(bn, pfx, name), f"{pfx}/{name}")
+os.replace(dst + ".tmp", dst)
+print(f"{dst}: {len(rows)} files checked against the manifest, {os.path.getsize(dst)} bytes")
+EOF
+}
+
+# copy what the run has reached to $OUT (flat, at most 8 files): last.ckpt, best.ckpt (the monitored best,
+# epoch_NNN.ckpt), calibrated.ckpt, train.log, config.yaml, the TensorBoard events, status.txt
+put() { [[ -f $1 ]] || return 0; cp -f "$1" "$OUT/.tmp_$2" && mv -f "$OUT/.tmp_$2" "$OUT/$2"; }
+collect() {
+  local ck=$RUN/checkpoints best ev
+  put "$ck/last.ckpt" last.ckpt
+  best=$(ls -t "$ck"/epoch_*.ckpt 2>/dev/null | head -1 || true)
+  if [[ -n $best ]]; then put "$best" best.ckpt; fi
+  put "$ck/calibrated.ckpt" calibrated.ckpt
+  put "$LOG" train.log
+  put "$RUN/.hydra/config.yaml" config.yaml
+  ev=$(find "$RUN" -name 'events.out.tfevents.*' -type f -printf '%T@ %p\n' 2>/dev/null | sort -n | tail -1 | cut -d' ' -f2- || true)
+  if [[ -n $ev ]]; then put "$ev" events.tfevents; fi
+  { echo "best: ${best:+$(basename "$best")}"; echo "at: $(date -u +%FT%TZ)"; echo "overrides:"
+    cat "$RUN/.hydra/overrides.yaml" 2>/dev/null || true; } > "$OUT/status.txt"
+}
+progress() { tr '\r' '\n' < "$LOG" | grep -aE 'it/s|s/it' | tail -1 || true; }
+
+part2() {
+  local steps=${1:?part2 <max_steps> [hydra overrides...]}; shift
+  local val=$((steps / 4)); ((val >= 1)) || val=1
+  local t0; t0=$(now)
+  wheels
+  if [[ ${RESUME:-0} == 1 && -f $ZIP ]]; then
+    echo "resume: $ZIP is already there (part 2 need not be carried)"
+  else
+    extract "$G/p2/part2.tar.xz"
+    rebuild_zip
+  fi
+  export BANDAI_NAMCO_PATH=$ZIP
+  echo "data ready in $(secs "$t0" "$(now)") s"
+  LOG=$RUN.log
+  local extra=()
+  if [[ ${RESUME:-0} == 1 && -f $RUN/checkpoints/last.ckpt ]]; then
+    extra=(ckpt_path="$RUN/checkpoints/last.ckpt"); echo "resuming from $RUN/checkpoints/last.ckpt"
+  else
+    rm -rf "$RUN"
+  fi
+  local s0; s0=$(now)
+  "$PY" train.py "${RECIPE[@]}" "${PBAR[@]}" trainer.max_steps="$steps" trainer.val_check_interval="$val" \
+    hydra.run.dir="$RUN" "${extra[@]}" "$@" > "$LOG" 2>&1 &
+  local pid=$! started=0 tick=0
+  echo "training (pid $pid): ${RECIPE[*]} ${PBAR[*]} trainer.max_steps=$steps trainer.val_check_interval=$val hydra.run.dir=$RUN ${extra[*]} $*"
+  while kill -0 "$pid" 2>/dev/null; do
+    sleep 5; tick=$((tick + 5))
+    if ((started == 0)) && [[ -n $(progress) ]]; then
+      started=1; echo "first training step after $(secs "$s0" "$(now)") s (data preparation, model, CUDA start-up)"
+    fi
+    if ((tick % 20 == 0)); then
+      collect
+      echo "[$(secs "$s0" "$(now)") s] $(progress | sed 's/^ *//' | cut -c1-160)" \
+           "$(command -v nvidia-smi >/dev/null && nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader 2>/dev/null | head -1)"
+    fi
+  done
+  local rc=0; wait "$pid" || rc=$?
+  collect
+  echo "training exited with $rc after $(secs "$s0" "$(now)") s"
+  tr '\r' '\n' < "$LOG" | grep -av 'it/s' | grep -v '^\s*$' | tail -n 30 || true
+  ls -la "$RUN/checkpoints" "$OUT" || true
+  "$PY" - "$OUT" <<'EOF' || true
+import os, sys
+from inbetweening.predictor.checkpoint import read_checkpoint
+for name in ("last.ckpt", "best.ckpt", "calibrated.ckpt"):
+    p = os.path.join(sys.argv[1], name)
+    if os.path.exists(p):
+        c = read_checkpoint(p)
+        print(f"{name}: global_step {c.get('global_step')}, epoch {c.get('epoch')}, {os.path.getsize(p)} bytes")
+EOF
+  return $rc
+}
+
+mode=${1:?usage: v3_gpu.sh part1 | part2 <max_steps> [hydra overrides...]}; shift
+case $mode in
+  part1) part1 ;;
+  part2) part2 "$@" ;;
+  *) echo "unknown mode $mode" >&2; exit 2 ;;
+esac
