@@ -143,3 +143,28 @@ def test_eval_cli_skeleton_mismatch_is_one_error_line_exit_2(trained, other_skel
     assert "22-joint skeleton" in errors[0] and "21 joints" in errors[0] and str(ckpt) in errors[0]
     assert "Traceback" not in r.stderr
     assert not (tmp_path / "run" / "benchmark.json").exists()
+
+
+def test_an_ensemble_is_scored_through_the_runtime_as_one_model_is(trained, tiny_checkpoint, tmp_path, cache_dir):
+    """``ckpt_path=[a,b]``: the LAFAN protocol scores the ensemble's windows through the fill runtime, the way a single
+    model's are (that route gives one model its Lightning test metrics), and protocol=keyframes fills with it."""
+    from inbetweening.training.evaluate import ensemble_transitions
+
+    ckpt, want, _ = trained
+    cfg = _eval_cfg(tmp_path / "one", cache_dir, f"ckpt_path={ckpt}")
+    from inbetweening.training.builders import make_datamodule
+    dm = make_datamodule(cfg)
+    dm.prepare_data()
+    dm.setup("test")
+    alone, _ = ensemble_transitions([str(ckpt)])
+    got = B.evaluate_transitions(dm.test_benchmark_set(), alone, LENGTHS)
+    for k in want:
+        assert got[k] == pytest.approx(want[k], rel=1e-4, abs=1e-6), k
+    pair = evaluate(_eval_cfg(tmp_path / "pair", cache_dir, f"ckpt_path=['{ckpt}','{tiny_checkpoint}']"))
+    res = json.loads((tmp_path / "pair" / "benchmark.json").read_text())
+    assert res["model"] == "ensemble of 2" and res["metrics"] == pytest.approx(pair)
+    assert pair["l2p@15"] != pytest.approx(want["l2p@15"], rel=1e-3)  # not the first model alone
+    kf = evaluate(_eval_cfg(tmp_path / "kf", cache_dir, f"ckpt_path=['{ckpt}','{tiny_checkpoint}']", "protocol=keyframes",
+                            "keyframe_intervals=[15]", "keyframe_clips=3"))
+    assert np.isfinite(kf["ratio@15"])
+    assert "ensemble of 2" in json.loads((tmp_path / "kf" / "benchmark.json").read_text())["model"]
