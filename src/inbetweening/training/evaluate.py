@@ -17,7 +17,8 @@ from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.job import check_skeleton, use_threads, write_benchmark
 from inbetweening.training.module import load_module
 
-__all__ = ["animator_fill", "ensemble_transitions", "evaluate", "evaluate_ensemble", "evaluate_keyframes", "score_keyframes", "with_baselines"]
+__all__ = ["animator_fill", "ensemble_transitions", "evaluate", "evaluate_ensemble",
+           "evaluate_keyframes", "score_keyframes", "with_baselines"]
 
 log = logging.getLogger("inbetweening")
 
