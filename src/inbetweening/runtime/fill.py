@@ -39,7 +39,7 @@ import numpy as np
 
 from inbetweening.geometry import canonical
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_known, interpolate_pose
-from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities, slerp_np
+from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities
 
 from .foot_lock import ClipFeet, clip_feet, gap_contacts, lock_gap
 from .model import Backend, InbetweenError, ModelInfo
@@ -342,7 +342,7 @@ class FillRuntime:
                     ir, iq = c.base[0][a + 1 : b], c.base[1][a + 1 : b]
                 else:
                     ir, iq = interpolate_pose(c.root[a], c.q[a], c.root[b], c.q[b], (np.arange(a + 1, b) - a) / (b - a))
-                r, q = ir + w * (r - ir), slerp_np(iq, q, np.full(q.shape[:-1], w))
+                r, q = interpolate_pose(ir, iq, r, q, np.full(r.shape[:-1], w))
             for t, mask in parts[i].items():  # partial keys exactly as keyed
                 q[t - a - 1, mask] = c.q[t, mask]
                 if mask[0]:

@@ -10,7 +10,7 @@ import torch
 from omegaconf import DictConfig
 
 from inbetweening.evaluation import benchmark as B
-from inbetweening.geometry.quaternion import slerp_np
+from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.training.builders import make_datamodule, make_trainer, output_dir
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
@@ -81,7 +81,7 @@ def ensemble_transitions(paths: list[str]):
         if w is None or w >= 1.0:
             return pr, pq
         ir, iq = B.interpolation(root, local_q, n, runtime.info.n_past)
-        return ir + w * (pr - ir), slerp_np(iq, pq, np.full(pq.shape[:-1], w))
+        return interpolate_pose(ir, iq, pr, pq, np.full(pr.shape[:-1], w))
 
     return predict_fn, members[0].predictor
 
