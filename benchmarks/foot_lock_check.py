@@ -1,8 +1,9 @@
 """Foot locking on or off with the fill's defaults (RESULTS.md section 12.4): the keyframes-only protocol on ``clips``
 evenly spaced test clips of a split, K = 5/15/30/45, the ratio to interpolation, the share of clips worse than it by
-more than 5 % and the foot skating, for a checkpoint filled with ``foot_lock`` false, then true.
+more than 5 % and the foot skating, for a checkpoint (or an ensemble: checkpoints joined by commas) filled with
+``foot_lock`` false, then true.
 
-    python benchmarks/foot_lock_check.py <checkpoint> <split> [clips, default 60]
+    python benchmarks/foot_lock_check.py <checkpoint>[,<checkpoint>...] <split> [clips, default 60]
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import torch
 
 from inbetweening.data.datasets import load_dataset
 from inbetweening.predictor.checkpoint import load_predictor
-from inbetweening.training.evaluate import score_keyframes
+from inbetweening.training.evaluate import animator_fill, score_keyframes
 
 FIGURES = ("ratio", "worse_share", "skate_model", "skate_interp", "skate_gt")
 
@@ -23,9 +24,11 @@ def main() -> None:
     model, split = sys.argv[1], sys.argv[2]
     clips = int(sys.argv[3]) if len(sys.argv) > 3 else 60
     data = load_dataset("bandai_namco", split=split)
-    predictor = load_predictor(model, "cpu")
+    paths = model.split(",")
+    predictor = load_predictor(paths[0], "cpu") if len(paths) == 1 else None
     for lock in (False, True):
-        res = score_keyframes(predictor, data, [5, 15, 30, 45], 0, foot_lock=lock, max_clips=clips)
+        filled = predictor if predictor is not None else animator_fill(paths, foot_lock=lock)[0]
+        res = score_keyframes(filled, data, [5, 15, 30, 45], 0, foot_lock=lock, max_clips=clips)
         rows = {k: {m: round(float(r[m]), 4) for m in FIGURES if m in r} for k, r in res.items()}
         print(f"foot_lock={lock}", json.dumps(rows), flush=True)
 
