@@ -147,18 +147,20 @@ class Inbetweener:
             one per model of an ensemble).
         foot_lock: hold the feet where the model predicts contact (:mod:`inbetweening.runtime.foot_lock`; models whose
             representation has contact channels, on data with feet); ``False``: the network's output as it is.
+        names: the models' names for error messages (an ensemble's member that does not fit the first), e.g. their
+            checkpoint paths.
         self_check: scale the network's share of each gap by how well it predicts the caller's own keys
             (:mod:`inbetweening.runtime.trust`; default on); ``False``: the calibrated weight per gap length alone.
     """
 
     def __init__(self, model, max_gap: int | None = None, segment: bool = True, trained_gap: int | None = None,
-                 foot_lock: bool = True, self_check: bool = True):
+                 foot_lock: bool = True, self_check: bool = True, names=None):
         models = list(model) if isinstance(model, (list, tuple)) else [model]
         gaps = list(trained_gap) if isinstance(trained_gap, (list, tuple)) else [trained_gap] * len(models)
         if not models or len(gaps) != len(models):
             raise InbetweenError(f"Inbetweener: {len(models)} models and {len(gaps)} trained gaps")
         members = [TorchBackend(m, g) for m, g in zip(models, gaps)]
-        self.backend = members[0] if len(members) == 1 else EnsembleBackend(members)
+        self.backend = members[0] if len(members) == 1 else EnsembleBackend(members, names)
         self.runtime = FillRuntime(self.backend, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
                                    self_check=self_check)
         self.module, self.predictor = members[0].module, members[0].predictor
@@ -176,16 +178,13 @@ class Inbetweener:
         module's ``transition_max`` recorded in the checkpoint.
         """
         from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint, trained_gap
-        from inbetweening.runtime.ensemble import ensemble_info
-
         paths = [str(p) for p in path] if isinstance(path, (list, tuple)) else [str(path)]
         ckpts = [read_checkpoint(p) for p in paths]
         models = [load_predictor(p, device, ckpt=c) for p, c in zip(paths, ckpts)]
         gaps = kw.pop("trained_gap", [trained_gap(c) or None for c in ckpts])
         if len(models) == 1:
             return cls(models[0], trained_gap=gaps[0] if isinstance(gaps, list) else gaps, **kw)
-        ensemble_info([TorchBackend(m, g).info for m, g in zip(models, gaps)], paths)  # a misfit named by its path
-        return cls(models, trained_gap=gaps, **kw)
+        return cls(models, trained_gap=gaps, names=paths, **kw)
 
     @property
     def device(self) -> torch.device:

@@ -7,8 +7,7 @@ rotations' weighted, normalised sum (sign-aligned to the first member's), the fo
 predict them.  Two models trained differently fail in different places, so their mean is closer to the motion than
 either.  The fill runtime treats the ensemble as one network: its blend weight per gap length is its most trusted
 member's (the largest of the members' weights; their weighted mean kept less of the better prediction: RESULTS.md
-section 12.8), and the self-check on the user's keys weighs the ensemble's own prediction.
-RESULTS.md section 12.8 measures it.
+section 12.8, which measures it), and the self-check on the user's keys weighs the ensemble's own prediction.
 """
 from __future__ import annotations
 
