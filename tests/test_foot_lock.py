@@ -9,7 +9,7 @@ from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.quaternion import qmul, qnormalize, qrot
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.runtime.foot_lock import legs, lock_feet
+from inbetweening.runtime.foot_lock import PLANTED_REACH, legs, lock_feet, plausible_contacts
 
 SK = Skeleton(NAMES, PARENTS, OFFSETS)
 FEET = [NAMES.index(n) for n in ("LeftFoot", "LeftToe", "RightFoot", "RightToe")]
@@ -122,6 +122,31 @@ def test_a_foot_planted_only_at_the_end_key_blends_in_where_it_goes_on():
     gp0, gp1 = SK.pose(root, q)[1][:, left], SK.pose(root, out)[1][:, left]
     d0, d1 = (np.linalg.norm(g[6:10] - gp0[10], axis=1) for g in (gp0, gp1))
     assert (d1 < d0).all() and np.array_equal(out[[0, 10]], q[[0, 10]])
+
+
+def test_a_predicted_contact_the_leg_cannot_hold_takes_the_fallback():
+    """A predicted contact run is kept where its held foot stays within the leg's reach of the hip; a run held while
+    the body walks away (here the root travels 3 leg lengths over it) takes the fall-back contact, on the ankle and the
+    toe of that leg only."""
+    root, q = _clip(n=40)
+    left, ltoe, right = (NAMES.index(n) for n in ("LeftFoot", "LeftToe", "RightFoot"))
+    predicted = np.zeros((40, len(NAMES)))
+    predicted[5:15, [left, ltoe]] = 1.0  # on the spot: plausible
+    predicted[20:35, [right]] = 1.0
+    fallback = np.full_like(predicted, 0.25)
+    gp = SK.pose(root, q)[1]
+    kept = plausible_contacts(SK, FEET, gp, predicted, fallback)
+    assert np.array_equal(kept, predicted)  # walking on the spot: every run kept
+    leg = np.linalg.norm(OFFSETS[NAMES.index("RightLeg")]) + np.linalg.norm(OFFSETS[right])
+    walked = root.copy()
+    walked[20:35, 0] += np.linspace(0, 3 * leg, 15)  # the body walks away during the right foot's run
+    gp = SK.pose(walked, q)[1]
+    out = plausible_contacts(SK, FEET, gp, predicted, fallback)
+    assert np.array_equal(out[20:35, right], fallback[20:35, right])  # implausible: the fall-back
+    assert np.array_equal(out[:, [left, ltoe]], predicted[:, [left, ltoe]])  # the other leg's runs untouched
+    walked[20:35, 0] = root[20:35, 0] + np.linspace(0, 0.5 * PLANTED_REACH * leg, 15)  # a short step: still reachable
+    out = plausible_contacts(SK, FEET, SK.pose(walked, q)[1], predicted, fallback)
+    assert np.array_equal(out, predicted)
 
 
 @pytest.mark.parametrize("lock", [True, False])

@@ -21,7 +21,10 @@ rotations (and with ``move_root`` the root) of generated frames.
 
 Short gaps (under :data:`SHORT_GAP` frames) of a model with contact channels take the contact the keys say
 (:func:`gap_contacts`) instead of the prediction: with keys every 5 frames the predicted contact raised the joint
-error of the shipped contact model by 3 % (RESULTS.md section 12).
+error of the shipped contact model by 3 % (RESULTS.md section 12).  In longer gaps the prediction is distrusted where
+it is implausible: a predicted contact run whose held foot would be out of the leg's reach from the generated hip
+(:data:`PLANTED_REACH`) takes the rule's contact instead (a model that does not know the motion plants feet the body
+walks away from; the locking then drags the leg, RESULTS.md section 12.9).
 """
 from __future__ import annotations
 
@@ -42,8 +45,9 @@ from inbetweening.data.errors import DatasetError
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["BLEND_FRAMES", "MIN_RUN", "PLANTED_MARGIN", "PLANTED_MAX_GAP", "PLANTED_SPEED", "SHORT_GAP", "ClipFeet", "clip_feet",
-           "contact_rule", "gap_contacts", "key_contacts", "legs", "lock_feet", "lock_gap"]
+__all__ = ["BLEND_FRAMES", "MIN_RUN", "PLANTED_MARGIN", "PLANTED_MAX_GAP", "PLANTED_REACH", "PLANTED_SPEED", "SHORT_GAP",
+           "ClipFeet", "clip_feet", "contact_rule", "gap_contacts", "key_contacts", "legs", "lock_feet", "lock_gap",
+           "plausible_contacts"]
 
 BLEND_FRAMES = 4  # frames over which a lock is blended in and out
 PLANTED_MARGIN = 0.1  # fill contact in longer gaps: a foot within this share of the contact height of its planted level
@@ -51,6 +55,15 @@ PLANTED_SPEED = 3.0  # ... and slower than this many times the contact speed (a 
 PLANTED_MAX_GAP = 20  # ... in gaps shorter than this (in longer ones it held feet that had left, RESULTS.md 12.4)
 MIN_RUN = 3  # detected contact: shorter runs (and shorter holes in a run) are dropped (filled)
 SHORT_GAP = 8  # gaps shorter than this take the keys' contact, not a model's prediction
+PLANTED_REACH = 1.1  # a predicted contact run is kept where its held foot stays within this many leg lengths of the hip
+
+
+def _ancestors(parents: Sequence[int], j: int) -> list[int]:
+    out = []
+    while parents[j] >= 0:
+        j = parents[j]
+        out.append(j)
+    return out
 
 
 def legs(skeleton: Skeleton, feet: Sequence[int]) -> list[tuple[int, int, int]]:
@@ -58,17 +71,9 @@ def legs(skeleton: Skeleton, feet: Sequence[int]) -> list[tuple[int, int, int]]:
     below another one, e.g. the toes under the ankle, belongs to its leg), with its parent and grandparent; a foot
     whose chain reaches the root is skipped."""
     parents = skeleton.parents
-
-    def ancestors(j):
-        out = []
-        while parents[j] >= 0:
-            j = parents[j]
-            out.append(j)
-        return out
-
     chains = []
-    for f in sorted(feet, key=lambda j: len(ancestors(j))):
-        if any(a in ancestors(f) for _, _, a in chains):
+    for f in sorted(feet, key=lambda j: len(_ancestors(parents, j))):
+        if any(a in _ancestors(parents, f) for _, _, a in chains):
             continue  # a toe under an ankle already chosen
         knee = parents[f]
         if knee <= 0 or parents[knee] <= 0:
@@ -231,8 +236,8 @@ def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarra
                  b: int, predicted: np.ndarray | None = None, min_run: int = MIN_RUN) -> np.ndarray:
     """Foot contact ``(b - a - 1, J)`` of the gap between keys ``a`` and ``b``, judged on frames ``a .. b`` and what the
     keys say alone (so a re-fill of some gaps finds in a gap what a fill of every gap finds there): ``predicted``, the
-    model's contact channels there, where it has them and the gap is :data:`SHORT_GAP` frames or longer; else, 1/0 on
-    the feet and 0 elsewhere:
+    model's contact channels there, where it has them and the gap is :data:`SHORT_GAP` frames or longer, but the rule
+    below where they are implausible (:func:`plausible_contacts`); else, 1/0 on the feet and 0 elsewhere:
 
     * a gap whose two keys both have the foot planted within a quarter of the contact height of each other holds it
       planted throughout (the keys say the foot did not leave the ground between them);
@@ -243,8 +248,6 @@ def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarra
       fill slides where the real foot is planted, so the speed rule alone misses most of those frames (RESULTS.md
       section 12.4); in shorter gaps it cost joint error, in longer ones it held feet that had left."""
     n = b - a - 1
-    if predicted is not None and n >= SHORT_GAP:
-        return np.asarray(predicted, np.float64)
     out = np.zeros((n, skeleton.num_joints))
     if n < 1:
         return out
@@ -260,6 +263,26 @@ def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarra
         if feet.held[(a, b)][j]:
             f[:] = True
         out[:, j] = f[1:-1]
+    if predicted is not None and n >= SHORT_GAP:
+        return plausible_contacts(skeleton, feet.feet, gp[1:-1], predicted, out)
+    return out
+
+
+def plausible_contacts(skeleton: Skeleton, feet: Sequence[int], positions: np.ndarray, predicted: np.ndarray,
+                       fallback: np.ndarray) -> np.ndarray:
+    """``predicted (F, J)`` contact, but each run of a leg's ankle above :data:`~inbetweening.data.contacts.
+    CONTACT_THRESHOLD` whose held position (the run's mean ankle position in ``positions (F, J, 3)``) is farther
+    from the hip than :data:`PLANTED_REACH` times the leg's length at some frame of the run: there the leg's
+    joints (the ankle and the foot joints below it) take ``fallback (F, J)`` instead."""
+    out = np.array(predicted, np.float64)
+    parents = skeleton.parents
+    for hip, knee, ankle in legs(skeleton, feet):
+        reach = np.linalg.norm(skeleton.offsets[knee]) + np.linalg.norm(skeleton.offsets[ankle])
+        below = [j for j in feet if j == ankle or ankle in _ancestors(parents, j)]
+        for s, e in _runs(out[:, ankle] > CONTACT_THRESHOLD):
+            hold = positions[s:e, ankle].mean(axis=0)
+            if np.linalg.norm(positions[s:e, hip] - hold, axis=-1).max() > PLANTED_REACH * reach:
+                out[s:e, below] = fallback[s:e, below]
     return out
 
 
