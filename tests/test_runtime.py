@@ -185,9 +185,22 @@ def test_the_self_check_hides_each_interior_key_and_scales_the_gaps_near_it():
 
 
 def test_trust_of_the_self_checks():
-    from inbetweening.runtime.trust import X_FULL, X_NONE, Check, checks_of, gap_weights, trust_of
+    from inbetweening.runtime.trust import (
+        DENSE_GAP,
+        DENSE_X_NONE,
+        X_FULL,
+        X_NONE,
+        Check,
+        checks_of,
+        gap_weights,
+        trust_of,
+    )
 
     assert trust_of(X_FULL) == 1.0 and trust_of(X_NONE) == 0.0 and 0.0 < trust_of((X_FULL + X_NONE) / 2) < 1.0
+    x = (DENSE_X_NONE + X_NONE) / 2  # short gaps are judged more strictly: no trust where a long gap keeps some
+    assert trust_of(x, DENSE_GAP - 1) == 0.0 < trust_of(x, DENSE_GAP) == trust_of(x)
+    short = gap_weights([(0, 4), (4, 8)], [0, 4, 8], [Check(0, 4, 8, x, 1.0)], lambda n: None)
+    assert short[(0, 4)] == (0.0, x)
     assert [c.key for c in checks_of([0, 5, 10, 40, 45, 50], trained_gap=30)] == [5, 45]
     checks = [Check(0, 5, 10, 1.0, 2.0), Check(40, 45, 50, 3.0, 2.0)]
     w = gap_weights([(0, 5), (5, 10), (10, 40), (40, 45), (45, 50)], [0, 5, 10, 40, 45, 50], checks,
