@@ -22,7 +22,9 @@
 # Variables (for a dry run on a CPU machine): PY (python3), TRAINER (gpu), OUT (required), SITE (/tmp/site; SKIP_WHEELS=1
 # skips the install), BN (/tmp/bn), ZIP (/tmp/bn2.zip), RUN (/tmp/v3run; its log $RUN.log), INBETWEENING_CACHE
 # (/tmp/cache), PROBE_STEPS (150), RESUME=1 (part2 on the same warm machine: continue $RUN from its last.ckpt instead of
-# starting afresh, reusing $ZIP; then only .gpu/whl need be carried).
+# starting afresh, reusing $ZIP; then only .gpu/whl need be carried), RECIPE_ARGS (another recipe than v3's, as hydra
+# overrides in one string: RECIPE_ARGS="experiment=bn2_best model.checkpoint_layers=false seed=7" trains the v1
+# recipe with another seed, RESULTS.md section 12.9).
 # As run (device time is short): `part2 4800 calibrate=false`, the do-no-harm blend fitted afterwards on the CPU machine
 # (`python calibrate.py ckpt_path=<best.ckpt> data=bandai_namco`, about 3 min; on the device it would run on its CPU).
 set -euo pipefail
@@ -39,7 +41,9 @@ PFX=Bandai-Namco-Research-Motiondataset-2/data
 export INBETWEENING_CACHE=${INBETWEENING_CACHE:-/tmp/cache}
 export PYTHONPATH=$SITE:src${PYTHONPATH:+:$PYTHONPATH}
 export PYTHONUNBUFFERED=1
-RECIPE=(experiment=bn2_v2 model.checkpoint_layers=false loss.reduce=windows trainer=$TRAINER run_test=false)
+RECIPE=(experiment=bn2_v2 model.checkpoint_layers=false loss.reduce=windows)
+if [[ -n ${RECIPE_ARGS:-} ]]; then read -ra RECIPE <<< "$RECIPE_ARGS"; fi  # another recipe, e.g. the v1 ensemble twin
+RECIPE+=(trainer=$TRAINER run_test=false)
 # display only: Lightning's default (Rich) bar prints nothing until the end when stdout is no terminal; tqdm's prints
 # a line (steps done, steps/s) every 50 steps into the log
 PBAR=('++callbacks.progress_bar={_target_:lightning.pytorch.callbacks.TQDMProgressBar,refresh_rate:50}')
