@@ -14,7 +14,7 @@ from inbetweening.data.bvh import read_bvh
 from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.synthetic import generate_clip, make_bvh
 from inbetweening.runtime import FillRuntime, ModelError
-from inbetweening.runtime.ensemble import EnsembleBackend, ensemble_info, member_weights
+from inbetweening.runtime.ensemble import SHARE_POWER, EnsembleBackend, ensemble_info, member_weights
 from inbetweening.runtime.torch_backend import TorchBackend
 
 
@@ -50,17 +50,19 @@ def test_members_are_weighted_by_their_calibrated_weight_for_the_gap(pair):
     a.info = dataclasses.replace(a.info, blend=(0.9, 0.8, 0.6))
     b.info = dataclasses.replace(b.info, blend=(0.1, 0.2, 0.2))
     ens = EnsembleBackend([a, b])
-    assert np.allclose(member_weights([a.info, b.info], 1), [0.9, 0.1])
-    assert np.allclose(member_weights([a.info, b.info], 7), [0.75, 0.25])  # longer gaps: the tables' last weights
+    assert SHARE_POWER == 3
+    assert np.allclose(member_weights([a.info, b.info], 1), [0.729 / 0.73, 0.001 / 0.73])  # the weights cubed
+    sa, sb = 0.216 / 0.224, 0.008 / 0.224  # longer gaps: the tables' last weights, 0.6 and 0.2, cubed
+    assert np.allclose(member_weights([a.info, b.info], 7), [sa, sb])
     assert ens.info.blend == (0.9, 0.8, 0.6)  # the most trusted member's weight per gap length
     assert ens.info.has_contacts  # a member predicts contact
     root, q, known = _windows(a, gap=3)
     (ra, qa, ca), (rb, qb, cb) = a.predict(root, q, known, None), b.predict(root, q, known, None)
     re, qe, ce = ens.predict(root, q, known, None)
-    assert np.allclose(re, 0.75 * ra + 0.25 * rb)
+    assert np.allclose(re, sa * ra + sb * rb)
     assert ca is None and np.allclose(ce, cb)
     qb_aligned = np.where(np.sum(qa * qb, -1, keepdims=True) < 0, -qb, qb)
-    mean = 0.75 * qa + 0.25 * qb_aligned
+    mean = sa * qa + sb * qb_aligned
     assert np.allclose(qe, mean / np.linalg.norm(mean, axis=-1, keepdims=True))
     assert np.allclose(np.linalg.norm(qe, axis=-1), 1.0)
     assert not np.allclose(re, ra)  # the two networks differ: the test sees the mean

@@ -2,7 +2,8 @@
 
 Each member predicts the same canonical windows; the ensemble's prediction is their mean, each member weighted by
 its calibrated do-no-harm weight for the window's gap length (:meth:`ModelInfo.blend_weight`: how much it beat
-interpolation on validation windows of that length; 1 for a member without a blend): the root's position, the
+interpolation on validation windows of that length; 1 for a member without a blend) raised to :data:`SHARE_POWER`,
+so a member much less trusted at a length has almost no say there (RESULTS.md section 12.9): the root's position, the
 rotations' weighted, normalised sum (sign-aligned to the first member's), the foot contacts of the members that
 predict them.  Two models trained differently fail in different places, so their mean is closer to the motion than
 either.  The fill runtime treats the ensemble as one network: its blend weight per gap length is its most trusted
@@ -18,7 +19,9 @@ import numpy as np
 
 from .model import Backend, ModelError, ModelInfo
 
-__all__ = ["EnsembleBackend", "ensemble_info", "member_weights"]
+__all__ = ["SHARE_POWER", "EnsembleBackend", "ensemble_info", "member_weights"]
+
+SHARE_POWER = 3  # a member's share grows with the cube of its calibrated weight for the gap's length
 
 
 def _same_skeleton(a: ModelInfo, b: ModelInfo) -> bool:
@@ -60,8 +63,8 @@ def _weights(infos: Sequence[ModelInfo], gap: int) -> np.ndarray:
 
 def member_weights(infos: Sequence[ModelInfo], gap: int) -> np.ndarray:
     """``(M,)``: each member's share of the ensemble's prediction in a gap of ``gap`` frames, its calibrated weight
-    for that length normalised to sum 1 (equal shares where every weight is 0)."""
-    w = _weights(infos, gap)
+    for that length to the power :data:`SHARE_POWER`, normalised to sum 1 (equal shares where every weight is 0)."""
+    w = _weights(infos, gap) ** SHARE_POWER
     return w / w.sum() if w.sum() > 0 else np.full(len(w), 1.0 / len(w))
 
 
