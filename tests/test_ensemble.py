@@ -50,9 +50,9 @@ def test_members_are_weighted_by_their_calibrated_weight_for_the_gap(pair):
     a.info = dataclasses.replace(a.info, blend=(0.9, 0.8, 0.6))
     b.info = dataclasses.replace(b.info, blend=(0.1, 0.2, 0.2))
     ens = EnsembleBackend([a, b])
-    assert SHARE_POWER == 3
-    assert np.allclose(member_weights([a.info, b.info], 1), [0.729 / 0.73, 0.001 / 0.73])  # the weights cubed
-    sa, sb = 0.216 / 0.224, 0.008 / 0.224  # longer gaps: the tables' last weights, 0.6 and 0.2, cubed
+    assert SHARE_POWER == 4
+    assert np.allclose(member_weights([a.info, b.info], 1), [0.6561 / 0.6562, 0.0001 / 0.6562])  # weights ** 4
+    sa, sb = 0.1296 / 0.1312, 0.0016 / 0.1312  # longer gaps: the tables' last weights, 0.6 and 0.2, ** 4
     assert np.allclose(member_weights([a.info, b.info], 7), [sa, sb])
     assert ens.info.blend == (0.9, 0.8, 0.6)  # the most trusted member's weight per gap length
     assert ens.info.has_contacts  # a member predicts contact

@@ -146,12 +146,12 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80, conta
 
 
 _MODELS = Path(__file__).resolve().parents[3] / "models"
-SHIPPED_MODELS = (_MODELS / "bn2_reference" / "model.ckpt", _MODELS / "bn2_v2" / "model.ckpt")
+SHIPPED_MODELS = tuple(_MODELS / name / "model.ckpt" for name in ("bn2_reference", "bn2_twin", "bn2_v2"))
 
 
 def default_checkpoint() -> list[str] | None:
-    """The shipped ensemble (``models/bn2_reference`` and ``models/bn2_v2`` of a source checkout, RESULTS.md section
-    12.8), ``None`` when absent (an installed package without the repository)."""
+    """The shipped ensemble (``models/bn2_reference``, ``models/bn2_twin`` and ``models/bn2_v2`` of a source checkout,
+    RESULTS.md sections 12.8 and 12.9), ``None`` when absent (an installed package without the repository)."""
     return [str(p) for p in SHIPPED_MODELS] if all(p.is_file() for p in SHIPPED_MODELS) else None
 
 

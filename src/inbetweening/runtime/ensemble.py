@@ -2,7 +2,7 @@
 
 Each member predicts the same canonical windows; the ensemble's prediction is their mean, each member weighted by
 its calibrated do-no-harm weight for the window's gap length (:meth:`ModelInfo.blend_weight`: how much it beat
-interpolation on validation windows of that length; 1 for a member without a blend) raised to :data:`SHARE_POWER`,
+interpolation on validation windows of that length; 1 for a member without a blend) raised to the power :data:`SHARE_POWER`,
 so a member much less trusted at a length has almost no say there (RESULTS.md section 12.9): the root's position, the
 rotations' weighted, normalised sum (sign-aligned to the first member's), the foot contacts of the members that
 predict them.  Two models trained differently fail in different places, so their mean is closer to the motion than
@@ -21,7 +21,7 @@ from .model import Backend, ModelError, ModelInfo
 
 __all__ = ["SHARE_POWER", "EnsembleBackend", "ensemble_info", "member_weights"]
 
-SHARE_POWER = 3  # a member's share grows with the cube of its calibrated weight for the gap's length
+SHARE_POWER = 4  # a member's share grows with the fourth power of its calibrated weight for the gap's length
 
 
 def _same_skeleton(a: ModelInfo, b: ModelInfo) -> bool:
