@@ -25,9 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
+from inbetweening.data.specs import BN_CONTENTS
+from inbetweening.data.specs import BN_TEST_CONTENTS as CONTENT_TEST
+from inbetweening.evaluation.keyframes import WORSE
+
 SCHEDULES = ["5", "15", "30", "45", "random", "extremes"]
 GRID = np.linspace(0.0, 1.0, 11)
-CONTENT_TEST = ("run", "wave-both-hands")
 
 
 def collect(ckpts: str, split: str, n_clips: int, out: str) -> None:
@@ -103,8 +106,6 @@ def collect(ckpts: str, split: str, n_clips: int, out: str) -> None:
 
 # ---------------------------------------------------------------------------------------------------- report
 def content_of(name: str) -> str:
-    from inbetweening.data.specs import BN_CONTENTS
-
     return max((c for c in BN_CONTENTS if f"_{c}_" in str(name)), key=len)
 
 
@@ -130,7 +131,7 @@ def score(d: dict, w: np.ndarray) -> list[tuple[float, float]]:
         m = d["sched"] == s
         _, inv = np.unique(np.char.add(d["src"][m].astype(str), d["clip"][m].astype(str)), return_inverse=True)
         r = np.bincount(inv, e[m]) / np.maximum(np.bincount(inv, e0[m]), 1e-9)
-        out.append((e[m].sum() / e0[m].sum(), 100 * float(np.mean(r > 1.05))))
+        out.append((e[m].sum() / e0[m].sum(), 100 * float(np.mean(r > WORSE))))
     return out
 
 
