@@ -106,6 +106,51 @@ def test_a_run_between_two_keys_moves_from_one_key_to_the_other():
     assert reached.all() and np.array_equal(out[known], q[known])
 
 
+def test_a_held_toe_stays_still_with_or_without_its_ankle():
+    """A planted toe is held as an ankle is: with its heel up (the toe alone planted) the leg carries the foot, as
+    generated, so the toe sits at its hold; with the ankle planted too the foot turns about the held ankle to point
+    the toe at its hold.  Keys stay exact; the other leg is untouched.  A toe run the body walks away from (the foot,
+    carried to the toe's hold, out of the leg's reach) is not held."""
+    root, q = _clip(seed=3)
+    known = [0, 30, 59]
+    left, ltoe = NAMES.index("LeftFoot"), NAMES.index("LeftToe")
+    _, gp0 = SK.pose(root, q)
+    for ankle_too in (False, True):
+        contact = np.zeros((60, len(NAMES)))
+        contact[8:20, ltoe] = 1.0
+        if ankle_too:
+            contact[8:20, left] = 1.0
+        new_root, out = lock_feet(SK, root, q, known, contact, FEET)
+        gp = SK.pose(new_root, out)[1]
+        toe = gp[8:20, ltoe]
+        assert np.abs(toe - toe.mean(axis=0)).max() < 1e-3  # the toe held still over its run
+        hold = gp0[8:20, ltoe].mean(axis=0)  # the run's mean, or the direction towards it from the held ankle
+        if ankle_too:
+            ankle = gp[8:20, left]
+            assert np.abs(ankle - ankle.mean(axis=0)).max() < 1e-3
+            aim, want = toe[0] - ankle[0], hold - ankle[0]
+            assert np.allclose(aim / np.linalg.norm(aim), want / np.linalg.norm(want), atol=1e-6)
+        else:
+            assert np.allclose(toe[0], hold, atol=1e-3)
+        assert np.array_equal(out[known], q[known])
+        right_leg = [NAMES.index(n) for n in ("RightUpLeg", "RightLeg", "RightFoot")]
+        assert np.array_equal(out[:, right_leg], q[:, right_leg])
+    contact = np.zeros((60, len(NAMES)))
+    contact[8:20, ltoe] = 1.0
+    leg = np.linalg.norm(OFFSETS[NAMES.index("LeftLeg")]) + np.linalg.norm(OFFSETS[left])
+    walked = root.copy()
+    walked[8:20, 0] += np.linspace(0, 3 * leg, 12)  # the body walks away from the toe: out of the leg's reach
+    assert np.array_equal(lock_feet(SK, walked, q, known, contact, FEET)[1], q)  # not held: the fill as it was
+    walked[8:20, 0] = root[8:20, 0] + np.linspace(0, 0.2 * PLANTED_REACH * leg, 12)  # a short step: held
+    toe = SK.pose(*lock_feet(SK, walked, q, known, contact, FEET))[1][8:20, ltoe]
+    assert np.abs(toe - toe.mean(axis=0)).max() < 1e-3
+    free = np.zeros((60, len(NAMES)))
+    free[8:20, left] = 1.0  # the ankle alone: the foot keeps its global rotation (the toe follows it)
+    gq0 = SK.pose(root, q)[0]
+    gq = SK.pose(*lock_feet(SK, root, q, known, free, FEET))[0]
+    assert np.allclose(np.abs((gq[8:20, left] * gq0[8:20, left]).sum(-1)), 1.0, atol=1e-9)
+
+
 def test_a_foot_planted_only_at_the_end_key_blends_in_where_it_goes_on():
     """One gap, its end key the only planted frame: the lock leaves the gap alone unless ``ends`` says the foot stays
     planted beyond that key (the keys of the next gap hold it down); then the frames before it are pulled towards it."""

@@ -8,16 +8,28 @@ the keys' body height).
 
 The runtime locks each gap as soon as it is generated, between its two keys, so the next gap's context holds planted
 feet and a re-fill of some gaps locks them as a fill of every gap does.  For each leg (a foot joint of the data's
-:class:`~inbetweening.data.contacts.FootContact` whose parent and grandparent are the knee and the hip; the other foot
-joints of the leg, e.g. the toes, follow it), the frames where the predicted contact of that joint is above one half
-form *contact runs*.  In a run the ankle is held at one position: a keyframe's where the run holds one (so the locked
+:class:`~inbetweening.data.contacts.FootContact` whose parent and grandparent are the knee and the hip) and each of
+its foot joints (the ankle and those below it, e.g. the toes), the frames where that joint's contact is above one half
+form *contact runs*.  In a run the joint is held at one position: a keyframe's where the run holds one (so the locked
 foot meets the key exactly; between two keys of a run it moves straight from one key's position to the other's), else
-the mean of the generated positions.  The leg is solved with a two-bone IK (:func:`inbetweening.geometry.ik.two_bone_ik`)
-so the ankle reaches it, the foot keeping its global rotation; over ``blend`` frames on each side of a run the target
-is blended from the generated position to the locked one.  Optionally (``move_root``), where a locked ankle is out of
-the leg's reach from the generated hip, the root of that frame is moved by the shortfall (the legs' mean, smoothed over
-``blend`` frames either side) before the legs are solved.  Keyframes are never changed: only the hip, knee and ankle
-rotations (and with ``move_root`` the root) of generated frames.
+the mean of the generated positions; over ``blend`` frames on each side of a run the target is blended from the
+generated position to the held one.
+
+* The leg is solved with a two-bone IK (:func:`inbetweening.geometry.ik.two_bone_ik`) so the ankle reaches its target,
+  the foot keeping its global rotation.
+* Where a toe is held more than its ankle (the heel up), the rest of the ankle's target is where the generated foot,
+  moved so its toe sits at the toe's hold, puts the ankle; then, wherever a toe is held, the foot is turned about the
+  ankle to point the toe at its hold.  Without this the feet turned on their held toes and slid them 4-5 cm/s on
+  Bandai-Namco-2 (RESULTS.md section 12.10).  A toe run is held only where that carried ankle stays within
+  :data:`PLANTED_REACH` leg lengths of the generated hip (beyond, on motions the model never saw, the wrongly held toes
+  cost joint error), and only in gaps of :data:`SHORT_GAP` frames or longer (with keys every 5 frames it cost 0.5 %
+  of joint error for 0.8 cm/s less skating).
+* Optionally (``move_root``), where a locked ankle is out of the leg's reach from the generated hip, the root of that
+  frame is moved by the shortfall (the legs' mean, smoothed over ``blend`` frames either side) before the legs are
+  solved.
+
+Keyframes are never changed: only the hip, knee and ankle rotations (and with ``move_root`` the root) of generated
+frames.
 
 Short gaps (under :data:`SHORT_GAP` frames) of a model with contact channels take the contact the keys say
 (:func:`gap_contacts`) instead of the prediction: with keys every 5 frames the predicted contact raised the joint
@@ -28,7 +40,7 @@ walks away from; the locking then drags the leg, RESULTS.md section 12.9).
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,6 +55,7 @@ from inbetweening.data.contacts import (
 )
 from inbetweening.data.errors import DatasetError
 from inbetweening.geometry.ik import two_bone_ik
+from inbetweening.geometry.quaternion import qinv, qmul, qswing
 from inbetweening.geometry.skeleton import Skeleton
 
 __all__ = ["BLEND_FRAMES", "MIN_RUN", "PLANTED_MARGIN", "PLANTED_MAX_GAP", "PLANTED_REACH", "PLANTED_SPEED", "SHORT_GAP",
@@ -55,7 +68,7 @@ PLANTED_SPEED = 3.0  # ... and slower than this many times the contact speed (a 
 PLANTED_MAX_GAP = 20  # ... in gaps shorter than this (in longer ones it held feet that had left, RESULTS.md 12.4)
 MIN_RUN = 3  # detected contact: shorter runs (and shorter holes in a run) are dropped (filled)
 SHORT_GAP = 8  # gaps shorter than this take the keys' contact, not a model's prediction
-PLANTED_REACH = 1.1  # a predicted contact run is kept where its held foot stays within this many leg lengths of the hip
+PLANTED_REACH = 1.1  # a contact run is kept where its held foot stays within this many leg lengths of the hip
 
 
 def _ancestors(parents: Sequence[int], j: int) -> list[int]:
@@ -108,13 +121,65 @@ def _reach_shift(skeleton: Skeleton, gp: np.ndarray, plans: list, n: int, blend:
     return np.stack([np.convolve(wide[:, i], kernel, mode="same") for i in range(3)], axis=-1)
 
 
+def _hold(planted: np.ndarray, pos: np.ndarray, generated: np.ndarray, keys: np.ndarray, go_on: tuple[bool, bool],
+          blend: int, keep: Callable[[int, int, np.ndarray], bool] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(target (F, 3), weight (F,))`` of one foot joint planted at ``planted (F,)``, at ``pos (F, 3)``: in each run
+    (one with a generated frame, or going on beyond the span, ``go_on``) the keys' positions where it holds keys (held
+    before the first and after the last), else the run's mean, weight 1; blended out over ``blend`` frames each side.
+    ``keep(start, stop, hold)``: whether to hold a run at ``hold (stop - start, 3)`` (default: every run)."""
+    n = len(planted)
+    planted = planted.copy()
+    holds = []
+    for s, e in _runs(planted):
+        if not generated[s:e].any() and not ((s == 0 and go_on[0]) or (e == n and go_on[1])):
+            continue
+        inside = keys[(keys >= s) & (keys < e)]
+        if len(inside):
+            frames = np.arange(s, e)
+            hold = np.stack([np.interp(frames, inside, pos[inside, i]) for i in range(3)], axis=-1)
+        else:
+            hold = np.broadcast_to(pos[s:e].mean(axis=0), (e - s, 3))
+        if keep is None or keep(s, e, hold):
+            holds.append((s, e, hold))
+        else:
+            planted[s:e] = False
+    target, weight = np.full((n, 3), np.nan), np.zeros(n)
+    for s, e, hold in holds:
+        target[s:e], weight[s:e] = hold, 1.0
+        for d in range(1, blend + 1):
+            w = 1.0 - d / (blend + 1)
+            for t, h in ((s - d, hold[0]), (e - 1 + d, hold[-1])):
+                if 0 <= t < n and not planted[t] and w > weight[t]:
+                    target[t], weight[t] = h, w
+    return target, weight
+
+
+def _planted(contact: np.ndarray, j: int) -> np.ndarray:
+    return np.nan_to_num(contact[:, j], nan=0.0) > CONTACT_THRESHOLD
+
+
+def _carried_within(gp: np.ndarray, hip: int, ankle: int, toe: int, reach: float) -> Callable:
+    """``keep`` of :func:`_hold` for a toe: a run is held where the generated foot, carried so that the toe sits at its
+    hold, keeps its ankle within ``reach`` of the generated hip (``gp (F, J, 3)``) at every frame."""
+    def keep(s: int, e: int, at: np.ndarray) -> bool:
+        ankle_at = gp[s:e, ankle] + at - gp[s:e, toe]
+        return bool(np.linalg.norm(ankle_at - gp[s:e, hip], axis=-1).max() <= reach)
+    return keep
+
+
+def _pull(pos: np.ndarray, target: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """``weight`` of the way from ``pos (F, 3)`` to ``target (F, 3)`` (NaN where the weight is 0)."""
+    return weight[:, None] * (np.nan_to_num(target) - pos)
+
+
 def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_frames: Sequence[int],
               contact: np.ndarray, feet: Sequence[int], blend: int = BLEND_FRAMES,
-              move_root: bool = False, ends: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+              move_root: bool = False, ends: np.ndarray | None = None, toes: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """``(root (F, 3), local_q (F, J, 4))`` with the feet locked (module docstring); ``contact (F, J)`` (contact in
     [0, 1]; keyframes: their own), ``feet``: foot joint indices; ``move_root``: move the root where a locked ankle is
     out of reach (off by default: on Bandai-Namco-2 it raised the joint error at every schedule and did not lower the
-    skating, RESULTS.md section 12).  Returns new arrays; the keyframes' rows are the input's."""
+    skating, RESULTS.md section 12); ``toes``: hold the planted foot joints below the ankles too (off: the ankles
+    alone, the foot keeping its global rotation).  Returns new arrays; the keyframes' rows are the input's."""
     q = np.array(local_q, dtype=np.float64)
     root_out = np.array(root, dtype=np.float64)
     n = len(root)
@@ -123,40 +188,39 @@ def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_f
     generated[list(known_frames)] = False
     keys = np.flatnonzero(~generated)
     gq, gp = skeleton.pose(root_out, q)
-    plans = []
+    parents = skeleton.parents
+    plans, aims = [], []
     for hip, knee, ankle in legs(skeleton, feet):
-        planted = np.nan_to_num(contact[:, ankle], nan=0.0) > CONTACT_THRESHOLD
-        target = np.full((n, 3), np.nan)
-        weight = np.zeros(n)
-        for s, e in _runs(planted):
-            if not generated[s:e].any() and not ((s == 0 and go_on[0, ankle]) or (e == n and go_on[1, ankle])):
+        reach = PLANTED_REACH * (np.linalg.norm(skeleton.offsets[knee]) + np.linalg.norm(skeleton.offsets[ankle]))
+        target, weight = _hold(_planted(contact, ankle), gp[:, ankle], generated, keys, go_on[:, ankle], blend)
+        shift = _pull(gp[:, ankle], target, weight)
+        for toe in (j for j in feet if toes and ankle in _ancestors(parents, j)):  # a held toe carries its foot
+            t_target, t_weight = _hold(_planted(contact, toe), gp[:, toe], generated, keys, go_on[:, toe], blend,
+                                       _carried_within(gp, hip, ankle, toe, reach))
+            if not (t_weight[generated] > 0).any():
                 continue
-            inside = keys[(keys >= s) & (keys < e)]
-            if len(inside):  # through the keys' own positions (held before the first and after the last)
-                frames = np.arange(s, e)
-                hold = np.stack([np.interp(frames, inside, gp[inside, ankle, i]) for i in range(3)], axis=-1)
-            else:
-                hold = np.broadcast_to(gp[s:e, ankle].mean(axis=0), (e - s, 3))
-            target[s:e], weight[s:e] = hold, 1.0
-            for d in range(1, blend + 1):
-                w = 1.0 - d / (blend + 1)
-                for t, h in ((s - d, hold[0]), (e - 1 + d, hold[-1])):
-                    if 0 <= t < n and not planted[t] and w > weight[t]:
-                        target[t], weight[t] = h, w
+            toe_goal = gp[:, toe] + _pull(gp[:, toe], t_target, t_weight)
+            shift += (1.0 - weight)[:, None] * (toe_goal - gp[:, toe])
+            weight = np.maximum(weight, t_weight)
+            frames = np.flatnonzero(generated & (t_weight > 0))
+            aims.append((ankle, toe, frames, toe_goal[frames]))
         frames = np.flatnonzero(generated & (weight > 0))
         if len(frames):
-            goal = gp[frames, ankle] + weight[frames, None] * (target[frames] - gp[frames, ankle])
-            plans.append((hip, knee, ankle, frames, goal))
+            plans.append((hip, knee, ankle, frames, gp[frames, ankle] + shift[frames]))
     shift = _reach_shift(skeleton, gp, plans, n, blend) if move_root else np.zeros((n, 3))
     shift[~generated] = 0.0
     if np.abs(shift).max(initial=0.0) > 0:
         root_out += shift
         gq, gp = skeleton.pose(root_out, q)
     for hip, knee, ankle, frames, goal in plans:
-        parent = skeleton.parents[hip]
+        parent = parents[hip]
         h, k, a = two_bone_ik(gp[frames, hip], gp[frames, knee], gp[frames, ankle], goal, gq[frames, hip],
                               gq[frames, knee], gq[frames, ankle], gq[frames, parent])
         q[frames, hip], q[frames, knee], q[frames, ankle] = h, k, a
+    for ankle, toe, frames, goal in aims:  # then each held toe: the foot turned about its ankle to point it there
+        gq, gp = skeleton.pose(root_out, q)
+        turn = qswing(gp[frames, toe] - gp[frames, ankle], goal - gp[frames, ankle])
+        q[frames, ankle] = qmul(qinv(gq[frames, parents[ankle]]), qmul(turn, gq[frames, ankle]))
     q[keys] = local_q[keys]
     root_out[keys] = np.asarray(root)[keys]
     return root_out, q
@@ -223,12 +287,12 @@ def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.nda
 def lock_gap(skeleton: Skeleton, feet: ClipFeet, root: np.ndarray, local_q: np.ndarray, contact: np.ndarray, a: int,
              b: int, fixed: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Frames ``a + 1 .. b - 1`` of ``root (F, 3)``, ``local_q (F, J, 4)`` with the feet of the gap between keys ``a``
-    and ``b`` locked on ``contact (F, J)`` (:func:`lock_feet`, between the keys as given; ``fixed``: frames inside
-    the gap never moved, e.g. partial keys)."""
+    and ``b`` locked on ``contact (F, J)`` (:func:`lock_feet`, between the keys as given, the toes held in gaps of
+    :data:`SHORT_GAP` frames or longer; ``fixed``: frames inside the gap never moved, e.g. partial keys)."""
     r, q = np.array(root[a : b + 1], np.float64), np.array(local_q[a : b + 1], np.float64)
     (r[0], q[0]), (r[-1], q[-1]) = feet.key_pose[a], feet.key_pose[b]
     r, q = lock_feet(skeleton, r, q, [0, b - a] + [t - a for t in fixed], contact[a : b + 1], feet.feet,
-                     ends=feet.ends[(a, b)])
+                     ends=feet.ends[(a, b)], toes=b - a - 1 >= SHORT_GAP)
     return r[1:-1], q[1:-1]
 
 
