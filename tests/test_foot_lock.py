@@ -144,6 +144,7 @@ def test_a_held_toe_stays_still_with_or_without_its_ankle():
     walked[8:20, 0] = root[8:20, 0] + np.linspace(0, 0.2 * PLANTED_REACH * leg, 12)  # a short step: held
     toe = SK.pose(*lock_feet(SK, walked, q, known, contact, FEET))[1][8:20, ltoe]
     assert np.abs(toe - toe.mean(axis=0)).max() < 1e-3
+    assert np.array_equal(lock_feet(SK, walked, q, known, contact, FEET, toes=False)[1], q)  # the ankles alone
     free = np.zeros((60, len(NAMES)))
     free[8:20, left] = 1.0  # the ankle alone: the foot keeps its global rotation (the toe follows it)
     gq0 = SK.pose(root, q)[0]
