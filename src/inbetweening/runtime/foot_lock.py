@@ -22,7 +22,8 @@ generated position to the held one.
   ankle to point the toe at its hold.  Without this the feet turned on their held toes and slid them 4-5 cm/s on
   Bandai-Namco-2 (RESULTS.md section 12.10).  A toe run is held only where that carried ankle stays within
   :data:`PLANTED_REACH` leg lengths of the generated hip (beyond, on motions the model never saw, the wrongly held toes
-  cost joint error).
+  cost joint error), and only in gaps of :data:`SHORT_GAP` frames or longer (in shorter ones it cost the standard
+  split and the held-out walks joint error).
 * Optionally (``move_root``), where a locked ankle is out of the leg's reach from the generated hip, the root of that
   frame is moved by the shortfall (the legs' mean, smoothed over ``blend`` frames either side) before the legs are
   solved.
@@ -286,12 +287,12 @@ def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.nda
 def lock_gap(skeleton: Skeleton, feet: ClipFeet, root: np.ndarray, local_q: np.ndarray, contact: np.ndarray, a: int,
              b: int, fixed: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Frames ``a + 1 .. b - 1`` of ``root (F, 3)``, ``local_q (F, J, 4)`` with the feet of the gap between keys ``a``
-    and ``b`` locked on ``contact (F, J)`` (:func:`lock_feet`, between the keys as given; ``fixed``: frames inside
-    the gap never moved, e.g. partial keys)."""
+    and ``b`` locked on ``contact (F, J)`` (:func:`lock_feet`, between the keys as given, the toes held in gaps of
+    :data:`SHORT_GAP` frames or longer; ``fixed``: frames inside the gap never moved, e.g. partial keys)."""
     r, q = np.array(root[a : b + 1], np.float64), np.array(local_q[a : b + 1], np.float64)
     (r[0], q[0]), (r[-1], q[-1]) = feet.key_pose[a], feet.key_pose[b]
     r, q = lock_feet(skeleton, r, q, [0, b - a] + [t - a for t in fixed], contact[a : b + 1], feet.feet,
-                     ends=feet.ends[(a, b)])
+                     ends=feet.ends[(a, b)], toes=b - a - 1 >= SHORT_GAP)
     return r[1:-1], q[1:-1]
 
 
