@@ -168,7 +168,7 @@ def _carried_within(gp: np.ndarray, hip: int, ankle: int, toe: int, reach: float
 
 
 def _pull(pos: np.ndarray, target: np.ndarray, weight: np.ndarray) -> np.ndarray:
-    """``weight`` of the way from ``pos (F, 3)`` to ``target (F, 3)`` (NaN where the weight is 0)."""
+    """``weight`` of the way from ``pos (F, 3)`` to ``target (F, 3)`` (``target`` may be NaN where the weight is 0)."""
     return weight[:, None] * (np.nan_to_num(target) - pos)
 
 
@@ -194,7 +194,8 @@ def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_f
         reach = PLANTED_REACH * (np.linalg.norm(skeleton.offsets[knee]) + np.linalg.norm(skeleton.offsets[ankle]))
         target, weight = _hold(_planted(contact, ankle), gp[:, ankle], generated, keys, go_on[:, ankle], blend)
         shift = _pull(gp[:, ankle], target, weight)
-        for toe in (j for j in feet if toes and ankle in _ancestors(parents, j)):  # a held toe carries its foot
+        below = [j for j in feet if ankle in _ancestors(parents, j)] if toes else []
+        for toe in below:  # a held toe carries its foot
             t_target, t_weight = _hold(_planted(contact, toe), gp[:, toe], generated, keys, go_on[:, toe], blend,
                                        _carried_within(gp, hip, ankle, toe, reach))
             if not (t_weight[generated] > 0).any():
