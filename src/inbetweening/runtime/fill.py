@@ -42,7 +42,7 @@ from inbetweening.geometry.interp import interpolate_keyframes, interpolate_know
 from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities
 
 from .foot_lock import ClipFeet, clip_feet, gap_contacts, lock_gap
-from .model import Backend, InbetweenError, ModelInfo
+from .model import Backend, InbetweenError
 from .partial import check_partial, known_values
 from .plan import GapPlan, check_keys, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
 from .rig_fill import RigFilled, fill_rig
@@ -123,13 +123,9 @@ class FillRuntime:
 
     def __init__(self, backend: Backend, *, max_gap: int | None = None, segment: bool = True, foot_lock: bool = True,
                  batch_size: int = 4, self_check: bool = True):
-        self.backend = backend
-        self.info: ModelInfo = backend.info
-        self.max_gap = self.check_max_gap(max_gap)
-        self.segment = bool(segment)
-        self.foot_lock = bool(foot_lock)
-        self.batch_size = _check_batch_size(batch_size)
-        self.self_check = bool(self_check)
+        self.backend, self.info = backend, backend.info  # info: ModelInfo
+        self.max_gap, self.segment, self.foot_lock = self.check_max_gap(max_gap), bool(segment), bool(foot_lock)
+        self.batch_size, self.self_check = _check_batch_size(batch_size), bool(self_check)
 
     def check_max_gap(self, max_gap: int | None) -> int:
         """``max_gap`` checked against the network (default: the model's ``trained_gap``)."""
@@ -379,10 +375,13 @@ class FillRuntime:
         contact, feet = None, []
         if c.feet is not None:
             feet, contact = list(c.feet.feet), c.planted.copy()
-        for a, b in sorted(set(key_gaps(keys)) - set(c.generated)):
+        gaps, lo, hi = sorted(set(key_gaps(keys)) - set(c.generated)), keys[0], keys[-1] + 1
+        gp = info.skeleton.pose(root[lo:hi], q[lo:hi])[1] if gaps and c.feet is not None else None  # one FK for all
+        for a, b in gaps:
             kept[a + 1 : b] = True
-            if c.feet is not None:
-                contact[a + 1 : b] = gap_contacts(info.skeleton, c.feet, info.fps, root, q, a, b)
+            if gp is not None:
+                contact[a + 1 : b] = gap_contacts(info.skeleton, c.feet, info.fps, root, q, a, b,
+                                                  positions=gp[a - lo : b - lo + 1])
         locked = lock and c.feet is not None
         if file_frame and not info.convention.is_project:
             root, q = info.convention.to_file(root, q)

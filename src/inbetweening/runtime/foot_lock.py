@@ -298,8 +298,10 @@ def lock_gap(skeleton: Skeleton, feet: ClipFeet, root: np.ndarray, local_q: np.n
 
 
 def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarray, local_q: np.ndarray, a: int,
-                 b: int, predicted: np.ndarray | None = None, min_run: int = MIN_RUN) -> np.ndarray:
-    """Foot contact ``(b - a - 1, J)`` of the gap between keys ``a`` and ``b``, judged on frames ``a .. b`` and what the
+                 b: int, predicted: np.ndarray | None = None, min_run: int = MIN_RUN,
+                 positions: np.ndarray | None = None) -> np.ndarray:
+    """Foot contact ``(b - a - 1, J)`` of the gap between keys ``a`` and ``b``, judged on frames ``a .. b`` (``positions
+    (b - a + 1, J, 3)``: their joints' global positions where the caller has them) and what the
     keys say alone (so a re-fill of some gaps finds in a gap what a fill of every gap finds there): ``predicted``, the
     model's contact channels there, where it has them and the gap is :data:`SHORT_GAP` frames or longer, but the rule
     below where they are implausible (:func:`plausible_contacts`); else, 1/0 on the feet and 0 elsewhere:
@@ -317,7 +319,8 @@ def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarra
     if n < 1:
         return out
     rule = feet.rule
-    gp = skeleton.pose(np.asarray(root[a : b + 1], np.float64), np.asarray(local_q[a : b + 1], np.float64))[1]
+    gp = positions if positions is not None else skeleton.pose(np.asarray(root[a : b + 1], np.float64),
+                                                               np.asarray(local_q[a : b + 1], np.float64))[1]
     for j in feet.feet:
         seg = gp[:, j : j + 1]
         f = planted_frames(seg, fps, rule.height, rule.speed)[:, 0]
