@@ -21,7 +21,7 @@ from inbetweening.geometry.quaternion import euler_to_quat_np
 pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parents[1]
-CKPTS = [REPO / "models" / name / "model.ckpt" for name in ("bn2_partial", "bn2_v2")]  # the bundled ensemble (build.py)
+CKPTS = [REPO / "models" / name / "model.ckpt" for name in ("bn2_partial", "bn2_partial_twin", "bn2_v2")]  # bundled
 CKPT = CKPTS[0]
 BN2 = Path(os.environ.get("BANDAI_NAMCO_PATH", REPO.parent / "shared" / "datasets" / "bandai-namco-2.zip"))
 BN2_CLIP = "Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk-turn-right_active_026.bvh"
@@ -69,7 +69,8 @@ def bpy_exe():
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     out = tmp_path_factory.mktemp("dist")
-    proc = subprocess.run([sys.executable, "-m", "inbetweening.blender", "build", str(out), f"ckpt_path=[{CKPT},{CKPTS[1]}]",
+    ckpts = ",".join(map(str, CKPTS))
+    proc = subprocess.run([sys.executable, "-m", "inbetweening.blender", "build", str(out), f"ckpt_path=[{ckpts}]",
                            "platforms=linux-x64,windows-x64,macos-arm64"], capture_output=True, text=True,
                           env={**os.environ, "OMP_NUM_THREADS": "1"})
     assert proc.returncode == 0, proc.stderr[-2000:]
@@ -331,7 +332,7 @@ def test_animator_loop_in_blender(bpy_exe, built, tmp_path):
 
 @pytest.mark.skipif(not BN2.is_file(), reason="Bandai-Namco-2 zip not available")
 def test_a_changed_share_refills_gaps_left_of_the_key_in_blender(bpy_exe, built, tmp_path):
-    """A Bandai-Namco-2 walk keyed every 10 frames, filled (the network trusted: 90 %); the hips of key 71 turned by
+    """A Bandai-Namco-2 walk keyed every 10 frames, filled (the network fully trusted: 100 %); the hips of key 71 turned by
     1.5 rad: the self-checks at 61, 71 and 81 change and so do the shares of the gaps within three gaps of them, so the
     re-fill starts three gaps left of the key's own (31-41) and runs to the end (each gap's context is the one
     before); the gaps before 31 are kept bit for bit, and the re-fill is a fill of every gap.  (The bundled ensemble
@@ -342,14 +343,14 @@ def test_a_changed_share_refills_gaps_left_of_the_key_in_blender(bpy_exe, built,
     r = run_loop(bpy_exe, next(built.glob("*-linux-x64.zip")), tmp_path / "clip.bvh", tmp_path / "loop",
                  weights=str(tmp_path / "clip.bvh"), turn=1.5, only_panel=True)["weights"]
     lines = r["panel_first"][1:]
-    assert r["first"]["gaps"] == 12 and [x for x in lines if "network" in x] == [f"{a}–{a + 10}: network 90 %"
+    assert r["first"]["gaps"] == 12 and [x for x in lines if "network" in x] == [f"{a}–{a + 10}: network 100 %"
                                                                               for a in range(1, 112, 10)]
     feet = [x for x in lines if x.startswith("feet planted: ")]  # the walk's planted feet (the predicted contact)
     assert len(feet) == 12 and sum(x != "feet planted: L none · R none" for x in feet) >= 4
     assert r["refill"]["refilled"] == [[a, a + 10] for a in range(31, 112, 10)] and r["refill"]["kept"] == 3
     shares = {line.split(":")[0]: line for line in r["panel"][1:]}
-    assert all(shares[f"{a}–{a + 10}"].endswith("network 90 %  (kept)") for a in (1, 11, 21))
-    assert all(not shares[f"{a}–{a + 10}"].endswith("network 90 %") for a in (31, 41, 51))  # left of 61-71: changed
+    assert all(shares[f"{a}–{a + 10}"].endswith("network 100 %  (kept)") for a in (1, 11, 21))
+    assert all(not shares[f"{a}–{a + 10}"].endswith("network 100 %") for a in (31, 41, 51))  # left of 61-71: changed
     assert r["kept_same"] and r["full"]["gaps"] == 12 and r["partial_vs_full"] < 1e-3
 
 

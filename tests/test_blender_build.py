@@ -1,8 +1,8 @@
 """The Blender extension without Blender: the build command's argument errors, the models it bundles (by default the
-ensemble of bn2_partial and bn2_v2) and the model the extension fills with (:func:`load_model`: their ensemble, or a
-user's model file alone), the runtime wheel it bundles (the project's own runtime modules, importable and filling
-without PyTorch), and what the extension's sources import.  The ONNX backend against the torch one:
-tests/test_runtime_backends.py."""
+shipped ensemble of bn2_partial, bn2_partial_twin and bn2_v2) and the model the extension fills with
+(:func:`load_model`: their ensemble, or a user's model file alone), the runtime wheel it bundles (the project's own
+runtime modules, importable and filling without PyTorch), and what the extension's sources import.  The ONNX backend
+against the torch one: tests/test_runtime_backends.py."""
 from __future__ import annotations
 
 import ast
@@ -21,7 +21,7 @@ import torch
 from inbetweening.predictor import masks
 
 REPO = Path(__file__).resolve().parents[1]
-CKPTS = [REPO / "models" / name / "model.ckpt" for name in ("bn2_partial", "bn2_v2")]  # the bundled ensemble
+CKPTS = [REPO / "models" / name / "model.ckpt" for name in ("bn2_partial", "bn2_partial_twin", "bn2_v2")]  # bundled
 CKPT = CKPTS[0]
 EXT = REPO / "src" / "inbetweening" / "blender" / "extension"
 
@@ -140,25 +140,26 @@ def built(tmp_path_factory):
     return zip_path, out / "ext"
 
 
-def test_the_build_bundles_both_members_and_says_so(built):
+def test_the_build_bundles_every_member_and_says_so(built):
     from inbetweening.blender.build import DEFAULT_CKPTS
 
     zip_path, ext = built
     assert [Path(c) for c in DEFAULT_CKPTS] == [c.relative_to(REPO) for c in CKPTS]
     names = set(zipfile.ZipFile(zip_path).namelist())
-    assert {f"model/{f}" for f in ("model.onnx", "model.json", "model_2.onnx", "model_2.json", "models.json")} <= names
+    assert {f"model/{f}" for f in ("model.onnx", "model.json", "model_2.onnx", "model_2.json", "model_3.onnx",
+                                   "model_3.json", "models.json")} <= names
     index = json.loads((ext / "model" / "models.json").read_text())
     assert index["fill"] == "ensemble"
     members = index["members"]
-    assert [m["onnx"] for m in members] == ["model.onnx", "model_2.onnx"]
+    assert [m["onnx"] for m in members] == ["model.onnx", "model_2.onnx", "model_3.onnx"]
     assert [m["source_checkpoint"] for m in members] == list(DEFAULT_CKPTS)
-    assert [m["predicts_contact"] for m in members] == [False, True]
+    assert [m["predicts_contact"] for m in members] == [False, False, True]
     for m in members:
         meta = json.loads((ext / "model" / m["json"]).read_text())
         assert meta["source_checkpoint"] == m["source_checkpoint"]
         assert m["onnxruntime_vs_pytorch_max_abs_diff"] == meta["onnxruntime_vs_pytorch_max_abs_diff"] < 1e-4
     licence = (ext / "model" / "MODEL_LICENSE.txt").read_text()
-    assert licence.startswith("The weights of the 2 bundled models were all trained on Bandai-Namco") and "CC BY-NC" in licence
+    assert licence.startswith("The weights of the 3 bundled models were all trained on Bandai-Namco") and "CC BY-NC" in licence
 
 
 def extension_model(monkeypatch, model_dir: Path):
@@ -173,8 +174,8 @@ def extension_model(monkeypatch, model_dir: Path):
 
 
 def test_the_extension_fills_with_the_ensemble_of_the_bundled_models(built, monkeypatch):
-    """The bundled default is the runtime's EnsembleBackend of the two ONNX members, the same model as the command
-    line's ensemble of the two checkpoints (``Inbetweener.from_checkpoint([...])``); a model file chosen in the Model
+    """The bundled default is the runtime's EnsembleBackend of the three ONNX members, the same model as the command
+    line's ensemble of the three checkpoints (``Inbetweener.from_checkpoint([...])``); a model file chosen in the Model
     field is one OnnxBackend."""
     from inbetweening.api.export import window_example
     from inbetweening.api.inbetweener import Inbetweener
@@ -185,7 +186,7 @@ def test_the_extension_fills_with_the_ensemble_of_the_bundled_models(built, monk
     mod = extension_model(monkeypatch, ext / "model")
     model = mod.load_model("")
     assert isinstance(model, EnsembleBackend) and mod.load_model("") is model  # cached
-    assert [Path(m.path).name for m in model.members] == ["model.onnx", "model_2.onnx"]
+    assert [Path(m.path).name for m in model.members] == ["model.onnx", "model_2.onnx", "model_3.onnx"]
     assert all(isinstance(m, OnnxBackend) for m in model.members)
     ib = Inbetweener.from_checkpoint(CKPTS)
     assert isinstance(ib.backend, EnsembleBackend) and model.info == ib.backend.info and model.info.has_contacts

@@ -366,10 +366,10 @@ def test_cli_errors_exit_2_with_one_line(tiny_checkpoint, tmp_path, monkeypatch,
 
 
 def test_cli_defaults_to_the_shipped_model(tiny_checkpoint, tmp_path, monkeypatch, capsys):
-    """Without ckpt_path the shipped ensemble (models/bn2_reference, bn2_twin and bn2_v2) fills the clip; where a model
+    """Without ckpt_path the shipped ensemble (models/bn2_partial, bn2_partial_twin and bn2_v2) fills the clip; where a model
     of it is absent (an installed package without the repository) ckpt_path is required."""
     assert predict.default_checkpoint() == [str(p) for p in predict.SHIPPED_MODELS]
-    assert [p.parent.name for p in predict.SHIPPED_MODELS] == ["bn2_reference", "bn2_twin", "bn2_v2"]
+    assert [p.parent.name for p in predict.SHIPPED_MODELS] == ["bn2_partial", "bn2_partial_twin", "bn2_v2"]
     write_bvh(_clip(60), tmp_path / "clip.bvh")
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(predict, "SHIPPED_MODELS", (Path(tiny_checkpoint), Path(tiny_checkpoint)))

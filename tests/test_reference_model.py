@@ -23,9 +23,11 @@ needs_bn2 = pytest.mark.skipif(not BN2.exists(), reason=f"Bandai-Namco-2 not fou
 
 CONTENT_CKPT = ROOT / "models" / "bn2_content" / "model.ckpt"
 PARTIAL_CKPT = ROOT / "models" / "bn2_partial" / "model.ckpt"
+PARTIAL_TWIN_CKPT = ROOT / "models" / "bn2_partial_twin" / "model.ckpt"
 
 
-@pytest.mark.parametrize("path", [CKPT, CONTENT_CKPT, PARTIAL_CKPT], ids=["bn2_reference", "bn2_content", "bn2_partial"])
+@pytest.mark.parametrize("path", [CKPT, CONTENT_CKPT, PARTIAL_CKPT, PARTIAL_TWIN_CKPT],
+                         ids=["bn2_reference", "bn2_content", "bn2_partial", "bn2_partial_twin"])
 def test_shipped_models_load_without_training_state_and_carry_the_blend(path):
     ckpt = torch.load(path, map_location="cpu", weights_only=False)
     assert "optimizer_states" not in ckpt and "lr_schedulers" not in ckpt
@@ -33,7 +35,7 @@ def test_shipped_models_load_without_training_state_and_carry_the_blend(path):
     assert m.hparams.dataset == "bandai_namco" and m.skeleton.num_joints == 21 and m.skeleton.names[0] == "Hips"
     assert m.hparams.model["name"] == "graph_transformer" and m.hparams.model["depth"] == 6
     # the do-no-harm blend fitted on the validation windows (RESULTS.md section 5): one weight per gap length 1-54
-    # (the longest gap a 65-frame window holds; bn2_partial's fit after training: up to its data's transition_max, 45,
+    # (the longest gap a 65-frame window holds; the bn2_partial* fits after training: up to its data's transition_max, 45,
     # longer gaps take the last weight), near interpolation for 1-frame gaps, near the network's from 15 on
     blend = list(m.hparams.blend)
     assert len(blend) in (45, 54) and all(0.0 <= w <= 1.0 for w in blend) and blend[0] <= 0.25 and min(blend[14:]) >= 0.85
@@ -73,7 +75,7 @@ def test_reference_model_fills_real_test_clips(tmp_path):
 @needs_bn2
 @pytest.mark.parametrize("name,split", [("bn2_reference", "standard"), ("bn2_content", "content"),
                                         ("bn2_v2", "standard"), ("bn2_v2_content", "content"),
-                                        ("bn2_partial", "standard")])
+                                        ("bn2_partial", "standard"), ("bn2_partial_twin", "standard")])
 def test_eval_reproduces_reported_benchmark(name, split, tmp_path):
     import subprocess
     import sys

@@ -16,7 +16,8 @@ usage: python -m inbetweening.blender build OUT_DIR [ckpt_path=<model.ckpt>|[a.c
 build   Write OUT_DIR/inbetweening-<version>-<platform>.zip for each platform: the Blender extension (Blender 4.2
         and later) with the checkpoint's model as ONNX + JSON metadata and the onnxruntime wheels.  A list of
         checkpoints (models of one skeleton) is bundled as their ensemble, which the extension fills with; default:
-        [models/bn2_partial/model.ckpt,models/bn2_v2/model.ckpt].  Wheels are downloaded from the package index
+        [models/bn2_partial/model.ckpt,models/bn2_partial_twin/model.ckpt,
+        models/bn2_v2/model.ckpt].  Wheels are downloaded from the package index
         once and cached (wheels=, or $INBETWEENING_WHEELS; default ~/.cache/inbetweening/blender-wheels).
 export  Export a checkpoint (any skeleton) as the extension's model file: output.onnx and output.json; choose it
         in the extension's "Model" field.

@@ -18,6 +18,8 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
+from inbetweening.api.shipped import SHIPPED_CKPTS
+
 EXTENSION_FILES = ("__init__.py", "operators.py", "model.py", "rig.py", "humanoid.py", "rigify.py",
                    "rigify_solve.py", "bone_map_panel.py", "record.py", "loop.py")
 RUNTIME = "inbetweening.runtime"  # bundled with every module of the package it imports
@@ -35,9 +37,7 @@ DEFAULT_PLATFORMS = ("linux-x64", "windows-x64", "macos-arm64")
 PYTHON_VERSION = "3.11"
 ONNXRUNTIME = "1.19.2"  # the newest with a cp311 wheel for macOS 11 on arm64 (Blender 4.2's minimum macOS)
 SKIP_WHEELS = ("numpy",)  # Blender bundles numpy
-# the bundled ensemble (runtime/ensemble.py), as the command line fills by default (cli/predict.py SHIPPED_MODELS) but
-# with bn2_partial first, bn2_reference trained for partial keys (hand edits of some bones are ones); RESULTS.md 12.8
-DEFAULT_CKPTS = ("models/bn2_partial/model.ckpt", "models/bn2_v2/model.ckpt")
+DEFAULT_CKPTS = SHIPPED_CKPTS  # the bundled ensemble (runtime/ensemble.py): the shipped one, as predict fills by default
 MODELS_INDEX = "models.json"  # model/models.json: the bundled members, in order (the extension's model.py reads it)
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from inbetweening.api.shipped import REPO, SHIPPED_CKPTS
 from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool, parse_int_list, parse_partial_keys, parse_paths
 
 USAGE = """\
@@ -145,13 +146,12 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80, conta
                       dpi=dpi, title=title, **kw)
 
 
-_MODELS = Path(__file__).resolve().parents[3] / "models"
-SHIPPED_MODELS = tuple(_MODELS / name / "model.ckpt" for name in ("bn2_reference", "bn2_twin", "bn2_v2"))
+SHIPPED_MODELS = tuple(REPO / c for c in SHIPPED_CKPTS)
 
 
 def default_checkpoint() -> list[str] | None:
-    """The shipped ensemble (``models/bn2_reference``, ``models/bn2_twin`` and ``models/bn2_v2`` of a source checkout,
-    RESULTS.md sections 12.8 and 12.9), ``None`` when absent (an installed package without the repository)."""
+    """The shipped ensemble (:mod:`inbetweening.api.shipped`: ``models/bn2_partial``, ``models/bn2_partial_twin`` and
+    ``models/bn2_v2`` of a source checkout), ``None`` when absent (an installed package without the repository)."""
     return [str(p) for p in SHIPPED_MODELS] if all(p.is_file() for p in SHIPPED_MODELS) else None
 
 

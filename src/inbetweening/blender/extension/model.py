@@ -1,5 +1,5 @@
 """The extension's model, from one owner (:func:`load_model`): the bundled models (``model/models.json`` lists them; by
-default ``bn2_partial`` and ``bn2_v2``) filling as their ensemble through the fill runtime's
+default ``bn2_partial``, ``bn2_partial_twin`` and ``bn2_v2``) filling as their ensemble through the fill runtime's
 :class:`~inbetweening.runtime.ensemble.EnsembleBackend`, as the command line fills with its shipped ensemble; or a
 model file the animator chooses (``.onnx``), alone.  Each network runs on the runtime's ONNX backend."""
 from __future__ import annotations

@@ -1,0 +1,14 @@
+"""The shipped ensemble: the models a source checkout fills with by default, one list for every front end
+(``python -m inbetweening.predict`` without ``ckpt_path``, the Blender extension's bundle, the docs' commands).
+
+``bn2_partial`` and ``bn2_partial_twin`` (the v1 recipe with two seeds, fine-tuned for keys of some bones only) and
+``bn2_v2`` (foot contact channels), in the ensemble's member order (RESULTS.md sections 12.9 and 12.11)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["REPO", "SHIPPED", "SHIPPED_CKPTS"]
+
+REPO = Path(__file__).resolve().parents[3]  # the source checkout holding models/
+SHIPPED = ("bn2_partial", "bn2_partial_twin", "bn2_v2")
+SHIPPED_CKPTS = tuple(f"models/{name}/model.ckpt" for name in SHIPPED)  # relative to REPO
