@@ -337,6 +337,25 @@ def test_a_refill_with_the_feet_locked_is_a_fill_of_every_gap():
     assert np.abs(out.root[31:40] - before.root[31:40]).max() > 0.1  # the re-filled gap did change
 
 
+def test_a_refill_finds_the_kept_gaps_contact_as_each_gap_alone_finds_it():
+    """The kept gaps' contact of a re-fill (one FK over the span, sliced per gap) is :func:`gap_contacts` of each gap
+    on its own frames: the body is 30 cm up at keys 20 and 60, so the foot leaves the floor in the gaps next to them
+    and stands in the others."""
+    from inbetweening.runtime.foot_lock import clip_feet, gap_contacts
+
+    root, q, foot, rt = walking_on_the_spot(lift=0.0)
+    keys = list(range(0, 81, 10))
+    root[[20, 60], 1] += 30.0
+    before = rt.fill(root, q, keys)
+    out = rt.fill(before.root, before.local_q, keys, only={(70, 80)}, previous=before.shares)
+    assert out.generated == [(70, 80)]
+    feet = clip_feet(rt.info.contact, SK, rt.info.fps, out.root, out.local_q, keys)
+    alone = [gap_contacts(SK, feet, rt.info.fps, out.root, out.local_q, a, b)[:, foot] for a, b in zip(keys, keys[1:7])]
+    assert {float(g.mean()) for g in alone} == {0.0, 1.0}  # planted in some kept gaps, not in others
+    for (a, b), g in zip(zip(keys, keys[1:7]), alone):
+        assert np.array_equal(out.contact[a + 1 : b, foot], g), (a, b)
+
+
 def hparams(**kw) -> dict:
     rng = np.random.default_rng(0)
     return {"model": {"name": "interpolation"}, "skeleton": SK.to_dict(), "pos_mean": rng.normal(0, 5, 18).tolist(),

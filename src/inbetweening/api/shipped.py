@@ -9,6 +9,6 @@ from pathlib import Path
 
 __all__ = ["REPO", "SHIPPED", "SHIPPED_CKPTS"]
 
-REPO = Path(__file__).resolve().parents[3]  # the source checkout holding models/
+REPO = Path(__file__).resolve().parents[3]  # the source checkout (models/, .venv-bpy)
 SHIPPED = ("bn2_partial", "bn2_partial_twin", "bn2_v2")
 SHIPPED_CKPTS = tuple(f"models/{name}/model.ckpt" for name in SHIPPED)  # relative to REPO

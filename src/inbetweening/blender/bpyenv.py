@@ -7,8 +7,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+from inbetweening.api.shipped import REPO
+
 BPY_VERSION = "5.0.1"  # Blender 5.0 (Python 3.11); the 4.2 LTS wheel is bpy==4.2.x with numpy<2
-REPO = Path(__file__).resolve().parents[3]
 
 
 def bpy_python(venv: str | Path | None = None, create: bool = True) -> Path | None:

@@ -9,6 +9,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from inbetweening.api.shipped import REPO
 from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool
 
 USAGE = """\
@@ -26,7 +27,7 @@ skeleton, trained on Bandai-Namco-2 walking and running: CC BY-NC 4.0 data).
   threads=1              torch threads
 """
 
-DEFAULT_CKPT = Path(__file__).resolve().parents[3] / "models" / "retarget_cmu" / "model.ckpt"
+DEFAULT_CKPT = REPO / "models" / "retarget_cmu" / "model.ckpt"
 OPTIONS = {"ckpt_path": str, "input": str, "output": str, "target_rig": str, "method": str, "threads": int,
            "quiet": parse_bool}
 
