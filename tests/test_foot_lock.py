@@ -9,7 +9,16 @@ from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.quaternion import qmul, qnormalize, qrot
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.runtime.foot_lock import PLANTED_REACH, legs, lock_feet, plausible_contacts
+from inbetweening.data.contacts import FootContact
+from inbetweening.runtime.foot_lock import (
+    PLANTED_REACH,
+    TRUSTED_SHARE,
+    clip_feet,
+    gap_contacts,
+    legs,
+    lock_feet,
+    plausible_contacts,
+)
 
 SK = Skeleton(NAMES, PARENTS, OFFSETS)
 FEET = [NAMES.index(n) for n in ("LeftFoot", "LeftToe", "RightFoot", "RightToe")]
@@ -194,6 +203,25 @@ def test_a_predicted_contact_the_leg_cannot_hold_takes_the_fallback():
     out = plausible_contacts(SK, FEET, SK.pose(walked, q)[1], predicted, fallback)
     assert np.array_equal(out, predicted)
 
+
+
+def test_a_gap_given_back_to_interpolation_takes_only_the_keys_contact():
+    """Under :data:`TRUSTED_SHARE` of the network a gap's feet are what its keys say (here: the left foot held by both
+    keys), not the rule on the fill (which finds every foot planted) nor the prediction; at the threshold the rule and
+    the prediction decide again."""
+    root, q = _clip(n=41)
+    rule = FootContact(tuple(NAMES[j] for j in FEET), 1e3, 1e6)  # every foot low and slow: all planted by the rule
+    feet = clip_feet(rule, SK, 30.0, root, q, [0, 20, 40])
+    left = NAMES.index("LeftFoot")
+    feet.held[(0, 20)][:] = False
+    feet.held[(0, 20)][left] = True
+    trusted = gap_contacts(SK, feet, 30.0, root, q, 0, 20)
+    assert (trusted[:, FEET] == 1).all()
+    back = gap_contacts(SK, feet, 30.0, root, q, 0, 20, share=0.5 * TRUSTED_SHARE)
+    assert (back[:, left] == 1).all() and (np.delete(back, left, axis=1) == 0).all()
+    predicted = np.ones((19, len(NAMES)))
+    assert np.array_equal(gap_contacts(SK, feet, 30.0, root, q, 0, 20, predicted, share=0.0), back)
+    assert np.array_equal(gap_contacts(SK, feet, 30.0, root, q, 0, 20, share=TRUSTED_SHARE), trusted)
 
 @pytest.mark.parametrize("lock", [True, False])
 def test_inbetweener_locks_feet_with_a_contact_model(tiny_contact_checkpoint, lock):

@@ -356,6 +356,27 @@ def test_a_refill_finds_the_kept_gaps_contact_as_each_gap_alone_finds_it():
         assert np.array_equal(out.contact[a + 1 : b, foot], g), (a, b)
 
 
+
+def test_a_gap_given_back_to_interpolation_is_locked_on_the_keys_contact_alone():
+    """A network far from every key: the self-check gives each gap back to interpolation, and then neither its predicted
+    contact (planted everywhere) nor the rule on the fill decide the feet, only what each gap's keys say; with the
+    check off the same prediction plants the foot."""
+    from inbetweening.runtime.foot_lock import TRUSTED_SHARE, clip_feet
+
+    root, q = motion(61, seed=3)
+    keys = list(range(0, 61, 10))
+    model = info(trained_gap=20, hard_max_gap=40, contact=FootContact(("foot",), 10.0, 30.0), has_contacts=True)
+    foot = SK.names.index("foot")
+    feet = clip_feet(model.contact, SK, model.fps, root, q, keys)
+    out = FillRuntime(Recorder(model, contact=1.0)).fill(root, q, keys)
+    back = [g for g in zip(keys, keys[1:]) if max(out.shares[g]) < TRUSTED_SHARE]
+    assert len(back) == len(keys) - 1
+    for a, b in back:
+        assert np.array_equal(out.contact[a + 1 : b, foot], np.full(b - a - 1, float(feet.held[(a, b)][foot])))
+    assert not out.contact[1:60, foot].all()
+    trusted = FillRuntime(Recorder(model, contact=1.0), self_check=False).fill(root, q, keys)
+    assert min(min(w) for w in trusted.shares.values()) >= TRUSTED_SHARE and trusted.contact[1:10, foot].all()
+
 def hparams(**kw) -> dict:
     rng = np.random.default_rng(0)
     return {"model": {"name": "interpolation"}, "skeleton": SK.to_dict(), "pos_mean": rng.normal(0, 5, 18).tolist(),

@@ -354,7 +354,8 @@ class FillRuntime:
         if c.feet is None:
             return
         pc = c.contact[a + 1 : b] if self.info.has_contacts and not np.isnan(c.contact[a + 1 : b]).any() else None
-        c.planted[a + 1 : b] = gap_contacts(self.info.skeleton, c.feet, self.info.fps, c.root, c.q, a, b, pc)
+        c.planted[a + 1 : b] = gap_contacts(self.info.skeleton, c.feet, self.info.fps, c.root, c.q, a, b, pc,
+                                            share=min(c.shares.get((a, b), (1.0,))))
         if lock:
             c.root[a + 1 : b], c.q[a + 1 : b] = lock_gap(self.info.skeleton, c.feet, c.root, c.q, c.planted, a, b,
                                                          [t for t in c.partial if a < t < b])
@@ -381,7 +382,7 @@ class FillRuntime:
             kept[a + 1 : b] = True
             if gp is not None:
                 contact[a + 1 : b] = gap_contacts(info.skeleton, c.feet, info.fps, root, q, a, b,
-                                                  positions=gp[a - lo : b - lo + 1])
+                                                  positions=gp[a - lo : b - lo + 1], share=min(c.shares.get((a, b), (1.0,))))
         locked = lock and c.feet is not None
         if file_frame and not info.convention.is_project:
             root, q = info.convention.to_file(root, q)

@@ -36,7 +36,8 @@ Short gaps (under :data:`SHORT_GAP` frames) of a model with contact channels tak
 error of the shipped contact model by 3 % (RESULTS.md section 12).  In longer gaps the prediction is distrusted where
 it is implausible: a predicted contact run whose held foot would be out of the leg's reach from the generated hip
 (:data:`PLANTED_REACH`) takes the rule's contact instead (a model that does not know the motion plants feet the body
-walks away from; the locking then drags the leg, RESULTS.md section 12.9).
+walks away from; the locking then drags the leg, RESULTS.md section 12.9).  A gap the self-check gave back to
+interpolation takes the keys' contact alone, for every model (:data:`TRUSTED_SHARE`, RESULTS.md section 12.12).
 """
 from __future__ import annotations
 
@@ -59,8 +60,8 @@ from inbetweening.geometry.quaternion import qinv, qmul, qswing
 from inbetweening.geometry.skeleton import Skeleton
 
 __all__ = ["BLEND_FRAMES", "MIN_RUN", "PLANTED_MARGIN", "PLANTED_MAX_GAP", "PLANTED_REACH", "PLANTED_SPEED", "SHORT_GAP",
-           "ClipFeet", "clip_feet", "contact_rule", "gap_contacts", "key_contacts", "legs", "lock_feet", "lock_gap",
-           "plausible_contacts"]
+           "TRUSTED_SHARE", "ClipFeet", "clip_feet", "contact_rule", "gap_contacts", "key_contacts", "legs",
+           "lock_feet", "lock_gap", "plausible_contacts"]
 
 BLEND_FRAMES = 4  # frames over which a lock is blended in and out
 PLANTED_MARGIN = 0.1  # fill contact in longer gaps: a foot within this share of the contact height of its planted level
@@ -69,6 +70,7 @@ PLANTED_MAX_GAP = 20  # ... in gaps shorter than this (in longer ones it held fe
 MIN_RUN = 3  # detected contact: shorter runs (and shorter holes in a run) are dropped (filled)
 SHORT_GAP = 8  # gaps shorter than this take the keys' contact, not a model's prediction
 PLANTED_REACH = 1.1  # a contact run is kept where its held foot stays within this many leg lengths of the hip
+TRUSTED_SHARE = 0.25  # a gap whose network share is below this takes the keys' contact alone (RESULTS.md 12.12)
 
 
 def _ancestors(parents: Sequence[int], j: int) -> list[int]:
@@ -299,7 +301,7 @@ def lock_gap(skeleton: Skeleton, feet: ClipFeet, root: np.ndarray, local_q: np.n
 
 def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarray, local_q: np.ndarray, a: int,
                  b: int, predicted: np.ndarray | None = None, min_run: int = MIN_RUN,
-                 positions: np.ndarray | None = None) -> np.ndarray:
+                 positions: np.ndarray | None = None, share: float = 1.0) -> np.ndarray:
     """Foot contact ``(b - a - 1, J)`` of the gap between keys ``a`` and ``b``, judged on frames ``a .. b`` (``positions
     (b - a + 1, J, 3)``: their joints' global positions where the caller has them) and what the
     keys say alone (so a re-fill of some gaps finds in a gap what a fill of every gap finds there): ``predicted``, the
@@ -313,10 +315,18 @@ def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarra
     * in gaps of :data:`SHORT_GAP` to :data:`PLANTED_MAX_GAP` - 1 frames, also where the filled foot is as low as it
       stands at the keys (below its planted level) and slower than :data:`PLANTED_SPEED` times the contact speed.  A
       fill slides where the real foot is planted, so the speed rule alone misses most of those frames (RESULTS.md
-      section 12.4); in shorter gaps it cost joint error, in longer ones it held feet that had left."""
+      section 12.4); in shorter gaps it cost joint error, in longer ones it held feet that had left.
+
+    A gap the self-check gave back to interpolation (``share``, the network's share of it, under
+    :data:`TRUSTED_SHARE`) takes only what its keys say (the first rule): its fill is mostly interpolation, whose feet
+    are low and slow where the real ones swing, and its predicted contacts are the network's that the check
+    distrusted; on motions never seen both planted feet that were moving (RESULTS.md section 12.12)."""
     n = b - a - 1
     out = np.zeros((n, skeleton.num_joints))
     if n < 1:
+        return out
+    if share < TRUSTED_SHARE:
+        out[:, feet.feet] = feet.held[(a, b)][feet.feet]
         return out
     rule = feet.rule
     gp = positions if positions is not None else skeleton.pose(np.asarray(root[a : b + 1], np.float64),
