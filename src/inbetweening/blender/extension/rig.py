@@ -340,15 +340,15 @@ def write_curve(fc, frames: np.ndarray, values: np.ndarray, spans, interp: str, 
     allp = {k: v[order] for k, v in allp.items()}
     kp = fc.keyframe_points
     total = len(order)
+    same = total == len(kp)  # then a property whose values are the curve's already is left as it is (a re-fill)
     if total > len(kp):
         kp.add(total - len(kp))
     elif total < len(kp):
         for _ in range(len(kp) - total):
             kp.remove(kp[len(kp) - 1], fast=True)
-    for name in POINT_FLOATS:
-        kp.foreach_set(name, np.ascontiguousarray(allp[name]).reshape(-1))
-    for name, _ in POINT_SCALARS:
-        kp.foreach_set(name, np.ascontiguousarray(allp[name]))
+    for name in POINT_FLOATS + tuple(n for n, _ in POINT_SCALARS):
+        if not (same and np.array_equal(allp[name], old[name])):
+            kp.foreach_set(name, np.ascontiguousarray(allp[name]).reshape(-1))
     fc.update()
     x = allp["co"][:, 0]
     outside = np.ones(total, dtype=bool)
