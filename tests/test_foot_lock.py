@@ -4,12 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from inbetweening.data.contacts import foot_contacts
+from inbetweening.data.contacts import FootContact, foot_contacts
 from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip
 from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.quaternion import qmul, qnormalize, qrot
 from inbetweening.geometry.skeleton import Skeleton
-from inbetweening.data.contacts import FootContact
 from inbetweening.runtime.foot_lock import (
     PLANTED_REACH,
     TRUSTED_SHARE,
@@ -202,7 +201,6 @@ def test_a_predicted_contact_the_leg_cannot_hold_takes_the_fallback():
     walked[20:35, 0] = root[20:35, 0] + np.linspace(0, 0.5 * PLANTED_REACH * leg, 15)  # a short step: still reachable
     out = plausible_contacts(SK, FEET, SK.pose(walked, q)[1], predicted, fallback)
     assert np.array_equal(out, predicted)
-
 
 
 def test_a_gap_given_back_to_interpolation_takes_only_the_keys_contact():
