@@ -46,7 +46,7 @@ from .model import Backend, InbetweenError
 from .partial import check_partial, known_values
 from .plan import GapPlan, check_keys, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
 from .rig_fill import RigFilled, fill_rig
-from .trust import Check, checks_of, gap_weights, scored
+from .trust import Check, checks_of, gap_share, gap_weights, scored
 
 __all__ = ["Filled", "FillRuntime", "RigFilled"]
 
@@ -355,7 +355,7 @@ class FillRuntime:
             return
         pc = c.contact[a + 1 : b] if self.info.has_contacts and not np.isnan(c.contact[a + 1 : b]).any() else None
         c.planted[a + 1 : b] = gap_contacts(self.info.skeleton, c.feet, self.info.fps, c.root, c.q, a, b, pc,
-                                            share=min(c.shares.get((a, b), (1.0,))))
+                                            share=gap_share(c.shares, (a, b)))
         if lock:
             c.root[a + 1 : b], c.q[a + 1 : b] = lock_gap(self.info.skeleton, c.feet, c.root, c.q, c.planted, a, b,
                                                          [t for t in c.partial if a < t < b])
@@ -382,7 +382,7 @@ class FillRuntime:
             kept[a + 1 : b] = True
             if gp is not None:
                 contact[a + 1 : b] = gap_contacts(info.skeleton, c.feet, info.fps, root, q, a, b,
-                                                  positions=gp[a - lo : b - lo + 1], share=min(c.shares.get((a, b), (1.0,))))
+                                                  positions=gp[a - lo : b - lo + 1], share=gap_share(c.shares, (a, b)))
         locked = lock and c.feet is not None
         if file_frame and not info.convention.is_project:
             root, q = info.convention.to_file(root, q)

@@ -29,8 +29,8 @@ import numpy as np
 from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["REACH", "DENSE_GAP", "DENSE_X_FULL", "DENSE_X_NONE", "X_FULL", "X_NONE", "Check", "checks_of", "gap_weights",
-           "trust_of"]
+__all__ = ["REACH", "DENSE_GAP", "DENSE_X_FULL", "DENSE_X_NONE", "X_FULL", "X_NONE", "Check", "checks_of", "gap_share",
+           "gap_weights", "trust_of"]
 
 X_FULL = 0.65  # the network's error at the hidden keys, as a share of interpolation's, below which it is fully trusted
 X_NONE = 1.05  # ... and above which it is not trusted at all
@@ -96,3 +96,9 @@ def gap_weights(segments: Sequence[tuple[int, int]], keys: Sequence[int], checks
         x = sum(c.net for c in near) / sum(c.interp for c in near)
         out[(a, b)] = (p * trust_of(x, b - a - 1), float(x))
     return out
+
+
+def gap_share(shares: dict, gap: tuple[int, int]) -> float:
+    """The network's least share over the windows of the key gap ``gap`` (``shares``: ``{(key, next key): (weight,
+    ...)}``, as the fill's ``shares``); 1 for a gap it does not list."""
+    return min(shares.get(gap, (1.0,)))
