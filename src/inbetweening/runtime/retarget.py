@@ -41,7 +41,7 @@ from .model import InbetweenError
 if TYPE_CHECKING:
     from .bone_map import BoneMap
 
-__all__ = ["BODY", "Retarget", "rest_pose", "tpose"]
+__all__ = ["BODY", "Retarget", "rest_pose", "tpose", "world_up"]
 
 BODY = ("Hips", "Spine", "Chest", "Neck", "Head")
 ARM = ("Shoulder", "UpperArm", "LowerArm", "Hand")
@@ -172,14 +172,36 @@ def tpose(skeleton: Skeleton, slot_of: dict[str, int], basis: np.ndarray | None 
     return t
 
 
-def _body_basis(skeleton: Skeleton, slot_of: dict[str, int], reference: np.ndarray | None = None) -> np.ndarray:
-    """The rig's body frame at rest: columns left, up, forward (from the legs' sides and hips -> head)."""
+def world_up(skeleton: Skeleton, slot_of: dict[str, int], poses: np.ndarray | None = None) -> np.ndarray:
+    """The up axis of the skeleton's world: the coordinate axis (+-X, +-Y or +-Z) nearest the mean hips -> head
+    direction of ``poses`` (local rotations ``(J, 4)`` or ``(K, J, 4)``, e.g. the keys'; default: the rest pose).  How
+    the character stands in its motion, not its rest pose, says where up is: a rest pose need not stand (the model's
+    own zero pose lies along X)."""
+    local = np.tile([1.0, 0.0, 0.0, 0.0], (1, skeleton.num_joints, 1)) if poses is None else \
+        np.asarray(poses, dtype=np.float64).reshape(-1, skeleton.num_joints, 4)
+    pos = fk(local, np.broadcast_to(skeleton.offsets, local.shape[:-1] + (3,)), skeleton.parents)[1]
+    d = pos[:, slot_of["Head"]] - pos[:, slot_of["Hips"]]
+    d = (d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)).mean(0)
+    axis = int(np.argmax(np.abs(d)))
+    up = np.zeros(3)
+    up[axis] = 1.0 if d[axis] >= 0 else -1.0
+    return up
+
+
+def _body_basis(skeleton: Skeleton, slot_of: dict[str, int], up: np.ndarray,
+                reference: np.ndarray | None = None) -> np.ndarray:
+    """The skeleton's body frame: columns left, up, forward, with ``up`` its world's (:func:`world_up`) and left the
+    rest pose's thighs (``reference`` for the bones above the hips) across it; where they lie along it (a degenerate
+    rest), the rest's hips -> head across it, else a world axis.  Two skeletons that differ only in their names, their
+    channels or their world's turn get bases that differ by that turn, so the retargeting between them is exact."""
     rest = rest_pose(skeleton, slot_of, reference)[1]
-    up = rest[slot_of["Head"]] - rest[slot_of["Hips"]]
-    up = up / np.linalg.norm(up)
-    left = rest[slot_of["UpperLeg_L"]] - rest[slot_of["UpperLeg_R"]]
-    left = left - (left @ up) * up
-    left = left / np.linalg.norm(left)
+    up = np.asarray(up, dtype=np.float64) / np.linalg.norm(up)
+    for v in (rest[slot_of["UpperLeg_L"]] - rest[slot_of["UpperLeg_R"]], rest[slot_of["Head"]] - rest[slot_of["Hips"]],
+              np.roll(np.abs(up), 1)):
+        across = v - (v @ up) * up
+        if np.linalg.norm(across) > 0.1 * np.linalg.norm(v):
+            break
+    left = across / np.linalg.norm(across)
     return np.stack([left, up, np.cross(left, up)], axis=1)
 
 
@@ -201,26 +223,34 @@ class Retarget:
     """Motion between ``rig`` (a humanoid skeleton, its rest offsets) and ``model`` (the model's skeleton, whose joint
     names are the slots) through ``bone_map`` (slot -> rig bone).  :meth:`to_model` and :meth:`to_rig` (module
     docstring); ``reference``: the rig's local rotations ``(J, 4)`` at a key (its bones above the hips stand as there
-    in the reference pose); ``scale``: model lengths per rig length (hip heights); ``world``: the rotation from the
-    rig's world to the model's (wxyz)."""
+    in the reference pose); ``poses``: the rig's local rotations ``(K, J, 4)`` at the keys, which say where its world's
+    up is (:func:`world_up`; default: the reference); ``up``: that direction when the caller knows it (a host whose
+    armature is turned as an object); ``scale``: model lengths per rig length (hip heights);
+    ``world``: the rotation from the rig's world to the model's (wxyz).  The model's own skeleton under other names is
+    the identity case: ``world`` a turn about the up axis at most, the same T-pose, the same motion."""
 
     def __init__(self, rig: Skeleton, model: Skeleton, bone_map: BoneMap, reference: np.ndarray | None = None,
-                 where: str = "rig"):
+                 where: str = "rig", poses: np.ndarray | None = None, up: np.ndarray | None = None):
         self.rig, self.model, self.map = rig, model, bone_map
         self.rig_slot = {s: rig.names.index(b) for s, b in bone_map.slots.items()}
         self.model_slot = {s: model.names.index(s) for s in model.names}
         rest = rest_pose(rig, self.rig_slot, reference)[1]
         slot = self.rig_slot
         size = float(np.ptp(rest, axis=0).max())
-        up = np.linalg.norm(rest[slot["Head"]] - rest[slot["Hips"]])
+        tall = np.linalg.norm(rest[slot["Head"]] - rest[slot["Hips"]])
         across = np.linalg.norm(rest[slot["UpperLeg_L"]] - rest[slot["UpperLeg_R"]])
-        if not (np.isfinite(size) and size > 0 and up > 1e-3 * size and across > 1e-3 * size):
+        if not (np.isfinite(size) and size > 0 and tall > 1e-3 * size and across > 1e-3 * size):
             raise InbetweenError(f"{where}: its scale and up direction cannot be found from its rest pose (the head "
-                                 f"{up:.3g} from the hips, the thighs {across:.3g} apart, the rig {size:.3g} across)")
-        basis = _body_basis(rig, self.rig_slot, reference)
-        self.world = qinv(_quat_of(basis))  # rig world -> model world
+                                 f"{tall:.3g} from the hips, the thighs {across:.3g} apart, the rig {size:.3g} across)")
+        if up is None:
+            up = world_up(rig, self.rig_slot, reference if poses is None else poses)
+        elif not (np.shape(up) == (3,) and np.isfinite(up).all() and np.linalg.norm(up) > 0):
+            raise InbetweenError(f"{where}: up must be a direction (x, y, z), got {up!r}")
+        basis = _body_basis(rig, self.rig_slot, up, reference)
+        m_basis = _body_basis(model, self.model_slot, UP)  # the model's world is the project's: Y up
+        self.world = qmul(_quat_of(m_basis), qinv(_quat_of(basis)))  # rig world -> model world
         self.t_rig = tpose(rig, self.rig_slot, basis, reference)
-        self.t_model = tpose(model, self.model_slot)
+        self.t_model = tpose(model, self.model_slot, m_basis)
         rig_height = _hip_height(rig, self.t_rig, self.rig_slot, basis[:, 1])
         if not rig_height > 1e-3 * size:
             raise InbetweenError(f"{where}: its scale cannot be found: in its T-pose the hips are not above the ankles "
