@@ -33,6 +33,7 @@ class Clip:
     trans: np.ndarray  # (F, J, 3) local translations (offset, or the position channels)
     frame_time: float
     movers: set[int] = field(default_factory=set)  # joints whose translation is animated
+    orders: dict[str, str] = field(default_factory=dict)  # per joint its file's Euler order
 
     @property
     def frames(self) -> int:
@@ -85,7 +86,7 @@ def read(path) -> Clip:
     n = int(lines[0].split()[1])
     ft = float(lines[1].split()[-1])
     data = np.array([[float(v) for v in ln.split()] for ln in lines[2 : 2 + n]])
-    col, rot, trans, movers = 0, [], np.zeros((n, len(names), 3)), set()
+    col, rot, trans, movers, orders = 0, [], np.zeros((n, len(names), 3)), set(), {}
     for j, ch in enumerate(chans):
         block = data[:, col : col + len(ch)]
         col += len(ch)
@@ -97,10 +98,11 @@ def read(path) -> Clip:
         rc = [c for c in ch if c.lower().endswith("rotation")]
         if rc:
             order = "".join(c[0].upper() for c in rc)
+            orders[names[j]] = order
             rot.append(R.from_euler(order, np.stack([block[:, ch.index(c)] for c in rc], 1), degrees=True))
         else:
             rot.append(R.identity(n))
-    return Clip(names, parents, np.array(offsets), ends, rot, trans, ft, movers)
+    return Clip(names, parents, np.array(offsets), ends, rot, trans, ft, movers, orders)
 
 
 def positions(c: Clip) -> np.ndarray:
@@ -117,7 +119,7 @@ def positions(c: Clip) -> np.ndarray:
 
 
 def write(c: Clip, path, orders=None, six=(), movers=None, decimals: int = 6) -> None:
-    """``orders``: per joint name an Euler order (default ``XYZ``; a str for every joint); ``six``: joints written with
+    """``orders``: per joint name an Euler order (default the clip's own, else ``XYZ``; a str for every joint); ``six``: joints written with
     six channels (their translation, constant or not); ``movers``: joints whose translation is written (default the
     clip's animated ones)."""
     movers = c.movers if movers is None else {c.index(m) if isinstance(m, str) else m for m in movers}
@@ -127,7 +129,7 @@ def write(c: Clip, path, orders=None, six=(), movers=None, decimals: int = 6) ->
 
     def emit(j, d):
         ind = "\t" * d
-        order = orders if isinstance(orders, str) else (orders or {}).get(c.names[j], "XYZ")
+        order = orders if isinstance(orders, str) else (orders or c.orders).get(c.names[j], "XYZ")
         lines.append(f"{ind}{'ROOT' if c.parents[j] < 0 else 'JOINT'} {c.names[j]}")
         lines.append(ind + "{")
         lines.append(f"{ind}\tOFFSET {' '.join(fmt % v for v in c.offsets[j])}")
@@ -265,7 +267,7 @@ def add_top(c: Clip, name: str, moving: bool) -> Clip:
     if moving:
         t = np.arange(n) / 30.0
         top_p = np.stack([20 * np.sin(t), 0 * t, 15 * t], 1)
-        top_r = R.from_euler("Y", 25 * np.sin(0.7 * t), degrees=True)
+        top_r = R.from_euler("Y", 25 * np.sin(0.7 * t)[:, None], degrees=True)
     else:
         top_p, top_r = np.zeros((n, 3)), R.identity(n)
     out.names = [name] + c.names
@@ -331,6 +333,25 @@ def resample(c: Clip, fps: float) -> Clip:
     out.frame_time = 1.0 / fps
     out.rot = [Slerp(t, r)(new_t) for r in c.rot]
     out.trans = np.stack([np.stack([np.interp(new_t, t, c.trans[:, j, a]) for a in range(3)], 1)
+                          for j in range(len(c.names))], 1)
+    return out
+
+
+def trim(c: Clip, start: int, stop: int) -> Clip:
+    """Frames ``start .. stop - 1``."""
+    out = copy.deepcopy(c)
+    out.rot = [r[start:stop] for r in c.rot]
+    out.trans = c.trans[start:stop]
+    return out
+
+
+def interpolate(c: Clip, keys) -> Clip:
+    """The clip's frames ``keys[0] .. keys[-1]`` interpolated between ``keys``: local rotations slerped, translations
+    linear (what a DCC's linear keys give)."""
+    t = np.arange(keys[0], keys[-1] + 1)
+    out = copy.deepcopy(c)
+    out.rot = [Slerp(keys, r[keys])(t) for r in c.rot]
+    out.trans = np.stack([np.stack([np.interp(t, keys, c.trans[keys, j, a]) for a in range(3)], 1)
                           for j in range(len(c.names))], 1)
     return out
 

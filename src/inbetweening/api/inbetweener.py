@@ -302,13 +302,13 @@ class Inbetweener:
             raise InbetweenError("partial: partial keys are frames of the clip between its keyframes (form A, "
                                  "keyframes=[...]); with gap= every input frame is a whole key")
         part = _partial_rows(bvh, partial, src)
-        try:
+        if self.retargets:  # every character, the model's own skeleton the identity case of the retargeting
+            return self._fill_character(bvh, src, out_pos, bone_map, {**kw, "partial": part})
+        try:  # a model of another skeleton than the humanoid slots: its own skeleton only
             fold, root_in, q_in = clip_in_skeleton(bvh, self.skeleton)
         except DatasetError as e:
-            if not self.retargets:  # a model of another skeleton than the humanoid slots: its own skeleton only
-                raise InbetweenError(f"{e} (this model fills its own skeleton only; retargeting another character "
-                                     "needs a model of the humanoid slots, such as the shipped ones)") from None
-            return self._fill_character(bvh, src, out_pos, bone_map, {**kw, "partial": part})
+            raise InbetweenError(f"{e} (this model fills its own skeleton only; retargeting another character "
+                                 "needs a model of the humanoid slots, such as the shipped ones)") from None
         if bvh.frame_time > 0 and abs(1.0 / bvh.frame_time - self.fps) > 0.5:
             warnings.warn(f"{bvh.source}: {1.0 / bvh.frame_time:.3g} fps, the model was trained at {self.fps:.3g} "
                           f"fps; gaps are counted in the file's frames", stacklevel=2)
@@ -353,7 +353,7 @@ class Inbetweener:
             part[t - src[0]] = mask
         movers = [j for j, ch in enumerate(bvh.channels) if any(c.lower().endswith("position") for c in ch)]
         retarget = Retarget(bvh.skeleton(), self.skeleton, bm, reference=lq_in[src[0]], where=f"rig '{bvh.source}'",
-                            poses=lq_in[src])
+                            poses=lq_in[src], ends=bvh.end_sites)
         fps = 1.0 / bvh.frame_time if bvh.frame_time > 0 else None
         out = self.runtime.fill_rig(retarget, lq, lp, out_pos, movers=movers, fps=fps, partial=part or None, **kw)
         clip = bvh.with_motion(out.local_q, out.local_p)

@@ -128,26 +128,93 @@ def _below(parents, j: int, top: int) -> bool:
     return False
 
 
-def rest_pose(skeleton: Skeleton, slot_of: dict[str, int], reference: np.ndarray | None = None):
-    """``(global rotations (J, 4), positions (J, 3))`` of the rest pose: every local rotation the identity (BVH's rest),
-    except the bones above the hips, which take ``reference`` (local rotations ``(J, 4)``, e.g. a key frame's): a
-    static top bone that turns the whole character (an armature's axis change) is part of where the body stands."""
+def rest_pose(skeleton: Skeleton, slot_of: dict[str, int], reference: np.ndarray | None = None,
+              start: np.ndarray | None = None):
+    """``(global rotations (J, 4), positions (J, 3))`` of the pose a T-pose is built from: ``start`` (local rotations
+    ``(J, 4)``: a natural pose, :func:`mean_pose`) or BVH's rest (every local rotation the identity); the bones above
+    the hips take ``reference`` (local rotations ``(J, 4)``, e.g. a key frame's): a static top bone that turns the
+    whole character (an armature's axis change) is part of where the body stands."""
     n = skeleton.num_joints
-    local = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    local = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)) if start is None else np.array(start, dtype=np.float64)
     if reference is not None:
         above = _path(skeleton.parents, 0, slot_of["Hips"])[:-1]
         local[above] = np.asarray(reference, dtype=np.float64)[above]
     return fk(local, skeleton.offsets, skeleton.parents)
 
 
+def mean_pose(local_q: np.ndarray) -> np.ndarray:
+    """The mean of poses ``local_q (F, J, 4)`` joint by joint (quaternions made one-signed, averaged, normalised): a
+    natural pose of a motion whose twists are its own.  The top joint's: the identity (a heading is no pose)."""
+    q = np.asarray(local_q, dtype=np.float64)
+    q = q * np.where((q * q[:1]).sum(-1, keepdims=True) < 0, -1.0, 1.0)
+    m = q.mean(0)
+    m = m / np.maximum(np.linalg.norm(m, axis=-1, keepdims=True), 1e-12)
+    m[0] = [1.0, 0.0, 0.0, 0.0]
+    return m
+
+
+# The limbs' hinges: per bone, the three joints of the bend it turns with (the knee for the thigh and the shin, the ankle
+# for the foot, the elbow for the upper arm and the forearm) and that bend's axis ``a->b x b->c`` in a natural T-pose
+# (x left, y up, z forward; palms down): the knees bend back, the feet up, the elbows towards the palms.  A T-pose built
+# by the shortest turns alone depends on the pose it starts from (an arm raised from hanging or from held forward ends
+# twisted differently); the bend fixes the twist where the starting pose bends it (:data:`HINGE_BEND`).
+HINGES = {f"{bone}_{s}": (tuple(f"{j}_{s}" for j in joints), np.array(axis))
+          for s, sign in (("L", 1.0), ("R", -1.0))
+          for bone, joints, axis in (("UpperLeg", ("UpperLeg", "LowerLeg", "Foot"), (1.0, 0.0, 0.0)),
+                                     ("LowerLeg", ("UpperLeg", "LowerLeg", "Foot"), (1.0, 0.0, 0.0)),
+                                     ("Foot", ("LowerLeg", "Foot", "Toes"), (-1.0, 0.0, 0.0)),
+                                     ("UpperArm", ("UpperArm", "LowerArm", "Hand"), (0.0, 0.0, -sign)),
+                                     ("LowerArm", ("UpperArm", "LowerArm", "Hand"), (0.0, 0.0, -sign)))}
+HINGE_BEND = 0.17  # sin 10 degrees: a hinge bent less than this in the starting pose does not say its axis
+
+
+def _hinges(slot_of: dict[str, int], pos: np.ndarray, tips: dict[int, np.ndarray] | None = None
+            ) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Per hinged joint bent enough in the pose ``pos (J, 3)``: ``(its bend axis there, the natural one)``; a missing
+    last joint (no hand, no toes) is the tip of the one before it (``tips``: joint -> its end site's position)."""
+    out, tips = {}, tips or {}
+    for bone, (joints, natural) in HINGES.items():
+        if bone not in slot_of or not all(j in slot_of for j in joints[:2]):
+            continue
+        a, b = pos[slot_of[joints[0]]], pos[slot_of[joints[1]]]
+        c = pos[slot_of[joints[2]]] if joints[2] in slot_of else tips.get(slot_of[joints[1]])
+        if c is None:
+            continue
+        u, v = b - a, c - b
+        n = np.cross(u, v) / max(np.linalg.norm(u) * np.linalg.norm(v), 1e-12)
+        if np.linalg.norm(n) >= HINGE_BEND:
+            out[slot_of[bone]] = (n, natural)
+    return out
+
+
+def _tips(slot_of: dict[str, int], ch: _Chains, rq: np.ndarray, pos: np.ndarray,
+          ends: dict[int, np.ndarray] | None) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """The limbs whose last slot is missing (a forearm without a hand, a foot without toes): per the limb's last joint,
+    ``(where its end site is in the pose, its T-pose direction in the body frame)`` (``rq``: global rotations, ``pos``:
+    positions of the pose)."""
+    out = {}
+    for key, path in ch.paths.items():
+        if key == "body" or not path or path[-1] not in (ends or {}):
+            continue
+        arm = key.startswith("Shoulder")
+        if ("Hand" if arm else "Toes") + key[-2:] not in slot_of:
+            j = path[-1]
+            direction = (1.0 if key.endswith("L") else -1.0) * LEFT if arm else FORWARD
+            out[j] = (pos[j] + qrot(rq[j], np.asarray(ends[j], dtype=np.float64)), direction)
+    return out
+
+
 def tpose(skeleton: Skeleton, slot_of: dict[str, int], basis: np.ndarray | None = None,
-          reference: np.ndarray | None = None) -> np.ndarray:
+          reference: np.ndarray | None = None, start: np.ndarray | None = None,
+          ends: dict[int, np.ndarray] | None = None) -> np.ndarray:
     """Global rotations ``(J, 4)`` of the skeleton in its T-pose (module docstring) in its own world, whose body frame
-    is ``basis`` (columns: left, up, forward; default: the model's world, the identity), built from its rest pose
-    (:func:`rest_pose`, ``reference`` for the bones above the hips)."""
+    is ``basis`` (columns: left, up, forward; default: the model's world, the identity), built from the pose
+    :func:`rest_pose` gives (``start``, ``reference``) by turning each bone the shortest way, the hips and the chest
+    as a whole, the bent limbs by their hinge (:data:`HINGES`).  ``ends``: end-site offsets per joint (a limb whose
+    last slot is missing points its last bone by it)."""
     basis = np.eye(3) if basis is None else basis
     parents = skeleton.parents
-    rq, rest = rest_pose(skeleton, slot_of, reference)
+    rq, rest = rest_pose(skeleton, slot_of, reference, start)
     ch = _chains(parents, slot_of)
     hips = slot_of["Hips"]
     arm_root = parents[ch.paths["Shoulder_L"][0]]
@@ -155,19 +222,29 @@ def tpose(skeleton: Skeleton, slot_of: dict[str, int], basis: np.ndarray | None 
     lateral_arms = rest[ch.paths["Shoulder_L"][0]] - rest[ch.paths["Shoulder_R"][0]]
     full = {hips: lateral_hips, arm_root: lateral_arms}
     aim = _aims(ch, rest)
+    tips = _tips(slot_of, ch, rq, rest, ends)
+    hinged = _hinges(slot_of, rest, {j: tip for j, (tip, _) in tips.items()})
     t = rq.copy()
     for j in range(len(parents)):
         p = parents[j]
         if p >= 0:
-            t[j] = qmul(t[p], qmul(qinv(rq[p]), rq[j]))  # the parent's T-pose turn, the rest's local rotation
+            t[j] = qmul(t[p], qmul(qinv(rq[p]), rq[j]))  # the parent's T-pose turn, the start's local rotation
         if j in aim:
-            d = rest[aim[j]] - rest[j]  # the rest direction (world)
+            d = rest[aim[j]] - rest[j]  # the start's direction (world)
             want = basis @ ch.direction[j]
             if j in full:
                 t[j] = qmul(qframe(d, full[j], want, basis @ LEFT), rq[j])
+            elif j in hinged:  # a limb bent at its hinge: the bend's axis turned to the natural one (:data:`HINGES`)
+                t[j] = qmul(qframe(d, hinged[j][0], want, basis @ hinged[j][1]), rq[j])
             else:
                 # a bone pointing (nearly) opposite its T-pose direction turns about the body's forward axis, not about
                 # whichever axis rounding picks (the model's zero pose has such bones: its legs along its spine)
+                t[j] = qmul(qswing(qrot(qmul(t[j], qinv(rq[j])), d), want, basis @ FORWARD, 1e-4), t[j])
+        elif j in tips:  # the last bone of a limb without its hand or toes: along its end site
+            d, want = tips[j][0] - rest[j], basis @ tips[j][1]
+            if j in hinged:
+                t[j] = qmul(qframe(d, hinged[j][0], want, basis @ hinged[j][1]), rq[j])
+            else:
                 t[j] = qmul(qswing(qrot(qmul(t[j], qinv(rq[j])), d), want, basis @ FORWARD, 1e-4), t[j])
     return t
 
@@ -188,13 +265,13 @@ def world_up(skeleton: Skeleton, slot_of: dict[str, int], poses: np.ndarray | No
     return up
 
 
-def _body_basis(skeleton: Skeleton, slot_of: dict[str, int], up: np.ndarray,
-                reference: np.ndarray | None = None) -> np.ndarray:
+def _body_basis(skeleton: Skeleton, slot_of: dict[str, int], up: np.ndarray, reference: np.ndarray | None = None,
+                start: np.ndarray | None = None) -> np.ndarray:
     """The skeleton's body frame: columns left, up, forward, with ``up`` its world's (:func:`world_up`) and left the
-    rest pose's thighs (``reference`` for the bones above the hips) across it; where they lie along it (a degenerate
-    rest), the rest's hips -> head across it, else a world axis.  Two skeletons that differ only in their names, their
-    channels or their world's turn get bases that differ by that turn, so the retargeting between them is exact."""
-    rest = rest_pose(skeleton, slot_of, reference)[1]
+    thighs across it in the pose :func:`rest_pose` gives; where they lie along it (a degenerate rest), the hips -> head
+    across it, else a world axis.  Two skeletons that differ only in their names, their channels or their world's turn
+    get bases that differ by that turn, so the retargeting between them is exact."""
+    rest = rest_pose(skeleton, slot_of, reference, start)[1]
     up = np.asarray(up, dtype=np.float64) / np.linalg.norm(up)
     for v in (rest[slot_of["UpperLeg_L"]] - rest[slot_of["UpperLeg_R"]], rest[slot_of["Head"]] - rest[slot_of["Hips"]],
               np.roll(np.abs(up), 1)):
@@ -219,18 +296,94 @@ def _hip_height(skeleton: Skeleton, t: np.ndarray, slot_of: dict[str, int], up: 
     return float((pos[slot_of["Hips"]] - feet) @ up)
 
 
+# The model's skeleton's natural pose: per joint the mean local rotation of its training data (``python
+# benchmarks/model_pose.py``: Bandai-Namco-2's standard training split, 300 clips, every 5th frame), for the model whose
+# offsets point as :data:`MODEL_REST` (the shipped models).  Its T-pose is built from this pose, not from its zero pose
+# (every bone along its parent's X, the spine's and the limbs' twists none of the data's).
+MODEL_POSE: dict[str, tuple[float, float, float, float]] = {
+    "Hips": (1.00000, 0.00000, 0.00000, 0.00000),
+    "Spine": (0.70924, 0.70298, -0.03380, 0.04068),
+    "Chest": (0.99921, -0.00887, 0.00975, 0.03758),
+    "Neck": (0.99675, -0.01862, 0.01709, 0.07653),
+    "Head": (0.99978, -0.01239, 0.01572, 0.00606),
+    "Shoulder_L": (0.58696, -0.41605, -0.40323, -0.56549),
+    "UpperArm_L": (0.82973, -0.27256, -0.29929, -0.38429),
+    "LowerArm_L": (0.81040, 0.16323, -0.54426, 0.14277),
+    "Hand_L": (0.98556, 0.04404, 0.00587, 0.16337),
+    "Shoulder_R": (0.57171, 0.43126, -0.41894, 0.55826),
+    "UpperArm_R": (0.84638, -0.24207, -0.32784, -0.34288),
+    "LowerArm_R": (0.82774, 0.06111, -0.55405, 0.06433),
+    "Hand_R": (0.97723, 0.05918, -0.03184, 0.20125),
+    "UpperLeg_L": (0.06020, -0.02780, 0.09237, -0.99351),
+    "LowerLeg_L": (0.97122, 0.00115, 0.23818, -0.00031),
+    "Foot_L": (0.82362, 0.03123, -0.56544, -0.03081),
+    "Toes_L": (0.99105, 0.00025, -0.13348, -0.00003),
+    "UpperLeg_R": (-0.15941, -0.98700, 0.01969, 0.00525),
+    "LowerLeg_R": (0.97716, 0.00068, 0.21248, -0.00020),
+    "Foot_R": (0.82491, 0.08221, -0.55877, -0.02322),
+    "Toes_R": (0.99050, -0.00009, -0.13751, -0.00017),
+}
+MODEL_REST: dict[str, tuple[float, float, float]] = {  # its offsets' directions
+    "Spine": (1.0000, 0.0000, 0.0000),
+    "Chest": (0.9990, -0.0452, 0.0000),
+    "Neck": (1.0000, 0.0000, 0.0000),
+    "Head": (1.0000, 0.0000, 0.0000),
+    "Shoulder_L": (0.9336, -0.0174, 0.3578),
+    "UpperArm_L": (1.0000, 0.0000, 0.0000),
+    "LowerArm_L": (1.0000, 0.0000, 0.0000),
+    "Hand_L": (1.0000, 0.0000, 0.0000),
+    "Shoulder_R": (0.9336, -0.0174, -0.3578),
+    "UpperArm_R": (-1.0000, 0.0000, 0.0000),
+    "LowerArm_R": (-1.0000, 0.0000, 0.0000),
+    "Hand_R": (-1.0000, -0.0000, 0.0000),
+    "UpperLeg_L": (-0.3210, -0.9471, 0.0000),
+    "LowerLeg_L": (1.0000, 0.0000, -0.0000),
+    "Foot_L": (1.0000, 0.0000, -0.0000),
+    "Toes_L": (1.0000, 0.0000, 0.0000),
+    "UpperLeg_R": (-0.3210, 0.9471, 0.0000),
+    "LowerLeg_R": (-1.0000, -0.0001, -0.0010),
+    "Foot_R": (-1.0000, 0.0000, 0.0000),
+    "Toes_R": (-1.0000, 0.0000, 0.0000),
+}
+
+
+def model_natural_pose(model: Skeleton) -> np.ndarray | None:
+    """:data:`MODEL_POSE` as local rotations ``(J, 4)`` where ``model`` has the skeleton it was read on (its offsets'
+    directions, :data:`MODEL_REST`), else ``None`` (its zero pose stands in)."""
+    if tuple(model.names) != tuple(MODEL_POSE) or not all(
+            np.abs(np.asarray(o) / max(np.linalg.norm(o), 1e-12) - MODEL_REST[n]).max() < 1e-3
+            for n, o in zip(model.names[1:], model.offsets[1:])):
+        return None
+    return np.array([MODEL_POSE[n] for n in model.names])
+
+
+def _shape(skeleton: Skeleton, joints: list[int], start: np.ndarray | None = None) -> np.ndarray:
+    """The distances between ``joints`` in the rest pose (or ``start``), over the largest: the same for two skeletons
+    that differ by names, channels, units, their world's turn or bones between these joints."""
+    pos = rest_pose(skeleton, {"Hips": 0}, None, start)[1][joints]
+    d = np.linalg.norm(pos[:, None] - pos[None], axis=-1)
+    return d / max(float(d.max()), 1e-12)
+
+
 class Retarget:
     """Motion between ``rig`` (a humanoid skeleton, its rest offsets) and ``model`` (the model's skeleton, whose joint
     names are the slots) through ``bone_map`` (slot -> rig bone).  :meth:`to_model` and :meth:`to_rig` (module
     docstring); ``reference``: the rig's local rotations ``(J, 4)`` at a key (its bones above the hips stand as there
-    in the reference pose); ``poses``: the rig's local rotations ``(K, J, 4)`` at the keys, which say where its world's
-    up is (:func:`world_up`; default: the reference); ``up``: that direction when the caller knows it (a host whose
-    armature is turned as an object); ``scale``: model lengths per rig length (hip heights);
-    ``world``: the rotation from the rig's world to the model's (wxyz).  The model's own skeleton under other names is
-    the identity case: ``world`` a turn about the up axis at most, the same T-pose, the same motion."""
+    in the reference pose); ``poses``: the rig's local rotations ``(K, J, 4)`` at the keys: where its world's up is
+    (:func:`world_up`) and its natural pose (:func:`mean_pose`; default: the reference); ``up``: that direction when
+    the caller knows it (a host whose armature is turned as an object); ``model_pose``: the model's natural pose
+    (default :data:`MODEL_POSE` where the model has the skeleton it was read on); ``ends``: the rig's end-site offsets
+    per joint (a forearm without a hand, a foot without toes is pointed by its end site).  ``scale``: model lengths per rig
+    length (hip heights); ``world``: the rotation from the rig's world to the model's (wxyz).
+
+    Each skeleton's T-pose is built from its natural pose, so that their bones' twists correspond as their motions'
+    do, whatever their rest poses (the model's zero pose lies along X; a rig's may be an A-pose, or its bones' axes
+    rolled).  The model's own skeleton under other names, channels, units, axes or with bones added is the identity
+    case: the rig's natural pose is then the model's, ``world`` a turn about the up axis, the motion the same."""
 
     def __init__(self, rig: Skeleton, model: Skeleton, bone_map: BoneMap, reference: np.ndarray | None = None,
-                 where: str = "rig", poses: np.ndarray | None = None, up: np.ndarray | None = None):
+                 where: str = "rig", poses: np.ndarray | None = None, up: np.ndarray | None = None,
+                 model_pose: np.ndarray | None = None, ends: dict[int, np.ndarray] | None = None):
         self.rig, self.model, self.map = rig, model, bone_map
         self.rig_slot = {s: rig.names.index(b) for s, b in bone_map.slots.items()}
         self.model_slot = {s: model.names.index(s) for s in model.names}
@@ -242,15 +395,18 @@ class Retarget:
         if not (np.isfinite(size) and size > 0 and tall > 1e-3 * size and across > 1e-3 * size):
             raise InbetweenError(f"{where}: its scale and up direction cannot be found from its rest pose (the head "
                                  f"{tall:.3g} from the hips, the thighs {across:.3g} apart, the rig {size:.3g} across)")
+        keyed = reference if poses is None else poses
         if up is None:
-            up = world_up(rig, self.rig_slot, reference if poses is None else poses)
+            up = world_up(rig, self.rig_slot, keyed)
         elif not (np.shape(up) == (3,) and np.isfinite(up).all() and np.linalg.norm(up) > 0):
             raise InbetweenError(f"{where}: up must be a direction (x, y, z), got {up!r}")
-        basis = _body_basis(rig, self.rig_slot, up, reference)
-        m_basis = _body_basis(model, self.model_slot, UP)  # the model's world is the project's: Y up
+        m_start = model_pose if model_pose is not None else model_natural_pose(model)
+        self.m_basis = m_basis = _body_basis(model, self.model_slot, UP, start=m_start)  # the project's world: Y up
+        self.t_model = tpose(model, self.model_slot, m_basis, start=m_start)
+        start = self._rig_start(keyed, m_start, reference)
+        self.basis = basis = _body_basis(rig, self.rig_slot, up, reference, start)
         self.world = qmul(_quat_of(m_basis), qinv(_quat_of(basis)))  # rig world -> model world
-        self.t_rig = tpose(rig, self.rig_slot, basis, reference)
-        self.t_model = tpose(model, self.model_slot, m_basis)
+        self.t_rig = tpose(rig, self.rig_slot, basis, reference, start, ends)
         rig_height = _hip_height(rig, self.t_rig, self.rig_slot, basis[:, 1])
         if not rig_height > 1e-3 * size:
             raise InbetweenError(f"{where}: its scale cannot be found: in its T-pose the hips are not above the ankles "
@@ -259,6 +415,34 @@ class Retarget:
         self._plan_model()
         self._plan_rig()
         self._plan_aims(reference)
+
+    def _rig_start(self, keyed, m_start, reference) -> np.ndarray | None:
+        """The rig's natural pose: the model's carried over where the rig is the model's skeleton (the same shape of
+        the mapped joints at rest, up to the unit and a turn), else the mean of its keys (:func:`mean_pose`), else its
+        rest (``None``)."""
+        slots = [s for s in self.rig_slot if s in self.model_slot]
+        mine, theirs = [self.rig_slot[s] for s in slots], [self.model_slot[s] for s in slots]
+        same = np.abs(_shape(self.rig, mine) - _shape(self.model, theirs)).max() < 1e-4
+        if same and m_start is not None:
+            rq, rest = rest_pose(self.rig, self.rig_slot, reference)
+            a = rest[mine] - rest[self.rig_slot["Hips"]]
+            m_rest = rest_pose(self.model, self.model_slot)[1]
+            b = m_rest[theirs] - m_rest[self.model_slot["Hips"]]
+            u, _, vt = np.linalg.svd(a.T @ b)  # the turn taking the rig's rest onto the model's (Kabsch)
+            turn = _quat_of(vt.T @ np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u.T))]) @ u.T)
+            g_model = fk(np.asarray(m_start, np.float64), self.model.offsets, self.model.parents)[0]
+            source = {b_: self.model_slot[s] for s, b_ in self.rig_slot.items()}
+            g = np.zeros((self.rig.num_joints, 4))
+            for j, p in enumerate(self.rig.parents):
+                if j in source:
+                    g[j] = qmul(qmul(qinv(turn), qmul(g_model[source[j]], turn)), rq[j])
+                else:
+                    g[j] = g[p] if p >= 0 else rq[j]
+            par = list(self.rig.parents[1:])
+            return np.concatenate([g[:1], qmul(qinv(g[par]), g[1:])], axis=0)
+        if keyed is None or same:
+            return None
+        return mean_pose(np.asarray(keyed, dtype=np.float64).reshape(-1, self.rig.num_joints, 4))
 
     # ------------------------------------------------------------------ where each joint's rotation comes from
     def _fractions(self, skeleton: Skeleton, path: list[int]) -> np.ndarray:

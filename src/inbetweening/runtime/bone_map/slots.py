@@ -17,7 +17,7 @@ SLOT_PARENTS: dict[str, str | None] = {
 }
 REQUIRED: tuple[str, ...] = (
     "Hips", "Spine", "Head",
-    *(f"{part}_{s}" for s in "LR" for part in ("UpperArm", "LowerArm", "Hand", "UpperLeg", "LowerLeg", "Foot")),
+    *(f"{part}_{s}" for s in "LR" for part in ("UpperArm", "LowerArm", "UpperLeg", "LowerLeg", "Foot")),
 )
 OPTIONAL: tuple[str, ...] = tuple(s for s in SLOTS if s not in REQUIRED)
 _SIDED = ("Shoulder", "UpperArm", "LowerArm", "Hand", "UpperLeg", "LowerLeg", "Foot", "Toes")
