@@ -6,7 +6,8 @@ twists are the ones its data has; its zero pose has none of them).
 
 Bandai-Namco-2's standard training split only (take numbers not divisible by 10), every 5th frame of ``--clips``
 clips in name order: per joint the mean of its local rotations (the hips': the identity, its heading is no pose);
-prints the table and the offsets' directions of the skeleton it holds for.
+prints the table, the offsets' directions of the skeleton it holds for, and how high the ankles stand over the floor
+(:data:`~inbetweening.runtime.retarget.MODEL_ANKLE`: a rig's floor is put there).
 """
 from __future__ import annotations
 
@@ -33,12 +34,16 @@ def main(argv=None) -> int:
     from inbetweening.runtime.torch_backend import TorchBackend
 
     sk = TorchBackend.from_checkpoint(args.ckpt).info.skeleton
-    qs = []
+    qs, ankles = [], []
+    feet = [sk.names.index("Foot_L"), sk.names.index("Foot_R")]
     with zipfile.ZipFile(args.data) as z:
         names = sorted(n for n in z.namelist() if n.endswith(".bvh") and bandai_namco_split(Path(n).name) == "train")
         for n in names[: args.clips]:
-            qs.append(clip_in_skeleton(parse_bvh(z.read(n).decode(), n), sk)[2][::5])
+            _, root, q = clip_in_skeleton(parse_bvh(z.read(n).decode(), n), sk)
+            qs.append(q[::5])
+            ankles.append(float(sk.pose(root, q)[1][:, feet, 1].min()))
     pose = mean_pose(np.concatenate(qs))
+    print(f"MODEL_ANKLE = {float(np.median(ankles)):.3f}  # the lowest ankle of a clip, median over the clips (cm)")
     print(f"# {len(qs)} training clips, {sum(len(q) for q in qs)} frames")
     print("MODEL_POSE = {")
     for n, q in zip(sk.names, pose):

@@ -353,7 +353,7 @@ class Inbetweener:
             part[t - src[0]] = mask
         movers = [j for j, ch in enumerate(bvh.channels) if any(c.lower().endswith("position") for c in ch)]
         retarget = Retarget(bvh.skeleton(), self.skeleton, bm, reference=lq_in[src[0]], where=f"rig '{bvh.source}'",
-                            poses=lq_in[src], ends=bvh.end_sites)
+                            poses=lq_in[src], ends=bvh.end_sites, translations=lp_in[src])
         fps = 1.0 / bvh.frame_time if bvh.frame_time > 0 else None
         out = self.runtime.fill_rig(retarget, lq, lp, out_pos, movers=movers, fps=fps, partial=part or None, **kw)
         clip = bvh.with_motion(out.local_q, out.local_p)

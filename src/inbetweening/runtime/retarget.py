@@ -323,6 +323,7 @@ MODEL_POSE: dict[str, tuple[float, float, float, float]] = {
     "Foot_R": (0.82491, 0.08221, -0.55877, -0.02322),
     "Toes_R": (0.99050, -0.00009, -0.13751, -0.00017),
 }
+MODEL_ANKLE = 11.739  # cm: the lowest ankle of a training clip over the floor, median over the clips (the same script)
 MODEL_REST: dict[str, tuple[float, float, float]] = {  # its offsets' directions
     "Spine": (1.0000, 0.0000, 0.0000),
     "Chest": (0.9990, -0.0452, 0.0000),
@@ -373,8 +374,11 @@ class Retarget:
     (:func:`world_up`) and its natural pose (:func:`mean_pose`; default: the reference); ``up``: that direction when
     the caller knows it (a host whose armature is turned as an object); ``model_pose``: the model's natural pose
     (default :data:`MODEL_POSE` where the model has the skeleton it was read on); ``ends``: the rig's end-site offsets
-    per joint (a forearm without a hand, a foot without toes is pointed by its end site).  ``scale``: model lengths per rig
-    length (hip heights); ``world``: the rotation from the rig's world to the model's (wxyz).
+    per joint (a forearm without a hand, a foot without toes is pointed by its end site); ``translations``: the rig's
+    local translations at the keys (as ``poses``): its floor, the lowest ankle there, goes where the model's data has
+    it (:data:`MODEL_ANKLE`; the model sees heights).  ``scale``: model lengths per rig
+    length (hip heights); ``world``: the rotation from the rig's world to the model's (wxyz); ``lift``: model lengths
+    the rig's motion is raised by in the model's world.
 
     Each skeleton's T-pose is built from its natural pose, so that their bones' twists correspond as their motions'
     do, whatever their rest poses (the model's zero pose lies along X; a rig's may be an A-pose, or its bones' axes
@@ -383,7 +387,8 @@ class Retarget:
 
     def __init__(self, rig: Skeleton, model: Skeleton, bone_map: BoneMap, reference: np.ndarray | None = None,
                  where: str = "rig", poses: np.ndarray | None = None, up: np.ndarray | None = None,
-                 model_pose: np.ndarray | None = None, ends: dict[int, np.ndarray] | None = None):
+                 model_pose: np.ndarray | None = None, ends: dict[int, np.ndarray] | None = None,
+                 translations: np.ndarray | None = None):
         self.rig, self.model, self.map = rig, model, bone_map
         self.rig_slot = {s: rig.names.index(b) for s, b in bone_map.slots.items()}
         self.model_slot = {s: model.names.index(s) for s in model.names}
@@ -412,6 +417,12 @@ class Retarget:
             raise InbetweenError(f"{where}: its scale cannot be found: in its T-pose the hips are not above the ankles "
                                  f"(hip height {rig_height:.3g}, the rig {size:.3g} across)")
         self.scale = _hip_height(model, self.t_model, self.model_slot, UP) / rig_height
+        self.lift = 0.0  # model lengths the rig's motion is raised by on the model's side: its floor onto the model's
+        if translations is not None and not self.same and model_natural_pose(model) is not None:
+            q = np.asarray(keyed, dtype=np.float64).reshape(-1, rig.num_joints, 4)
+            gp = fk(q, np.asarray(translations, dtype=np.float64).reshape(q.shape[:-1] + (3,)), rig.parents)[1]
+            ankles = gp[:, [slot["Foot_L"], slot["Foot_R"]]] @ basis[:, 1]
+            self.lift = MODEL_ANKLE - self.scale * float(ankles.min())
         self._plan_model()
         self._plan_rig()
         self._plan_aims(reference)
@@ -422,7 +433,7 @@ class Retarget:
         rest (``None``)."""
         slots = [s for s in self.rig_slot if s in self.model_slot]
         mine, theirs = [self.rig_slot[s] for s in slots], [self.model_slot[s] for s in slots]
-        same = np.abs(_shape(self.rig, mine) - _shape(self.model, theirs)).max() < 1e-4
+        self.same = same = bool(np.abs(_shape(self.rig, mine) - _shape(self.model, theirs)).max() < 1e-4)
         if same and m_start is not None:
             rq, rest = rest_pose(self.rig, self.rig_slot, reference)
             a = rest[mine] - rest[self.rig_slot["Hips"]]
@@ -552,7 +563,8 @@ class Retarget:
         lq = np.concatenate([g[:, :1], qmul(qinv(g[:, par]), g[:, 1:])], axis=1)
         lq[:1] = euler_sign(lq[:1])  # as a file's frames are: the first frame's Euler sign, then continuous in time
         lq = remove_discontinuities(lq, axis=0)
-        root = self.scale * qrot(np.broadcast_to(self.world, gp[:, 0].shape[:-1] + (4,)), gp[:, self.rig_slot["Hips"]])
+        root = self.scale * qrot(np.broadcast_to(self.world, gp[:, 0].shape[:-1] + (4,)), gp[:, self.rig_slot["Hips"]]) \
+            + self.lift * UP
         return root, lq
 
     def to_rig(self, root: np.ndarray, local_q: np.ndarray, free_q: np.ndarray, free_p: np.ndarray,
@@ -595,8 +607,8 @@ class Retarget:
         carriers = [j for j in chain if j in set(movers if movers is not None else [0])]
         if carriers:
             mover = carriers[-1]
-            target = qrot(np.broadcast_to(qinv(self.world), root.shape[:-1] + (4,)), np.asarray(root, np.float64)) \
-                / self.scale
+            target = qrot(np.broadcast_to(qinv(self.world), root.shape[:-1] + (4,)),
+                          np.asarray(root, np.float64) - self.lift * UP) / self.scale
             gp = fk(lq, lp, r.parents)[1]
             shift = target - gp[:, hips]  # move the mover by what the hips lack
             pm = r.parents[mover]
