@@ -328,7 +328,7 @@ def resample(c: Clip, fps: float) -> Clip:
     """The clip at ``fps``: frames at their time, rotations slerped, translations linear."""
     n = c.frames
     t = np.arange(n) * c.frame_time
-    new_t = np.arange(0.0, t[-1] + 1e-9, 1.0 / fps)
+    new_t = np.minimum(np.arange(int(round(t[-1] * fps)) + 1) / fps, t[-1])
     out = copy.deepcopy(c)
     out.frame_time = 1.0 / fps
     out.rot = [Slerp(t, r)(new_t) for r in c.rot]

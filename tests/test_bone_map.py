@@ -366,8 +366,8 @@ def scrambled(names, seed=0):
 def test_slots_are_the_models_joints():
     from inbetweening.predictor.checkpoint import load_predictor
 
-    assert len(SLOTS) == 21 and len(REQUIRED) == 15 and set(REQUIRED) | set(OPTIONAL) == set(SLOTS)
-    assert set(OPTIONAL) == {"Chest", "Neck", "Shoulder_L", "Shoulder_R", "Toes_L", "Toes_R"}
+    assert len(SLOTS) == 21 and len(REQUIRED) == 13 and set(REQUIRED) | set(OPTIONAL) == set(SLOTS)
+    assert set(OPTIONAL) == {"Chest", "Neck", "Shoulder_L", "Shoulder_R", "Hand_L", "Hand_R", "Toes_L", "Toes_R"}
     sk = load_predictor(MODEL).skeleton
     assert tuple(sk.names) == SLOTS
     assert [SLOT_PARENTS[n] for n in sk.names] == [None if p < 0 else sk.names[p] for p in sk.parents]
@@ -682,14 +682,15 @@ def test_names_and_structure_together():
 
 
 def test_optional_slots_may_be_absent():
-    """One spine bone, no neck, no clavicles, no toes: the 15 required slots, nothing forced into the others."""
+    """One spine bone, no neck, no clavicles, no toes: the 13 required slots and the hands, nothing forced into the
+    others."""
     def n(role, side):
         return {"hips": "Hips", "spine": "Spine", "neck": "Neck", "head": "Head", "upperarm": "UpperArm_{}",
                 "lowerarm": "LowerArm_{}", "hand": "Hand_{}", "thigh": "UpperLeg_{}", "calf": "LowerLeg_{}",
                 "foot": "Foot_{}"}[role].format(str(side).upper())
 
     bm = detect(humanoid(n, spine=1, neck=0, clavicle=False, toes=False))
-    assert set(bm.slots) == set(REQUIRED)
+    assert set(bm.slots) == set(REQUIRED) | {"Hand_L", "Hand_R"}
     assert bm.slots["Spine"] == "Spine" and bm.slots["Hand_L"] == "Hand_L" and bm.bone("Chest") is None
 
 
@@ -750,7 +751,7 @@ def test_a_snake_is_refused():
         prev = r.add(f"body_{i:02d}", prev, (0, 0, 5))
     r.add("head", prev, (0, 1, 6))
     with pytest.raises(BoneMapError, match=r"^snake is not a humanoid .*no bone found for Spine, UpperArm_L, "
-                                           r"LowerArm_L, Hand_L \(\+9 more\); ") as err:
+                                           r"LowerArm_L, UpperLeg_L \(\+7 more\); ") as err:
         detect(r, where="snake")
     assert err.value.template.count("\n") > 31
 
@@ -788,7 +789,7 @@ def test_override_moves_a_slot_and_unmaps():
     ({"LeftHand": "Paw_L"}, r"bone 'LeftHand' is given the unknown slot 'Paw_L'"),
     ({"LeftHand": "UpperArm_L"}, r"does not fit the hierarchy: LowerArm_L 'LeftForeArm' is not below UpperArm_L "
                                  r"'LeftHand'"),
-    ({"LeftHand": None}, r"no bone found for Hand_L"),
+    ({"LeftFoot": None}, r"no bone found for Foot_L"),
 ])
 def test_bad_overrides_are_refused(override, match):
     with pytest.raises(BoneMapError, match=match) as err:

@@ -15,6 +15,7 @@ from inbetweening.api.inbetweener import Inbetweener, InbetweenError
 from inbetweening.cli import predict
 from inbetweening.data.bvh import BVH, read_bvh
 from inbetweening.data.bvh_writer import write_bvh
+from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.quaternion import qinv, qmul, remove_discontinuities
 from inbetweening.geometry.skeleton import fk
 from inbetweening.runtime.retarget import euler_sign, tpose
@@ -63,14 +64,26 @@ def test_the_api_fills_another_humanoid_with_every_key_exact(ib, motion, charact
     assert out.names == rig.names and out.channels == rig.channels and out.num_frames == 91
     assert np.array_equal(out.motion[keys], rig.motion[keys])  # every bone's keys, bit for bit
     assert np.isfinite(out.motion).all()
-    # the fill on the character is the model's own fill of the same keys (carried there and back)
+    # the fill on the character is as good as the model's own fill of the same keys (ratio to interpolation)
     root, q = motion
     q = q.copy()
     q[:1] = euler_sign(q[:1])  # the signs a file gives quaternions (the network reads q and -q differently)
     q = remove_discontinuities(q, axis=0)
     hidden = ~np.isin(np.arange(91), keys)
     native = ib.fill_arrays(np.where(hidden[:, None], np.nan, root), np.where(hidden[:, None, None], np.nan, q), keys)
-    assert np.abs(ib.skeleton.pose(res.root, res.local_q)[1] - ib.skeleton.pose(*native)[1]).max() < 0.05  # cm
+    gen = np.flatnonzero(hidden)
+    lerp = interpolate_keyframes(root, q, keys)
+    sk = ib.skeleton
+    t, f, i = (sk.pose(*m)[1][gen] for m in ((root, q), native[:2], lerp))
+    native_ratio = np.linalg.norm(f - t, axis=-1).mean() / np.linalg.norm(i - t, axis=-1).mean()
+    parents = rig.skeleton().parents
+    rig_t = fk(rig.local_rotations(), rig.channel_positions(), parents)[1][gen]
+    rig_f = fk(out.local_rotations(), out.channel_positions(), parents)[1][gen]
+    lp_i, lq_i = interpolate_keyframes(rig.channel_positions().reshape(91, -1), rig.local_rotations(), keys)
+    rig_i = fk(lq_i, lp_i.reshape(91, -1, 3), parents)[1][gen]
+    rig_ratio = np.linalg.norm(rig_f - rig_t, axis=-1).mean() / np.linalg.norm(rig_i - rig_t, axis=-1).mean()
+    assert rig_ratio <= max(native_ratio + 0.02, 1.0)  # (a wiggle, not a motion: both near interpolation here; real
+    # clips: tests/test_character_invariance.py)
     assert not np.allclose(out.motion[1:20], out.motion[0])  # frames were generated
 
 

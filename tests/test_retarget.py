@@ -46,12 +46,23 @@ def _local(g, parents, j):
 
 
 def _carried(sk, motion, name):
-    """The motion played by the character ``name``: ``(rig, its local_q, local_p, the Retarget, the motion carried back
-    onto the model's skeleton (root, local_q))``."""
+    """The motion played by the character ``name``: ``(rig, its local_q, local_p, the Retarget (its natural pose the
+    mean of every 15th frame), the motion carried back onto the model's skeleton (root, local_q))``."""
     rig, slots = character(sk, *motion, **VARIANTS[name])
     lq, lp = rig.local_rotations(), rig.channel_positions()
-    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0])
+    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0], poses=lq[::15])
     return rig, lq, lp, rt, rt.to_model(lq, lp)
+
+
+def _heading_free(a: np.ndarray, b: np.ndarray) -> float:
+    """The largest distance between positions ``a`` and ``b`` (``(..., 3)``, Y up) once ``a`` is turned about the up
+    axis onto ``b`` (least squares): two worlds whose characters face other ways fill alike (the window is turned to
+    its own heading)."""
+    xa, xb = a[..., [0, 2]].reshape(-1, 2), b[..., [0, 2]].reshape(-1, 2)
+    u, _, vt = np.linalg.svd(xa.T @ xb)
+    turned = a.copy()
+    turned[..., [0, 2]] = (xa @ (u @ vt)).reshape(a[..., [0, 2]].shape)
+    return float(np.abs(turned - b).max())
 
 
 @pytest.mark.parametrize("name", list(VARIANTS))
@@ -62,10 +73,10 @@ def test_a_character_carries_the_models_motion_exactly(backend, motion, name):
     _, _, _, rt, (r2, q2) = _carried(sk, motion, name)
     gp, gp2 = sk.pose(root, q)[1], sk.pose(r2, q2)[1]
     height = np.ptp(gp[..., 1], axis=-1).max()
-    assert np.abs(gp2 - gp).max() <= 1e-4 * height, np.abs(gp2 - gp).max()
+    assert _heading_free(gp2, gp) <= 1e-4 * height, _heading_free(gp2, gp)
     unit = VARIANTS[name].get("unit", 0.01)
     legs = VARIANTS[name].get("scale", {}).get("legs", 1.0)
-    assert rt.scale == pytest.approx(1.0 / (unit * legs), rel=1e-6)  # the hips' height sets the root's scale
+    assert rt.scale == pytest.approx(1.0 / (unit * legs), rel=1e-4)  # the hips' height sets the root's scale
 
 
 @pytest.mark.parametrize("name", ["renamed", "extra_bones", "proportions"])
@@ -80,9 +91,20 @@ def test_back_onto_the_character_and_again_is_the_same_motion(backend, motion, n
     assert np.allclose(np.abs((lq3[:, free] * lq[:, free]).sum(-1)), 1.0)  # bones without a slot keep their values
 
 
-def test_the_fill_on_a_character_is_the_fill_on_the_models_skeleton(backend, motion):
+def _ratio(sk, filled, truth, keys) -> float:
+    """The fill's mean joint error over the generated frames of ``truth`` (root, local_q), over interpolation's."""
+    n = keys[-1] + 1
+    gen = np.setdiff1d(np.arange(n), keys)
+    ir, iq = interpolate_keyframes(truth[0][:n], truth[1][:n], keys)
+    t, p, i = (sk.pose(r[:n], q[:n])[1][gen] for r, q in (truth, filled, (ir, iq)))
+    return float(np.linalg.norm(p - t, axis=-1).mean() / np.linalg.norm(i - t, axis=-1).mean())
+
+
+def test_the_fill_on_a_character_is_as_good_as_on_the_models_skeleton(backend, motion):
     """Keys every 15 frames of a character: the rig's keys exactly as given, the fill (carried back onto the model's
-    skeleton) the native fill of the same keys within float rounding, bones without a slot interpolated."""
+    skeleton) as good as the native fill of the same keys (ratio to interpolation within 0.02), bones without a slot
+    interpolated.  (Not the same numbers: the character faces another way in its world, and the network reads its
+    windows' quaternions as numbers.)"""
     sk = backend.info.skeleton
     root, q = motion
     keys = list(range(0, 121, 15))
@@ -93,12 +115,13 @@ def test_the_fill_on_a_character_is_the_fill_on_the_models_skeleton(backend, mot
     hidden_q, hidden_p = lq.copy(), lp.copy()
     gen = np.setdiff1d(np.arange(121), keys)
     hidden_q[gen], hidden_p[gen] = np.nan, np.nan  # nothing between the keys is read
-    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0])
+    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0], poses=lq[keys])
     out = runtime.fill_rig(rt, hidden_q, hidden_p, keys, movers=list(range(rig.num_joints)))
     assert np.array_equal(out.local_q[keys], lq[keys]) and np.array_equal(out.local_p[keys], lp[keys])
     assert np.isfinite(out.local_q).all() and np.isfinite(out.local_p).all()
-    r, qq = rt.to_model(out.local_q, out.local_p)
-    assert np.abs(sk.pose(r, qq)[1] - sk.pose(native.root, native.local_q)[1]).max() < 0.05  # cm
+    filled = rt.to_model(out.local_q, out.local_p)
+    truth = rt.to_model(lq, lp)
+    assert _ratio(sk, filled, truth, keys) <= _ratio(sk, (native.root, native.local_q), (root, q), keys) + 0.02
     finger = rig.names.index("hand_l_finger0_02")
     _, iq = interpolate_keyframes(np.zeros((121, 3)), lq, keys)
     assert np.allclose(np.abs((out.local_q[:, finger] * iq[:, finger]).sum(-1)), 1.0)
@@ -124,7 +147,7 @@ def test_a_refill_of_a_character_keeps_its_other_gaps_exactly(backend, motion):
 
 def test_a_faster_rig_is_filled_at_the_models_rate(backend, motion):
     """A 120 fps rig (every frame of the motion 4 times, interpolated): keys 60 frames apart are 15 of the model's;
-    the fill is the native fill of those keys, taken at the rig's frames."""
+    the fill, taken at the model's frames, is as good as the native fill of those keys (ratio within 0.02)."""
     sk = backend.info.skeleton
     root, q = motion
     keys = list(range(0, 121, 15))
@@ -132,10 +155,11 @@ def test_a_faster_rig_is_filled_at_the_models_rate(backend, motion):
     rig, slots = character(sk, root, q, extras=False, z_up=False, unit=1.0)
     lq, lp = rig.local_rotations(), rig.channel_positions()
     fast = np.repeat(np.arange(121), 4)[:481]  # frame k of the fast rig is frame k/4 of the motion (keys exact)
-    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0])
+    rt = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0], poses=lq[keys])
     out = FillRuntime(backend).fill_rig(rt, lq[fast], lp[fast], [4 * k for k in keys], movers=[0], fps=120.0)
-    r, qq = rt.to_model(out.local_q[::4], out.local_p[::4])
-    assert np.abs(sk.pose(r, qq)[1] - sk.pose(native.root, native.local_q)[1]).max() < 0.05
+    filled = rt.to_model(out.local_q[::4], out.local_p[::4])
+    truth = rt.to_model(lq, lp)
+    assert _ratio(sk, filled, truth, keys) <= _ratio(sk, (native.root, native.local_q), (root, q), keys) + 0.02
 
 
 def test_rig_fill_errors(backend, motion):
@@ -161,7 +185,7 @@ def test_a_static_top_bone_that_turns_the_character_is_part_of_its_world(backend
     rig, slots = character(sk, root, q, **VARIANTS["extra_bones"])
     lq, lp = rig.local_rotations(), rig.channel_positions()
     upright = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0]).to_model(lq, lp)
-    assert np.abs(sk.pose(*upright)[1] - sk.pose(root, q)[1]).max() < 1e-3
+    assert _heading_free(sk.pose(*upright)[1], sk.pose(root, q)[1]) < 1e-3
     rest = Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots)).to_model(lq, lp)  # the rest pose alone
     head = sk.names.index("Head")
     up = sk.pose(*rest)[1][:, head] - sk.pose(*rest)[1][:, 0]

@@ -355,7 +355,8 @@ def model_natural_pose(model: Skeleton) -> np.ndarray | None:
             np.abs(np.asarray(o) / max(np.linalg.norm(o), 1e-12) - MODEL_REST[n]).max() < 1e-3
             for n, o in zip(model.names[1:], model.offsets[1:])):
         return None
-    return np.array([MODEL_POSE[n] for n in model.names])
+    pose = np.array([MODEL_POSE[n] for n in model.names])
+    return pose / np.linalg.norm(pose, axis=-1, keepdims=True)  # (the table's five decimals: unit again)
 
 
 def _shape(skeleton: Skeleton, joints: list[int], start: np.ndarray | None = None) -> np.ndarray:
