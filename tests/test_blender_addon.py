@@ -223,6 +223,29 @@ def test_fill_real_bandai_namco_clip(bpy_exe, built, tmp_path):
     assert err <= 1e-3, err
 
 
+@pytest.mark.skipif(not BN2.is_file(), reason="Bandai-Namco-2 zip not available")
+def test_a_renamed_armature_fills_like_the_native_one(bpy_exe, built, tmp_path):
+    """The real clip renamed to UE-mannequin bones and rewritten by another writer (Euler XYZ, translation channels
+    on the top two bones only; tests/bvh_variants.py), imported by Blender's importer: filled as the original, every
+    bone within 0.01 cm of the command line's fill of the original."""
+    import bvh_variants as V
+    from test_character_invariance import UE
+
+    with zipfile.ZipFile(BN2) as zf:
+        (tmp_path / "clip.bvh").write_bytes(zf.read(BN2_CLIP))
+    V.write(V.rename(V.read(tmp_path / "clip.bvh"), UE), tmp_path / "renamed.bvh", orders="XYZ",
+            movers=["root", "pelvis"])
+    zip_path = next(built.glob("*-linux-x64.zip"))
+    res = run_blender(bpy_exe, zip_path, tmp_path / "renamed.bvh",
+                      [{"name": "renamed", "keys_every": 30, "bone_names": UE}], tmp_path)
+    r = res["renamed"]
+    assert r["result"] == ["FINISHED"] and r["n_lost_keys"] == 0 and r["max_change_outside"] == 0.0, r
+    heads = np.load(tmp_path / "renamed_heads.npy")
+    ref = inbetweener_positions(tmp_path / "clip.bvh", r["in_range_keys"])
+    err = fitted_error(ref, heads, [k - r["in_range_keys"][0] for k in r["in_range_keys"]])
+    assert err <= 0.01, err
+
+
 def test_build_reports_a_failed_wheel_download_in_one_line(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "inbetweening.blender", "build", str(tmp_path / "out"),
                            "onnxruntime=0.0.1", "platforms=linux-x64", f"wheels={tmp_path / 'wheels'}"],

@@ -198,7 +198,7 @@ def scenario(cfg: dict, sc: dict, out_dir: str) -> dict:
                                               for k in values_before if k in values_after))
     if in_range and result == ["FINISHED"]:
         frames = list(range(in_range[0], in_range[-1] + 1))
-        renamed = dict([sc["rename"]]) if sc.get("rename") else {}
+        renamed = sc.get("bone_names") or (dict([sc["rename"]]) if sc.get("rename") else {})
         h = heads(obj, [renamed.get(n, n) for n in names], frames)
         np.save(os.path.join(out_dir, f"{sc['name']}_heads.npy"), h)
         res["head_frames"] = frames

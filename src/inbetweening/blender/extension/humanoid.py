@@ -26,9 +26,13 @@ def stored_override(obj) -> dict | None:
 
 
 def is_model_skeleton(obj, model: ModelInfo) -> bool:
-    """Whether the armature has every bone of the model's skeleton (by name): the model's own path (:class:`Rig`)."""
+    """Whether the armature has every bone of the model's skeleton (by name) and the model fills only its own skeleton
+    (its joints are not the humanoid slots): :class:`Rig`.  A model of the humanoid slots fills every armature, its own
+    skeleton too, through :class:`HumanoidRig` (the identity case of the retargeting)."""
+    from inbetweening.runtime.bone_map import SLOTS
+
     bones = obj.data.bones
-    return all(bones.get(n) is not None for n in model.skeleton.names)
+    return set(model.skeleton.names) != set(SLOTS) and all(bones.get(n) is not None for n in model.skeleton.names)
 
 
 def armature_skeleton(obj):
@@ -104,13 +108,16 @@ class HumanoidRig:
         pb = self.pbones[j]
         return pb is not None and any(self.fcurve(bone_path(pb.name, "location"), i) is not None for i in range(3))
 
-    def plan(self, reference: np.ndarray):
-        """The :class:`Retarget` (``reference``: the local rotations at the first key), the bones whose rotation the
-        fill writes (a slot or between slots in a chain) and ``movers``: the bone that carries the hips' translation
-        (the nearest unconnected bone at or above the hips with location curves, else the hips when unconnected)."""
+    def plan(self, reference: np.ndarray, poses: np.ndarray | None = None, translations: np.ndarray | None = None):
+        """The :class:`Retarget` (``reference``: the local rotations at the first key; ``poses``, ``translations``: the
+        local rotations and translations at every key, where the armature's up, natural pose and floor are read), the
+        bones whose rotation the fill writes (a slot or between slots in a chain) and ``movers``: the bone that carries
+        the hips' translation (the nearest unconnected bone at or above the hips with location curves, else the hips
+        when unconnected)."""
         from inbetweening.runtime.retarget import Retarget
 
-        self.retarget = Retarget(self.skeleton, self.model.skeleton, self.map, reference=reference)
+        self.retarget = Retarget(self.skeleton, self.model.skeleton, self.map, reference=reference, poses=poses,
+                                 translations=translations, ends=self.tips())
         self.rot_bones = [j for j, p in enumerate(self.retarget.rig_plan) if p[0] != "free" and self.pbones[j]]
         hips = self.names.index(self.map.slots["Hips"])
         chain = [hips]
@@ -120,6 +127,11 @@ class HumanoidRig:
         keyed = [j for j in free if self._has_location_curve(j)]
         self.movers = keyed[:1] or ([hips] if hips in free else [])
         return self.retarget
+
+    def tips(self) -> dict[int, np.ndarray]:
+        """Per leaf bone, head to tail in armature space (a BVH end site: a forearm without a hand points by it)."""
+        return {j: np.array(b.tail_local - b.head_local, dtype=np.float64) for j, b in enumerate(self.bones)
+                if b is not None and not b.children}
 
     def channels(self):
         """``[(joint, data_path, index)]`` of every channel the fill writes (after :meth:`plan`)."""

@@ -198,11 +198,13 @@ class RigifyRig:
         lq, lp = ik(qmul(g, qinv(self.r)[None]), heads, self.parents)
         return qnormalize(lq, 0.0), lp, self._raw(frames)
 
-    def plan(self, reference: np.ndarray):
-        """The :class:`Retarget` from the deform skeleton (``reference``: its local rotations at the first key)."""
+    def plan(self, reference: np.ndarray, poses: np.ndarray | None = None, translations: np.ndarray | None = None):
+        """The :class:`Retarget` from the deform skeleton (``reference``: its local rotations at the first key;
+        ``poses``, ``translations``: at every key, where its up, natural pose and floor are read)."""
         from inbetweening.runtime.retarget import Retarget
 
-        self.retarget = Retarget(self.skeleton, self.model.skeleton, self.map, reference=reference)
+        self.retarget = Retarget(self.skeleton, self.model.skeleton, self.map, reference=reference, poses=poses,
+                                 translations=translations)
         return self.retarget
 
     def channels(self):
