@@ -39,8 +39,9 @@ TOLERANCE = 0.02
 
 def characters(c):
     """``{name: clip}`` of the characters of clip ``c`` (module docstring)."""
-    import bvh_variants as V
     from scipy.spatial.transform import Rotation as R
+
+    import bvh_variants as V
     from test_character_invariance import UE, _tpose_directions
 
     rng = np.random.default_rng(11)
@@ -65,7 +66,6 @@ def characters(c):
 
 def schedule(name: str, c, seed: int) -> list[int]:
     import bvh_variants as V
-
     from inbetweening.evaluation.schedules import extreme_keyframes, keyframe_indices, random_keyframes
 
     n = c.frames
@@ -79,7 +79,6 @@ def schedule(name: str, c, seed: int) -> list[int]:
 def fill_positions(inb, c, keys, tmp: Path, native_layout: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(filled, truth, interpolation)`` world positions ``(G, J, 3)`` of the generated frames of ``c``'s fill."""
     import bvh_variants as V
-
     from inbetweening.data.bvh_writer import write_bvh
 
     kw = {"orders": "ZXY", "six": range(len(c.names))} if native_layout else {}
@@ -122,7 +121,6 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(ROOT / "results" / "characters" / "characters.json"))
     args = ap.parse_args(argv)
     import bvh_variants as V
-
     from inbetweening import Inbetweener
     from inbetweening.api.shipped import SHIPPED_CKPTS
     from inbetweening.data.specs import bandai_namco_split

@@ -86,7 +86,6 @@ def schedules(c, extremes: bool) -> dict[str, list[int]]:
 def measure(inb, path: Path, keys: list[int], mapped: list[str]) -> tuple[float, float, float]:
     """``(fill error, interpolation error, seconds)`` over the generated frames, mapped bones, world positions."""
     import bvh_variants as V
-
     from inbetweening.data.bvh_writer import write_bvh
 
     c = V.read(path)
@@ -115,7 +114,6 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(ROOT / "results" / "characters" / "real_rigs.json"))
     args = ap.parse_args(argv)
     import bvh_variants as V
-
     from inbetweening import Inbetweener
     from inbetweening.api.inbetweener import _bone_map
     from inbetweening.api.shipped import SHIPPED_CKPTS

@@ -4,7 +4,7 @@ import numpy as np, torch
 torch.set_num_threads(1)
 from inbetweening.data.datasets import load_dataset
 from inbetweening.data.contacts import body_height
-from inbetweening.runtime.learned_retarget import LearnedRetarget
+from inbetweening.training.learned_retarget import LearnedRetarget
 from inbetweening.training.retarget_data import select, split_clips
 d = load_dataset("bandai_namco", "/work/shared/datasets/bandai-namco-2.zip")
 l = LearnedRetarget.from_checkpoint("models/retarget_cmu/model.ckpt")

@@ -174,3 +174,18 @@ def test_a_higher_frame_rate_fills_the_models_frames_as_the_original(ib, clip, n
     keys = [t * k for t in SCHEDULES["every 30"]]
     p = filled(ib, c, keys)
     assert np.abs(p[::k] - native["every 30"][: len(p[::k])]).max() <= TOL
+
+
+def test_the_self_check_is_set_per_call(ib, clip):
+    """``self_check=False`` for one call: no key hidden, the calibrated weights alone, as a runtime built without it;
+    the next call checks again."""
+    with tempfile.TemporaryDirectory() as d, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        V.write(clip, Path(d) / "in.bvh")
+        keys = SCHEDULES["every 15"]
+        off = ib.fill_detailed(str(Path(d) / "in.bvh"), keyframes=keys, self_check=False)
+        on = ib.fill_detailed(str(Path(d) / "in.bvh"), keyframes=keys)
+        built = Inbetweener.from_checkpoint(MODEL, self_check=False).fill_detailed(str(Path(d) / "in.bvh"),
+                                                                                  keyframes=keys)
+    assert off.checks == [] and on.checks and built.checks == []
+    assert off.segments == built.segments and np.array_equal(off.bvh.motion, built.bvh.motion)

@@ -9,7 +9,7 @@ import pytest
 from inbetweening.cli.retarget import main
 from inbetweening.data.bvh import BVH, read_bvh
 from inbetweening.data.bvh_writer import write_bvh
-from inbetweening.runtime.learned_retarget import LearnedRetarget
+from inbetweening.training.learned_retarget import LearnedRetarget
 from retarget_fixtures import rig_of, source_clips, source_skeleton, tiny_checkpoint
 
 

@@ -20,7 +20,7 @@ from inbetweening.models import build_network
 from inbetweening.models.base import DEFAULT_LAYOUT, FEATURE_DIM
 from inbetweening.predictor.checkpoint import CheckpointError, load_predictor, predictor_state, upgrade_module_state
 from inbetweening.predictor.masks import JointGaps, transition_known
-from inbetweening.predictor.predictor import CENTRES, LEGACY_CENTRE, Filled, Predictor, check_centre, upgrade_hparams
+from inbetweening.predictor.predictor import CENTRES, LEGACY_CENTRE, WindowPrediction, Predictor, check_centre, upgrade_hparams
 from inbetweening.training.module import InbetweenModule
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -99,7 +99,7 @@ def test_predict_known_values_bit_exact_and_unknown_input_never_read(centre):
     root, q = windows(2)
     known = p.transition_known(3, 18, 7)
     out = p.predict_windows(root, q, known)
-    assert isinstance(out, Filled) and out.root.dtype == out.local_q.dtype == torch.float64
+    assert isinstance(out, WindowPrediction) and out.root.dtype == out.local_q.dtype == torch.float64
     assert out.root.shape == (3, 18, 3) and out.local_q.shape == (3, 18, 4, 4) and out.pred.shape == (3, 18, 4, 7)
     k = known[..., 0]
     # known values come back bit-exactly, in the input's frame (prediction and interpolation alike)

@@ -48,7 +48,7 @@ def test_training_lowers_every_loss(tmp_path):
     sk = source_skeleton()
     before = read_checkpoint(tiny_checkpoint(tmp_path / "a.ckpt", sk))
     after = read_checkpoint(tiny_checkpoint(tmp_path / "b.ckpt", sk, steps=20))
-    from inbetweening.runtime.learned_retarget import LearnedRetarget
+    from inbetweening.training.learned_retarget import LearnedRetarget
     from retarget_fixtures import source_clips
 
     c = source_clips(sk, 1)[0]

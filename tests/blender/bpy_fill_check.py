@@ -119,6 +119,7 @@ def scenario(cfg: dict, sc: dict, out_dir: str) -> dict:
     obj = import_bvh(cfg["bvh"], sc.get("rotate_mode", "NATIVE"))
     scene = bpy.context.scene
     mod, names = model_names()
+    names = [sc.get("bone_names", {}).get(n, n) for n in names]  # a renamed armature: its own names of the joints
     first_frame, last_frame = scene.frame_start, scene.frame_end
     every = int(sc.get("keys_every", 15))
     act = obj.animation_data.action
@@ -198,7 +199,7 @@ def scenario(cfg: dict, sc: dict, out_dir: str) -> dict:
                                               for k in values_before if k in values_after))
     if in_range and result == ["FINISHED"]:
         frames = list(range(in_range[0], in_range[-1] + 1))
-        renamed = sc.get("bone_names") or (dict([sc["rename"]]) if sc.get("rename") else {})
+        renamed = dict([sc["rename"]]) if sc.get("rename") else {}
         h = heads(obj, [renamed.get(n, n) for n in names], frames)
         np.save(os.path.join(out_dir, f"{sc['name']}_heads.npy"), h)
         res["head_frames"] = frames

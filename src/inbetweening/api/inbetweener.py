@@ -251,7 +251,7 @@ class Inbetweener:
     # ------------------------------------------------------------------ BVH level
     def fill(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
              max_gap: int | None = None, segment: bool | None = None, foot_lock: bool | None = None,
-             bone_map=None, partial=None) -> BVH:
+             self_check: bool | None = None, bone_map=None, partial=None) -> BVH:
         """In-between a BVH clip; returns a new :class:`~inbetweening.data.bvh.BVH` (write it with ``write_bvh``).
 
         Give exactly one of:
@@ -275,11 +275,12 @@ class Inbetweener:
         :class:`InbetweenError` (keyframes, gap, a rig that cannot be mapped), ``BVHError`` (unreadable file).
         """
         return self.fill_detailed(bvh, keyframes, gap, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
-                                  bone_map=bone_map, partial=partial).bvh
+                                  self_check=self_check, bone_map=bone_map, partial=partial).bvh
 
     def fill_detailed(self, bvh: BVH | str | Path, keyframes: list[int] | None = None, gap: int | None = None, *,
                       max_gap: int | None = None, segment: bool | None = None,
-                      foot_lock: bool | None = None, bone_map=None, partial=None) -> FillResult:
+                      foot_lock: bool | None = None, self_check: bool | None = None, bone_map=None,
+                      partial=None) -> FillResult:
         """:meth:`fill` plus the arrays behind it (for rendering and inspection): a :class:`FillResult`."""
         if not isinstance(bvh, BVH):
             bvh = read_bvh(bvh)
@@ -297,7 +298,7 @@ class Inbetweener:
                 raise InbetweenError(f"gap: the input must hold at least 2 keyframes, it has {n_in} frame(s)")
             src = list(range(n_in))
             out_pos = [i * (int(gap) + 1) for i in range(n_in)]
-        kw = {"max_gap": max_gap, "segment": segment, "foot_lock": foot_lock}
+        kw = {"max_gap": max_gap, "segment": segment, "foot_lock": foot_lock, "self_check": self_check}
         if partial and gap is not None:
             raise InbetweenError("partial: partial keys are frames of the clip between its keyframes (form A, "
                                  "keyframes=[...]); with gap= every input frame is a whole key")

@@ -23,8 +23,7 @@ from inbetweening.api.shipped import SHIPPED_CKPTS
 EXTENSION_FILES = ("__init__.py", "operators.py", "model.py", "rig.py", "humanoid.py", "rigify.py",
                    "rigify_solve.py", "bone_map_panel.py", "record.py", "loop.py")
 RUNTIME = "inbetweening.runtime"  # bundled with every module of the package it imports
-RUNTIME_LEFT_OUT = ("inbetweening.runtime.torch_backend",  # the torch backend stays behind, as does the learned
-                    "inbetweening.runtime.learned_retarget")  # retargeter (torch; not part of the Blender fill)
+RUNTIME_LEFT_OUT = ("inbetweening.runtime.torch_backend",)  # the torch backend stays behind (the one torch module)
 RUNTIME_THIRD_PARTY = ("numpy", "onnxruntime")  # what the bundled modules may import besides the standard library
 # Blender platform name -> pip platform tag of the wheels (Blender 4.2 and 5.0 run Python 3.11)
 PLATFORMS = {

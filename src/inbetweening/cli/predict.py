@@ -51,10 +51,10 @@ previous one as its 10 context frames.  Your keyframes are never changed.  segme
 options:
   ckpt_path=PATH        checkpoint (.ckpt) of an in-betweening model, or a list [a.ckpt,b.ckpt] of models of one
                         skeleton filling as an ensemble (their mean); default: the shipped Bandai-Namco-2
-                        ensemble of this repository, [models/bn2_reference/model.ckpt,models/bn2_v2/model.ckpt]
-  input=PATH            BVH clip: the model's skeleton, or any humanoid character (its bones are matched to the
-                        model's joints and the keys retargeted; the map used is printed and saved next to the
-                        output as <output>.bone_map.yaml)                                  (required)
+                        ensemble of this repository, SHIPPED_LIST
+  input=PATH            BVH clip of any humanoid character, the model's own skeleton included (its bones are
+                        matched to the model's joints and the keys retargeted, its own skeleton exactly; the
+                        map used is printed and saved next to the output as <output>.bone_map.yaml) (required)
   bone_map=PATH         a bone map override (YAML, `rig_bone: slot` per line) for what detection gets wrong;
                         a saved <output>.bone_map.yaml is one
   output=PATH           BVH file to write                                                (required)
@@ -147,6 +147,7 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80, conta
 
 
 SHIPPED_MODELS = tuple(REPO / c for c in SHIPPED_CKPTS)
+USAGE = USAGE.replace("SHIPPED_LIST", f"[{','.join(SHIPPED_CKPTS)}]")  # one list: api/shipped.py
 
 
 def default_checkpoint() -> list[str] | None:

@@ -41,7 +41,7 @@ def run(opts: dict) -> Path:
     from inbetweening.data.clips import clip_in_skeleton
     from inbetweening.data.errors import DatasetError
     from inbetweening.predictor.checkpoint import CheckpointError
-    from inbetweening.runtime.learned_retarget import LearnedRetarget, check_target
+    from inbetweening.training.learned_retarget import LearnedRetarget, check_target
     from inbetweening.runtime.model import InbetweenError
 
     for key in ("input", "output"):

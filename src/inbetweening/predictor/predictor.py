@@ -64,7 +64,7 @@ def upgrade_hparams(hp: dict) -> dict:
     return hp
 
 
-class Filled(NamedTuple):
+class WindowPrediction(NamedTuple):
     """What :meth:`Predictor.predict_windows` returns.  ``root``/``local_q`` and ``interp_root``/``interp_q``: the
     prediction and the interpolation in the input's frame, float64, known values copied bit-exactly from the input;
     ``feats``/``pred``: the input's and the predicted features in the canonical frame (unknown input values NaN);
@@ -283,8 +283,8 @@ class Predictor(nn.Module):
         return torch.where(known[..., None], pred, out)
 
     @torch.no_grad()
-    def predict_windows(self, root, local_q, known: torch.Tensor) -> Filled:
-        """Predict the unknown values of windows given in any frame (numpy or torch): a :class:`Filled`, the
+    def predict_windows(self, root, local_q, known: torch.Tensor) -> WindowPrediction:
+        """Predict the unknown values of windows given in any frame (numpy or torch): a :class:`WindowPrediction`, the
         prediction and the interpolation back in the input's frame with the known values copied bit-exactly;
         unknown input values are never read (they may be NaN)."""
         feats, frame = self.canonical_features(root, local_q, known)
@@ -298,9 +298,9 @@ class Predictor(nn.Module):
         for f in (pred, interp):
             r, q = canonical.uncanonicalise(*self.decode(f), *frame)
             outs += [torch.where(known[..., :1], root_in, r), torch.where(known[..., None], q_in, q)]
-        return Filled(*outs, feats, pred, frame)
+        return WindowPrediction(*outs, feats, pred, frame)
 
-    def world_positions(self, out: Filled) -> torch.Tensor:
+    def world_positions(self, out: WindowPrediction) -> torch.Tensor:
         """The global joint positions the predicted features carry (their position channels, not FK), in the input's
         frame, float64.  ``-> (B, T, J, 3)``."""
         centre, rot = out.frame

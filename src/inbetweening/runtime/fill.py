@@ -43,10 +43,10 @@ from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities
 
 from .foot_lock import ClipFeet, clip_feet, gap_contacts, lock_gap
 from .model import Backend, InbetweenError
-from .partial import check_partial, known_values
-from .plan import GapPlan, check_keys, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
+from .partial import check_clip, known_values
+from .plan import GapPlan, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
 from .rig_fill import RigFilled, fill_rig
-from .trust import Check, checks_of, gap_share, gap_weights, scored
+from .trust import Check, blend, checks_of, gap_share, gap_weights, scored
 
 __all__ = ["Filled", "FillRuntime", "RigFilled"]
 
@@ -140,7 +140,7 @@ class FillRuntime:
 
     # ------------------------------------------------------------------ entry points
     def fill(self, root, local_q, keys: Sequence[int], *, file_frame: bool = False, max_gap: int | None = None,
-             segment: bool | None = None, foot_lock: bool | None = None,
+             segment: bool | None = None, foot_lock: bool | None = None, self_check: bool | None = None,
              progress: Callable[[int, int], None] | None = None, only=None, previous=None, partial=None) -> Filled:
         """Generate every frame strictly between consecutive ``keys`` (sorted indices into the arrays); values of
         those frames are never read (NaN is fine).  ``progress(done, total)`` is called after each window.
@@ -154,22 +154,23 @@ class FillRuntime:
         :attr:`Filled.shares` (a number per gap of one window will do); the frames of the other gaps hold the earlier
         fill's output, and come back exactly unless the gap is generated (:attr:`Filled.generated`)."""
         return self.fill_many([(root, local_q, keys, only, previous, partial)], file_frame=file_frame, max_gap=max_gap,
-                              segment=segment, foot_lock=foot_lock, progress=progress)[0]
+                              segment=segment, foot_lock=foot_lock, self_check=self_check, progress=progress)[0]
 
     fill_rig = fill_rig
 
     def fill_many(self, clips, *, file_frame: bool = False, max_gap: int | None = None, segment: bool | None = None,
-                  foot_lock: bool | None = None, batch_size: int | None = None,
+                  foot_lock: bool | None = None, self_check: bool | None = None, batch_size: int | None = None,
                   progress: Callable[[int, int], None] | None = None) -> list[Filled]:
         """:meth:`fill` of many ``(root, local_q, keys)`` (or ``(root, local_q, keys, only, previous[, partial])``)
         at once: the k-th window of every clip is generated together, ``batch_size`` windows of one length per backend
         call (windows within a clip still left to right).  The same numbers as clip by clip, up to float rounding of
-        the batched network.  Every clip is checked first."""
+        the batched network.  Every clip is checked first.  ``foot_lock``, ``self_check``: this call's, default the
+        runtime's."""
         limit = self.max_gap if max_gap is None else self.check_max_gap(max_gap)
         size = self.batch_size if batch_size is None else _check_batch_size(batch_size)
         seg = self.segment if segment is None else bool(segment)
         work = [self._prepare(*clip, limit=limit, seg=seg, file_frame=file_frame) for clip in clips]
-        self._weigh(work, size)
+        self._weigh(work, size, self.self_check if self_check is None else bool(self_check))
         for c in work:
             self._choose(c)
         total, done = sum(len(c.todo) for c in work), 0
@@ -202,13 +203,7 @@ class FillRuntime:
         if exact_root.ndim != 2 or exact_root.shape[1] != 3 or exact_q.shape != (exact_root.shape[0], j, 4):
             raise InbetweenError(f"fill: expected root (F, 3) and local_q (F, {j}, 4) of the model's skeleton, "
                                  f"got {exact_root.shape} and {exact_q.shape}")
-        keys = check_keys(keys, len(exact_root), "keys")
-        partial, keys = check_partial(partial, keys, len(exact_root), info.skeleton.names)
-        if not (np.isfinite(exact_root[keys]).all() and np.isfinite(exact_q[keys]).all()):
-            raise InbetweenError("fill: the keys contain NaN or infinite values")
-        for t, mask in partial.items():
-            if not (np.isfinite(exact_q[t, mask]).all() and (not mask[0] or np.isfinite(exact_root[t]).all())):
-                raise InbetweenError(f"fill: the partial key at frame {t} contains NaN or infinite values")
+        keys, partial = check_clip("fill", len(exact_root), keys, partial, info.skeleton.names, [exact_q], exact_root)
         only, previous = check_refill(keys, only, previous)
         r, q = exact_root.copy(), exact_q.copy()
         if file_frame and not info.convention.is_project:
@@ -276,12 +271,12 @@ class FillRuntime:
         pc = None if pc is None else np.asarray(pc, np.float64)[:, p : p + n]
         return pr, pq, pc
 
-    def _weigh(self, work: list[_Clip], size: int) -> None:
+    def _weigh(self, work: list[_Clip], size: int, check: bool) -> None:
         """The do-no-harm weight of every window of every clip (:func:`.trust.gap_weights`): the self-checks first
         (``size`` windows of one length per backend call; context: the keys' interpolation)."""
         todo = []
         for c in work:
-            if self.self_check:
+            if check:
                 c.checks = checks_of(c.keys, self.info.trained_gap)
                 known = [t for t in range(c.keys[0])] + list(c.keys)
                 base = interpolate_keyframes(c.root, c.q, known)
@@ -338,7 +333,7 @@ class FillRuntime:
                     ir, iq = c.base[0][a + 1 : b], c.base[1][a + 1 : b]
                 else:
                     ir, iq = interpolate_pose(c.root[a], c.q[a], c.root[b], c.q[b], (np.arange(a + 1, b) - a) / (b - a))
-                r, q = interpolate_pose(ir, iq, r, q, np.full(r.shape[:-1], w))
+                r, q = blend(ir, iq, r, q, w)
             for t, mask in parts[i].items():  # partial keys exactly as keyed
                 q[t - a - 1, mask] = c.q[t, mask]
                 if mask[0]:

@@ -15,8 +15,9 @@ from collections.abc import Mapping
 import numpy as np
 
 from .model import InbetweenError
+from .plan import check_keys
 
-__all__ = ["check_partial", "known_values"]
+__all__ = ["check_clip", "check_partial", "known_values"]
 
 
 def _joints_of(frame: int, joints, names: list[str]) -> np.ndarray:
@@ -80,3 +81,22 @@ def known_values(partial: dict[int, np.ndarray], keys: list[int], num_frames: in
     for t, mask in partial.items():
         known[t] = mask
     return known
+
+
+def check_clip(where: str, n: int, keys, partial, names: list[str], joints: list[np.ndarray],
+               root: np.ndarray | None = None) -> tuple[list[int], dict[int, np.ndarray]]:
+    """The one input check of a fill (:meth:`FillRuntime.fill <inbetweening.runtime.fill.FillRuntime.fill>` on the
+    model's skeleton, :func:`~inbetweening.runtime.rig_fill.fill_rig` on a rig's): ``(keys, partial keys)`` checked
+    (:func:`~inbetweening.runtime.plan.check_keys`, :func:`check_partial`; ``n`` frames, joints ``names``), and the
+    values they keep finite: every key's in each of ``joints`` (arrays ``(F, J, ...)``) and ``root`` (``(F, 3)``), a
+    partial key's on its keyed joints (the root where it keys joint 0).  :class:`InbetweenError` naming ``where``."""
+    keys = check_keys(keys, n, "keys")
+    part, keys = check_partial(partial, keys, n, names)
+    values = list(joints) + ([root] if root is not None else [])
+    if not all(np.isfinite(a[keys]).all() for a in values):
+        raise InbetweenError(f"{where}: the keys contain NaN or infinite values")
+    for t, mask in part.items():
+        if not (all(np.isfinite(a[t, mask]).all() for a in joints)
+                and (root is None or not mask[0] or np.isfinite(root[t]).all())):
+            raise InbetweenError(f"{where}: the partial key at frame {t} contains NaN or infinite values")
+    return keys, part

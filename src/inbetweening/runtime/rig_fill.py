@@ -12,8 +12,8 @@ from inbetweening.geometry.interp import interpolate_keyframes, interpolate_know
 from inbetweening.geometry.quaternion import slerp_np
 
 from .model import InbetweenError
-from .partial import check_partial, known_values
-from .plan import check_keys, check_refill, key_gaps
+from .partial import check_clip, known_values
+from .plan import check_refill, key_gaps
 
 __all__ = ["RigFilled", "fill_rig"]
 
@@ -79,13 +79,7 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
     if lq.ndim != 3 or lq.shape[1:] != (retarget.rig.num_joints, 4) or lp.shape != lq.shape[:2] + (3,):
         raise InbetweenError(f"fill_rig: expected local_q (F, {retarget.rig.num_joints}, 4) and local_p (F, "
                              f"{retarget.rig.num_joints}, 3) of the rig, got {lq.shape} and {lp.shape}")
-    keys = check_keys(keys, n, "keys")
-    part, keys = check_partial(partial, keys, n, list(retarget.rig.names))
-    if not (np.isfinite(lq[keys]).all() and np.isfinite(lp[keys]).all()):
-        raise InbetweenError("fill_rig: the keys contain NaN or infinite values")
-    for t, mask in part.items():
-        if not (np.isfinite(lq[t, mask]).all() and np.isfinite(lp[t, mask]).all()):
-            raise InbetweenError(f"fill_rig: the partial key at frame {t} contains NaN or infinite values")
+    keys, part = check_clip("fill_rig", n, keys, partial, list(retarget.rig.names), [lq, lp])
     only, previous = check_refill(keys, only, previous)
     first, last = keys[0], keys[-1]
     ratio = 1.0 if not fps or abs(float(fps) - info.fps) <= 0.5 else info.fps / float(fps)

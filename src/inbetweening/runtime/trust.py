@@ -29,7 +29,7 @@ import numpy as np
 from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["REACH", "DENSE_GAP", "DENSE_X_FULL", "DENSE_X_NONE", "X_FULL", "X_NONE", "Check", "checks_of", "gap_share",
+__all__ = ["blend", "REACH", "DENSE_GAP", "DENSE_X_FULL", "DENSE_X_NONE", "X_FULL", "X_NONE", "Check", "checks_of", "gap_share",
            "gap_weights", "trust_of"]
 
 X_FULL = 0.65  # the network's error at the hidden keys, as a share of interpolation's, below which it is fully trusted
@@ -39,6 +39,14 @@ DENSE_X_FULL = 0.6  # ... are fully trusted below this error ratio at the hidden
 DENSE_X_NONE = 0.95  # ... and not at all above this one
 REACH = 3  # checked keys within this many gaps (of the gap's own length) either side of a gap decide its trust
 
+
+
+def blend(interp_root: np.ndarray, interp_q: np.ndarray, net_root: np.ndarray, net_q: np.ndarray,
+          weight: float) -> tuple[np.ndarray, np.ndarray]:
+    """The do-no-harm blend: the network's frames ``net_root (..., 3)``, ``net_q (..., J, 4)`` taken ``weight`` of the
+    way from the interpolation's (roots linearly, rotations by slerp); ``weight`` 1 is the network, 0 interpolation.
+    (The training-time blend on features is :meth:`Predictor.blended`.)"""
+    return interpolate_pose(interp_root, interp_q, net_root, net_q, np.full(np.shape(net_root)[:-1], float(weight)))
 
 @dataclass(frozen=True)
 class Check:

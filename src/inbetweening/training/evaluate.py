@@ -10,7 +10,6 @@ import torch
 from omegaconf import DictConfig
 
 from inbetweening.evaluation import benchmark as B
-from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.training.builders import make_datamodule, make_trainer, output_dir
 from inbetweening.training.config import ConfigError, validate
 from inbetweening.training.datamodule import InbetweenDataModule
@@ -71,6 +70,7 @@ def ensemble_transitions(paths: list[str]):
     from inbetweening.runtime import FillRuntime
     from inbetweening.runtime.ensemble import EnsembleBackend
     from inbetweening.runtime.torch_backend import TorchBackend
+    from inbetweening.runtime.trust import blend
 
     members = [TorchBackend.from_checkpoint(p) for p in paths]
     runtime = FillRuntime(EnsembleBackend(members, paths), foot_lock=False, self_check=False)
@@ -81,7 +81,7 @@ def ensemble_transitions(paths: list[str]):
         if w is None or w >= 1.0:
             return pr, pq
         ir, iq = B.interpolation(root, local_q, n, runtime.info.n_past)
-        return interpolate_pose(ir, iq, pr, pq, np.full(pr.shape[:-1], w))
+        return blend(ir, iq, pr, pq, w)
 
     return predict_fn, members[0].predictor
 

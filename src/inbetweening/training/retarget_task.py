@@ -21,7 +21,7 @@ from inbetweening.atomic import write_text
 from inbetweening.data.bvh import BVH, read_bvh
 from inbetweening.data.bvh_writer import format_bvh
 from inbetweening.predictor.checkpoint import CheckpointError
-from inbetweening.runtime.learned_retarget import LearnedRetarget, check_target
+from inbetweening.training.learned_retarget import LearnedRetarget, check_target
 from inbetweening.runtime.model import InbetweenError
 from inbetweening.runtime.retarget_rig import TargetRig
 from inbetweening.training.builders import _enabled, _make_logger, make_datamodule, output_dir

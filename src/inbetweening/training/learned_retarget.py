@@ -12,8 +12,8 @@ from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.models import build_retargeter
 from inbetweening.predictor.checkpoint import CheckpointError, read_checkpoint
 
-from .model import InbetweenError
-from .retarget_rig import TargetRig
+from inbetweening.runtime.model import InbetweenError
+from inbetweening.runtime.retarget_rig import TargetRig
 
 __all__ = ["LearnedRetarget", "check_target"]
 
