@@ -451,7 +451,8 @@ def test_fill_any_humanoid_in_blender(bpy_exe, built, tmp_path):
     unknown = [t for t in range(keys[0], len(frames)) if t not in keys]
     lq[unknown], lp[unknown] = np.nan, np.nan
     ib = Inbetweener.from_checkpoint(CKPTS)  # the extension's bundled ensemble
-    rt = Retarget(sk, ib.skeleton, BoneMap(h["fill"]["bone_map"], h["fill"]["how"]), reference=lq[keys[0]])
+    rt = Retarget(sk, ib.skeleton, BoneMap(h["fill"]["bone_map"], h["fill"]["how"]), reference=lq[keys[0]],
+                  poses=lq[keys], translations=lp[keys])  # as the extension builds it: the keys' poses
     out = ib.runtime.fill_rig(rt, lq, lp, keys, movers=[names_all.index(m) for m in h["fill"]["movers"]])
     span = slice(keys[0], None)
     rig_keyed = [names_all.index(b) for b in keyed]
@@ -572,7 +573,8 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     sk = Skeleton(names, d["parents"], d["offsets"])
     keys = [frames.index(k) for k in (1, 31, 61)]
     ib = Inbetweener.from_checkpoint(CKPTS)  # the extension's bundled ensemble
-    rt = Retarget(sk, ib.skeleton, BoneMap(r["fill"]["bone_map"], r["fill"]["how"]), reference=d["lq"][keys[0]])
+    rt = Retarget(sk, ib.skeleton, BoneMap(r["fill"]["bone_map"], r["fill"]["how"]), reference=d["lq"][keys[0]],
+                  poses=d["lq"][keys], translations=d["lp"][keys])  # as the extension builds it: the keys' poses
     out = ib.runtime.fill_rig(rt, d["lq"], d["lp"], keys, movers=[names.index("DEF-spine")])
     span = slice(keys[0], None)
     gq, gp = fk(out.local_q[span], out.local_p[span], sk.parents)

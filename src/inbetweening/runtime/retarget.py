@@ -31,7 +31,6 @@ from inbetweening.geometry.quaternion import (
     qrot,
     qswing,
     quat_to_euler_np,
-    remove_discontinuities,
     slerp_np,
 )
 from inbetweening.geometry.skeleton import Skeleton, fk
@@ -562,8 +561,7 @@ class Retarget:
             g[:, j] = qmul(qswing(qrot(g[:, j], np.broadcast_to(self.model.offsets[c], want.shape)), want), g[:, j])
         par = list(self.model.parents[1:])
         lq = np.concatenate([g[:, :1], qmul(qinv(g[:, par]), g[:, 1:])], axis=1)
-        lq[:1] = euler_sign(lq[:1])  # as a file's frames are: the first frame's Euler sign, then continuous in time
-        lq = remove_discontinuities(lq, axis=0)
+        lq = euler_sign(lq)  # each frame's sign as the model's files give it (the network reads q and -q apart)
         root = self.scale * qrot(np.broadcast_to(self.world, gp[:, 0].shape[:-1] + (4,)), gp[:, self.rig_slot["Hips"]]) \
             + self.lift * UP
         return root, lq

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_known
-from inbetweening.geometry.quaternion import slerp_np
+from inbetweening.geometry.quaternion import remove_discontinuities, slerp_np
 
 from .model import InbetweenError
 from .partial import check_clip, known_values
@@ -113,6 +113,7 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
             if (ka, kb) in only or mb - ma < 2 or not finite[ka : kb + 1].all():
                 continue
             g_root, g_q = retarget.to_model(lq[ka : kb + 1], lp[ka : kb + 1])
+            g_q = remove_discontinuities(g_q, axis=0)  # continuous from the key, as the runtime makes a gap it fills
             root[ma + 1 : mb], q[ma + 1 : mb] = _resample(g_root, g_q, (np.arange(ma + 1, mb) - ma) * (kb - ka) / (mb - ma))
         model_only = {to_model[g] for g in only}
         previous = {to_model[g]: w for g, w in previous.items()}
