@@ -1,7 +1,9 @@
 """Shared helper of the benchmark scripts: write one section of BENCHMARKS.md, keeping the others."""
 from __future__ import annotations
 
+import json
 import re
+import sys
 from pathlib import Path
 
 
@@ -24,3 +26,17 @@ def publish(text: str, section: str, write: bool, path: Path | None = None) -> N
         path = path or Path(__file__).resolve().parents[1] / "BENCHMARKS.md"
         write_section(path, section, text)
         print(f"\nwrote the '{section}' section of {path.name}")
+
+
+def save_json(out: str | Path, script: str, argv, **data) -> None:
+    """Write a benchmark's results as JSON to ``out`` with the command that made them (``python benchmarks/<script>``
+    and its arguments)."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    args = " ".join(argv if argv is not None else sys.argv[1:])
+    out.write_text(json.dumps(dict(command=f"python benchmarks/{script} {args}".strip(), **data), indent=1))
+
+
+def ratio_of(rows, error: str = "error", base: str = "interpolation") -> float:
+    """The pooled ratio of ``rows``: their summed ``error`` over their summed ``base``."""
+    return sum(r[error] for r in rows) / sum(r[base] for r in rows)

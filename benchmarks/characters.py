@@ -20,7 +20,6 @@ pooled.  Default: the shipped fill.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
@@ -31,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT / "tests"))
 DATA = ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip"
 SCHEDULES = ("every 15", "every 30", "random", "extremes")
@@ -120,6 +120,8 @@ def main(argv=None) -> int:
     ap.add_argument("--clip-step", type=int, default=1, help="every k-th test clip in name order (1: all)")
     ap.add_argument("--out", default=str(ROOT / "results" / "characters" / "characters.json"))
     args = ap.parse_args(argv)
+    from _report import ratio_of, save_json
+
     import bvh_variants as V
     from inbetweening import Inbetweener
     from inbetweening.api.shipped import SHIPPED_CKPTS
@@ -153,8 +155,7 @@ def main(argv=None) -> int:
             sel = [r for r in rows if r["character"] == cname and r["keys"] == s]
             if not sel:
                 continue
-            pooled = sum(r["error"] for r in sel) / sum(r["interpolation"] for r in sel)
-            pooled_native = sum(r["native_error"] for r in sel) / sum(r["native_interpolation"] for r in sel)
+            pooled, pooled_native = ratio_of(sel), ratio_of(sel, "native_error", "native_interpolation")
             over = [r["clip"] for r in sel if r["error"] / r["interpolation"] >
                     r["native_error"] / r["native_interpolation"] + TOLERANCE]
             summary[f"{cname} | {s}"] = dict(pooled=pooled, native=pooled_native, clips=len(sel),
@@ -162,9 +163,7 @@ def main(argv=None) -> int:
     print(f"\ncharacter | keys: pooled ratio (native), clips over native + {TOLERANCE} / clips")
     for k, v in summary.items():
         print(f"{k:62s} {v['pooled']:.3f} ({v['native']:.3f})  {v['clips_over']}/{v['clips']}")
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(dict(command="python benchmarks/characters.py " + " ".join(argv or sys.argv[1:]),
-                                              rows=rows, summary=summary), indent=1))
+    save_json(args.out, "characters.py", argv, rows=rows, summary=summary)
     return 0
 
 

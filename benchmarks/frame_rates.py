@@ -9,7 +9,6 @@ frames over interpolation's at that rate, against the 30 fps original's.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import warnings
@@ -19,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT / "tests"))
 DATA = ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip"
 RATES = (30.0, 24.0, 60.0, 120.0)
@@ -30,6 +30,8 @@ def main(argv=None) -> int:
     ap.add_argument("--clip-step", type=int, default=10)
     ap.add_argument("--out", default=str(ROOT / "results" / "characters" / "frame_rates.json"))
     args = ap.parse_args(argv)
+    from _report import save_json
+
     import bvh_variants as V
     from inbetweening import Inbetweener
     from inbetweening.api.shipped import SHIPPED_CKPTS
@@ -67,9 +69,7 @@ def main(argv=None) -> int:
     table = {k: dict(ratio=e / b, clips=n) for k, (e, b, n) in sums.items()}
     for k, v in table.items():
         print(f"{k:32s} {v['ratio']:.3f} ({v['clips']} clips)")
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(dict(command="python benchmarks/frame_rates.py " + " ".join(argv or sys.argv[1:]),
-                                              table=table), indent=1))
+    save_json(args.out, "frame_rates.py", argv, table=table)
     return 0
 
 

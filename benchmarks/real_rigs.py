@@ -14,7 +14,6 @@ Pooled: total error over total interpolation error.  Each clip's first ``--secon
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
@@ -25,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT / "tests"))
 SHARED = ROOT.parent / "shared" / "datasets"
 ASSIMP = Path("/usr/share/assimp/models/BVH")
@@ -113,6 +113,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--out", default=str(ROOT / "results" / "characters" / "real_rigs.json"))
     args = ap.parse_args(argv)
+    from _report import ratio_of, save_json
+
     import bvh_variants as V
     from inbetweening import Inbetweener
     from inbetweening.api.inbetweener import _bone_map
@@ -140,15 +142,13 @@ def main(argv=None) -> int:
                 sel = [r for r in rows if r["rig"] == rig and r["keys"] == sched and test(r["kind"])]
                 if sel:
                     summary[f"{rig} | {group} | {sched}"] = dict(
-                        pooled=sum(r["error"] for r in sel) / sum(r["interpolation"] for r in sel),
+                        pooled=ratio_of(sel),
                         worse=sum(r["ratio"] > 1.05 for r in sel), clips=len(sel),
                         worst=max(r["ratio"] for r in sel))
     print("\nrig | motions | keys: pooled ratio (clips worse than interpolation by > 5 % / clips, worst)")
     for k, v in summary.items():
         print(f"{k:55s} {v['pooled']:.3f} ({v['worse']}/{v['clips']}, worst {v['worst']:.3f})")
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(dict(command="python benchmarks/real_rigs.py " + " ".join(argv or sys.argv[1:]),
-                                              rows=rows, summary=summary), indent=1))
+    save_json(args.out, "real_rigs.py", argv, rows=rows, summary=summary)
     return 0
 
 

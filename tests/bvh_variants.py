@@ -119,9 +119,9 @@ def positions(c: Clip) -> np.ndarray:
 
 
 def write(c: Clip, path, orders=None, six=(), movers=None, decimals: int = 6) -> None:
-    """``orders``: per joint name an Euler order (default the clip's own, else ``XYZ``; a str for every joint); ``six``: joints written with
-    six channels (their translation, constant or not); ``movers``: joints whose translation is written (default the
-    clip's animated ones)."""
+    """``orders``: per joint name an Euler order (default the clip's own, else ``XYZ``; a str for every joint);
+    ``six``: joints written with six channels (their translation, constant or not); ``movers``: joints whose
+    translation is written (default the clip's animated ones)."""
     movers = c.movers if movers is None else {c.index(m) if isinstance(m, str) else m for m in movers}
     six = {c.index(m) if isinstance(m, str) else m for m in six}
     lines, cols = ["HIERARCHY"], []
@@ -289,21 +289,10 @@ def drop(c: Clip, names) -> Clip:
         if c.names[j] in names or p in gone:
             gone.add(j)
     keep = [j for j in range(len(c.names)) if j not in gone]
-    new = {j: i for i, j in enumerate(keep)}
-    out = copy.deepcopy(c)
-    out.names = [c.names[j] for j in keep]
-    out.parents = [new[c.parents[j]] if c.parents[j] >= 0 else -1 for j in keep]
-    out.offsets = c.offsets[keep]
-    out.trans = c.trans[:, keep]
-    out.rot = [c.rot[j] for j in keep]
-    ends = {}
-    for j in keep:
-        if j in c.ends:
-            ends[new[j]] = c.ends[j]
-        elif not any(c.parents[k] == j for k in keep):
-            ends[new[j]] = next(c.offsets[k] for k in range(len(c.names)) if c.parents[k] == j)
-    out.ends = ends
-    out.movers = {new[m] for m in c.movers if m in new}
+    out = _take(c, keep)
+    for i, j in enumerate(keep):
+        if j not in c.ends and i not in out.parents:  # a new leaf: its end site where its child was
+            out.ends[i] = next(c.offsets[k] for k in range(len(c.names)) if c.parents[k] == j)
     return out
 
 
@@ -366,13 +355,18 @@ def _reorder(c: Clip) -> Clip:
             visit(k)
 
     visit(c.parents.index(-1))
-    new = {j: i for i, j in enumerate(order)}
+    return _take(c, order)
+
+
+def _take(c: Clip, joints: list[int]) -> Clip:
+    """The clip of ``joints`` only, in that order (each one's parent among them or none)."""
+    new = {j: i for i, j in enumerate(joints)}
     out = copy.deepcopy(c)
-    out.names = [c.names[j] for j in order]
-    out.parents = [new[c.parents[j]] if c.parents[j] >= 0 else -1 for j in order]
-    out.offsets = c.offsets[order]
-    out.trans = c.trans[:, order]
-    out.rot = [c.rot[j] for j in order]
-    out.ends = {new[j]: e for j, e in c.ends.items()}
-    out.movers = {new[m] for m in c.movers}
+    out.names = [c.names[j] for j in joints]
+    out.parents = [new[c.parents[j]] if c.parents[j] >= 0 else -1 for j in joints]
+    out.offsets = c.offsets[joints]
+    out.trans = c.trans[:, joints]
+    out.rot = [c.rot[j] for j in joints]
+    out.ends = {new[j]: e for j, e in c.ends.items() if j in new}
+    out.movers = {new[m] for m in c.movers if m in new}
     return out

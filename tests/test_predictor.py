@@ -20,7 +20,7 @@ from inbetweening.models import build_network
 from inbetweening.models.base import DEFAULT_LAYOUT, FEATURE_DIM
 from inbetweening.predictor.checkpoint import CheckpointError, load_predictor, predictor_state, upgrade_module_state
 from inbetweening.predictor.masks import JointGaps, transition_known
-from inbetweening.predictor.predictor import CENTRES, LEGACY_CENTRE, WindowPrediction, Predictor, check_centre, upgrade_hparams
+from inbetweening.predictor.predictor import CENTRES, LEGACY_CENTRE, Predictor, WindowPrediction, check_centre, upgrade_hparams
 from inbetweening.training.module import InbetweenModule
 
 ROOT = Path(__file__).resolve().parents[1]

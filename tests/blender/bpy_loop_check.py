@@ -110,6 +110,8 @@ def scenario(cfg: dict) -> dict:
     scene.frame_start, scene.frame_end = 1, 121
     chk.thin(obj, set(range(1, 122, every)))
     kw = {"model_path": cfg["model_path"]} if cfg.get("model_path") else {}
+    if "self_check" in cfg:  # the operator's and the panel's (Auto Re-fill fills with the panel's)
+        kw["self_check"] = bpy.context.scene.inbetween_settings.self_check = bool(cfg["self_check"])
     res = {"first": fill(mod, **kw), "panel_first": panel()}
     first = curves(obj)
     res["noop"] = fill(mod, **kw)
@@ -192,6 +194,7 @@ def scenario(cfg: dict) -> dict:
     bpy.context.view_layer.update()
     res["auto_after_undo"] = dict(loop._pending)
     bpy.context.scene.inbetween_settings.auto_refill = False
+    bpy.context.scene.inbetween_settings.self_check = True
     return res
 
 

@@ -260,7 +260,8 @@ def tick() -> float | None:
     try:
         with bpy.context.temp_override(**override, scene=scene, active_object=obj, object=obj):
             bpy.ops.anim.inbetween_fill("EXEC_DEFAULT", True, only_selected_range=s.only_selected_range,
-                                        model_path=s.model_path, foot_lock=s.foot_lock, discard_edits=False)
+                                        model_path=s.model_path, foot_lock=s.foot_lock, self_check=s.self_check,
+                                        discard_edits=False)
     except RuntimeError as e:  # the fill's own error report (nothing was changed)
         print(f"In-between Auto Re-fill: {e}")
     finally:

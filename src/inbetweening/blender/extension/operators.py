@@ -39,7 +39,7 @@ def make_rig(obj, info):
 
 
 def fill_range(context, obj, model, only_selected: bool, report_progress=True, foot_lock: bool = True,
-               discard_edits: bool = False) -> dict:
+               discard_edits: bool = False, self_check: bool = True) -> dict:
     """Fill the armature ``obj``'s in-betweens with the fill runtime (``model``: :func:`load_model`'s); returns a summary
     dict.  Raises ``rig.RigError`` / ``BoneMapError`` / ``ModelError`` / ``InbetweenError`` before changing anything.
     Only what changed since the last fill is re-filled (the gaps whose inputs changed, and those the runtime adds:
@@ -90,7 +90,7 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
         retarget = r.plan(reader.a[all_keys[0]], np.stack([reader.a[k] for k in all_keys]),
                           np.stack([reader.b[k] for k in all_keys]))
         chans = r.channels()
-    settings = record.settings_digest(record.model_key(model), foot_lock, chans, r.fcurves,
+    settings = record.settings_digest(f"{record.model_key(model)}|check={bool(self_check)}", foot_lock, chans, r.fcurves,
                                       getattr(r, "ancestors", ()))
     bones = list(r.names) if any_rig else [pb.name for pb in r.pbones]
     masks = {f: np.isin(bones, sorted(b)) for f, b in partial.items()}
@@ -133,7 +133,7 @@ def fill_range(context, obj, model, only_selected: bool, report_progress=True, f
     try:
         keys_idx = [pos[k] for k in all_keys]
         part = {pos[f]: m for f, m in masks.items()} or None
-        runtime = FillRuntime(model, foot_lock=foot_lock)
+        runtime = FillRuntime(model, foot_lock=foot_lock, self_check=self_check)
         if any_rig:
             out = runtime.fill_rig(retarget, lq, lp, keys_idx, movers=r.movers, progress=progress, only=only,
                                    previous=previous, partial=part)
@@ -215,6 +215,15 @@ def foot_lock_property():
         default=True)
 
 
+def self_check_property():
+    """The ``self_check`` option (the operator's and the panel's settings share it)."""
+    return BoolProperty(
+        name="Self-Check",
+        description="Hide each key in turn and predict it: where the network misses your keys more than interpolation "
+                    "does, give interpolation back (off: the model's calibrated weight per gap length alone)",
+        default=True)
+
+
 def model_path_property():
     """The ``model_path`` option (the operator's and the panel's settings share it)."""
     return StringProperty(
@@ -233,6 +242,7 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
     only_selected_range: only_selected_range_property()
     model_path: model_path_property()
     foot_lock: foot_lock_property()
+    self_check: self_check_property()
     discard_edits: loop.discard_edits_property()
 
     @classmethod
@@ -245,7 +255,7 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
         try:
             model = load_model(self.model_path)
             info = fill_range(context, obj, model, self.only_selected_range, foot_lock=self.foot_lock,
-                              discard_edits=self.discard_edits)
+                              discard_edits=self.discard_edits, self_check=self.self_check)
         except (rig.RigError, BoneMapError, ModelError, InbetweenError) as e:
             self.report({"ERROR"}, bone_map_message(e) if isinstance(e, BoneMapError) else str(e))
             return {"CANCELLED"}
@@ -273,6 +283,7 @@ class InbetweenSettings(bpy.types.PropertyGroup):
     only_selected_range: only_selected_range_property()
     model_path: model_path_property()
     foot_lock: foot_lock_property()
+    self_check: self_check_property()
     discard_edits: loop.discard_edits_property()
     auto_refill: loop.auto_refill_property()
 
@@ -288,6 +299,7 @@ class _Panel:
         col = layout.column()
         col.prop(settings, "only_selected_range")
         col.prop(settings, "foot_lock")
+        col.prop(settings, "self_check")
         col.prop(settings, "discard_edits")
         col.prop(settings, "auto_refill")
         col.prop(settings, "model_path", text="Model")
@@ -295,6 +307,7 @@ class _Panel:
         op.only_selected_range = settings.only_selected_range
         op.model_path = settings.model_path
         op.foot_lock = settings.foot_lock
+        op.self_check = settings.self_check
         op.discard_edits = settings.discard_edits
         obj = context.active_object
         box = layout.box()
