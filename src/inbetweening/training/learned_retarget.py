@@ -11,7 +11,6 @@ from inbetweening.data.bvh import BVH, parse_bvh
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.models import build_retargeter
 from inbetweening.predictor.checkpoint import CheckpointError, read_checkpoint
-
 from inbetweening.runtime.model import InbetweenError
 from inbetweening.runtime.retarget_rig import TargetRig
 

@@ -13,8 +13,8 @@ from inbetweening.data.clips import Clip
 from inbetweening.data.contacts import body_height
 from inbetweening.evaluation.retarget_metrics import METRICS, RetargetScore, source_scores
 from inbetweening.rendering.retarget_figure import retarget_figure
-from inbetweening.training.learned_retarget import LearnedRetarget
 from inbetweening.runtime.retarget_rig import TargetRig
+from inbetweening.training.learned_retarget import LearnedRetarget
 
 __all__ = ["METHODS", "clip_figure", "format_table", "score_sets"]
 

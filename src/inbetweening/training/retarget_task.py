@@ -21,13 +21,13 @@ from inbetweening.atomic import write_text
 from inbetweening.data.bvh import BVH, read_bvh
 from inbetweening.data.bvh_writer import format_bvh
 from inbetweening.predictor.checkpoint import CheckpointError
-from inbetweening.training.learned_retarget import LearnedRetarget, check_target
 from inbetweening.runtime.model import InbetweenError
 from inbetweening.runtime.retarget_rig import TargetRig
 from inbetweening.training.builders import _enabled, _make_logger, make_datamodule, output_dir
 from inbetweening.training.callbacks import AtomicCheckpointIO, NonFiniteGuard
 from inbetweening.training.config import ConfigError
 from inbetweening.training.job import use_threads
+from inbetweening.training.learned_retarget import LearnedRetarget, check_target
 from inbetweening.training.retarget_data import make_pairs, select, split_clips, stats, window_loader
 from inbetweening.training.retarget_eval import clip_figure, format_table, score_sets
 from inbetweening.training.retarget_module import RetargetModule
