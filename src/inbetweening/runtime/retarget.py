@@ -228,23 +228,20 @@ def tpose(skeleton: Skeleton, slot_of: dict[str, int], basis: np.ndarray | None 
         p = parents[j]
         if p >= 0:
             t[j] = qmul(t[p], qmul(qinv(rq[p]), rq[j]))  # the parent's T-pose turn, the start's local rotation
-        if j in aim:
-            d = rest[aim[j]] - rest[j]  # the start's direction (world)
-            want = basis @ ch.direction[j]
-            if j in full:
-                t[j] = qmul(qframe(d, full[j], want, basis @ LEFT), rq[j])
-            elif j in hinged:  # a limb bent at its hinge: the bend's axis turned to the natural one (:data:`HINGES`)
-                t[j] = qmul(qframe(d, hinged[j][0], want, basis @ hinged[j][1]), rq[j])
-            else:
-                # a bone pointing (nearly) opposite its T-pose direction turns about the body's forward axis, not about
-                # whichever axis rounding picks (the model's zero pose has such bones: its legs along its spine)
-                t[j] = qmul(qswing(qrot(qmul(t[j], qinv(rq[j])), d), want, basis @ FORWARD, 1e-4), t[j])
+        if j in aim:  # the start's direction (world) and the T-pose's
+            d, want = rest[aim[j]] - rest[j], basis @ ch.direction[j]
         elif j in tips:  # the last bone of a limb without its hand or toes: along its end site
             d, want = tips[j][0] - rest[j], basis @ tips[j][1]
-            if j in hinged:
-                t[j] = qmul(qframe(d, hinged[j][0], want, basis @ hinged[j][1]), rq[j])
-            else:
-                t[j] = qmul(qswing(qrot(qmul(t[j], qinv(rq[j])), d), want, basis @ FORWARD, 1e-4), t[j])
+        else:
+            continue
+        if j in full:
+            t[j] = qmul(qframe(d, full[j], want, basis @ LEFT), rq[j])
+        elif j in hinged:  # a limb bent at its hinge: the bend's axis turned to the natural one (:data:`HINGES`)
+            t[j] = qmul(qframe(d, hinged[j][0], want, basis @ hinged[j][1]), rq[j])
+        else:
+            # a bone pointing (nearly) opposite its T-pose direction turns about the body's forward axis, not about
+            # whichever axis rounding picks (the model's zero pose has such bones: its legs along its spine)
+            t[j] = qmul(qswing(qrot(qmul(t[j], qinv(rq[j])), d), want, basis @ FORWARD, 1e-4), t[j])
     return t
 
 
