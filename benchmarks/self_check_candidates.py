@@ -215,4 +215,4 @@ else:
 
     for t1, wd in ((1.05, 0.4), (1.2, 0.4), (1.3, 0.5)):
         show(f"t1={t1} w={wd} all K", gen(t1, wd, limit=200))
-    show("x: runtime/trust.py", gen(1.05, 0.4, limit=54))  # X_FULL 0.65, X_NONE 1.05, checks within the trained gap
+    show("x: runtime/trust.py", gen(1.05, 0.4, limit=54))  # FillSettings x_full 0.65, x_none 1.05, checks within the trained gap

@@ -23,7 +23,8 @@ from inbetweening.evaluation import keyframes as KF
 from inbetweening.evaluation.schedules import schedule_keyframes
 from inbetweening.runtime import FillRuntime
 from inbetweening.runtime.ensemble import EnsembleBackend
-from inbetweening.runtime.foot_lock import BLEND_FRAMES, CONTACT_THRESHOLD
+from inbetweening.runtime.foot_lock import CONTACT_THRESHOLD
+from inbetweening.runtime.settings import DEFAULT_SETTINGS
 from inbetweening.runtime.torch_backend import TorchBackend
 
 
@@ -33,7 +34,7 @@ def categories(contact: np.ndarray, generated: np.ndarray) -> dict[str, np.ndarr
     held[~generated] = True
     both, one = held[:-1] & held[1:], held[:-1] ^ held[1:]
     near = np.zeros_like(held)
-    for d in range(1, BLEND_FRAMES + 1):
+    for d in range(1, DEFAULT_SETTINGS.blend_frames + 1):
         near[d:] |= held[:-d]
         near[:-d] |= held[d:]
     blend = (near[:-1] | near[1:]) & ~both & ~one

@@ -14,7 +14,7 @@ from inbetweening.data.bvh import read_bvh
 from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.data.synthetic import generate_clip, make_bvh
 from inbetweening.runtime import FillRuntime, ModelError
-from inbetweening.runtime.ensemble import SHARE_POWER, EnsembleBackend, ensemble_info, member_weights
+from inbetweening.runtime.ensemble import EnsembleBackend, ensemble_info, member_weights
 from inbetweening.runtime.torch_backend import TorchBackend
 
 
@@ -50,7 +50,7 @@ def test_members_are_weighted_by_their_calibrated_weight_for_the_gap(pair):
     a.info = dataclasses.replace(a.info, blend=(0.9, 0.8, 0.6))
     b.info = dataclasses.replace(b.info, blend=(0.1, 0.2, 0.2))
     ens = EnsembleBackend([a, b])
-    assert SHARE_POWER == 4
+    assert ens.share_power == 4
     assert np.allclose(member_weights([a.info, b.info], 1), [0.6561 / 0.6562, 0.0001 / 0.6562])  # weights ** 4
     sa, sb = 0.1296 / 0.1312, 0.0016 / 0.1312  # longer gaps: the tables' last weights, 0.6 and 0.2, ** 4
     assert np.allclose(member_weights([a.info, b.info], 7), [sa, sb])

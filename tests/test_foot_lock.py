@@ -10,14 +10,15 @@ from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.quaternion import qmul, qnormalize, qrot
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.runtime.foot_lock import (
-    PLANTED_REACH,
-    TRUSTED_SHARE,
     clip_feet,
     gap_contacts,
     legs,
     lock_feet,
     plausible_contacts,
 )
+from inbetweening.runtime.settings import DEFAULT_SETTINGS
+
+PLANTED_REACH, TRUSTED_SHARE = DEFAULT_SETTINGS.planted_reach, DEFAULT_SETTINGS.trusted_share
 
 SK = Skeleton(NAMES, PARENTS, OFFSETS)
 FEET = [NAMES.index(n) for n in ("LeftFoot", "LeftToe", "RightFoot", "RightToe")]

@@ -185,16 +185,10 @@ def test_the_self_check_hides_each_interior_key_and_scales_the_gaps_near_it():
 
 
 def test_trust_of_the_self_checks():
-    from inbetweening.runtime.trust import (
-        DENSE_GAP,
-        DENSE_X_NONE,
-        X_FULL,
-        X_NONE,
-        Check,
-        checks_of,
-        gap_weights,
-        trust_of,
-    )
+    from inbetweening.runtime.settings import DEFAULT_SETTINGS as S
+    from inbetweening.runtime.trust import Check, checks_of, gap_weights, trust_of
+
+    DENSE_GAP, DENSE_X_NONE, X_FULL, X_NONE = S.dense_gap, S.dense_x_none, S.x_full, S.x_none
 
     assert trust_of(X_FULL) == 1.0 and trust_of(X_NONE) == 0.0 and 0.0 < trust_of((X_FULL + X_NONE) / 2) < 1.0
     x = (DENSE_X_NONE + X_NONE) / 2  # short gaps are judged more strictly: no trust where a long gap keeps some
@@ -361,7 +355,10 @@ def test_a_gap_given_back_to_interpolation_is_locked_on_the_keys_contact_alone()
     """A network far from every key: the self-check gives each gap back to interpolation, and then neither its predicted
     contact (planted everywhere) nor the rule on the fill decide the feet, only what each gap's keys say; with the
     check off the same prediction plants the foot."""
-    from inbetweening.runtime.foot_lock import TRUSTED_SHARE, clip_feet
+    from inbetweening.runtime.foot_lock import clip_feet
+    from inbetweening.runtime.settings import DEFAULT_SETTINGS
+
+    TRUSTED_SHARE = DEFAULT_SETTINGS.trusted_share
 
     root, q = motion(61, seed=3)
     keys = list(range(0, 61, 10))

@@ -43,6 +43,7 @@ from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.runtime import FillRuntime, InbetweenError
 from inbetweening.runtime.ensemble import EnsembleBackend
 from inbetweening.runtime.plan import check_keys
+from inbetweening.runtime.settings import FillSettings
 from inbetweening.runtime.torch_backend import TorchBackend
 
 __all__ = ["FillResult", "InbetweenError", "Inbetweener"]
@@ -151,18 +152,23 @@ class Inbetweener:
             checkpoint paths.
         self_check: scale the network's share of each gap by how well it predicts the caller's own keys
             (:mod:`inbetweening.runtime.trust`; default on); ``False``: the calibrated weight per gap length alone.
+        settings: the fill's tuned numbers, a :class:`~inbetweening.runtime.settings.FillSettings` or a mapping of
+            the ones to change (``{"x_full": 0.7}``); default: the shipped ones.
     """
 
     def __init__(self, model, max_gap: int | None = None, segment: bool = True, trained_gap: int | None = None,
-                 foot_lock: bool = True, self_check: bool = True, names=None):
+                 foot_lock: bool = True, self_check: bool = True, names=None, settings=None):
         models = list(model) if isinstance(model, (list, tuple)) else [model]
         gaps = list(trained_gap) if isinstance(trained_gap, (list, tuple)) else [trained_gap] * len(models)
         if not models or len(gaps) != len(models):
             raise InbetweenError(f"Inbetweener: {len(models)} models and {len(gaps)} trained gaps")
         members = [TorchBackend(m, g) for m, g in zip(models, gaps)]
         self.backend = members[0] if len(members) == 1 else EnsembleBackend(members, names)
+        if not isinstance(settings, FillSettings):
+            settings = FillSettings.from_mapping(settings)
         self.runtime = FillRuntime(self.backend, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
-                                   self_check=self_check)
+                                   self_check=self_check, settings=settings)
+        self.settings: FillSettings = settings
         self.module, self.predictor = members[0].module, members[0].predictor
         info = self.runtime.info
         self.skeleton: Skeleton = info.skeleton
@@ -174,7 +180,8 @@ class Inbetweener:
         """Load a training checkpoint's predictor (``CheckpointError`` for missing or wrong files); a list of paths:
         their ensemble (``ModelError`` naming the checkpoint that does not fit the first one).
 
-        ``kw`` go to the constructor (``max_gap``, ``segment``, ``foot_lock``, ``self_check``); ``trained_gap`` defaults to the data
+        ``kw`` go to the constructor (``max_gap``, ``segment``, ``foot_lock``, ``self_check``, ``settings``);
+        ``trained_gap`` defaults to the data
         module's ``transition_max`` recorded in the checkpoint.
         """
         from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint, trained_gap

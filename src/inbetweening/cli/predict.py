@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from inbetweening.api.shipped import REPO, SHIPPED_CKPTS
+from inbetweening.runtime.model import InbetweenError
+from inbetweening.runtime.settings import FillSettings
 from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool, parse_int_list, parse_partial_keys, parse_paths
 
 USAGE = """\
@@ -68,6 +70,8 @@ options:
   self_check=true|false scale the network's share of each gap by how well it predicts your own keys when each is
                         hidden in turn (default true: falls back to interpolation on motions the model does not know;
                         false: the calibrated weight per gap length alone)
+  fill.NAME=VALUE       one of the fill's tuned numbers (listed below with its default and the evidence it was
+                        chosen on; the defaults are the shipped fill's)
   render=PATH.gif|.png  also write a picture: the result next to plain linear interpolation of the same
                         keyframes, keyframes drawn in red, over a floor with the feet's trails (thick where a foot
                         is planted: a sliding foot draws a streak); .gif an animation following the body, .png a
@@ -78,6 +82,9 @@ options:
                         threads, and spare threads only wait on each other on a busy machine)
   --force               allow output (or render) to be the input file itself (refused otherwise)
   -h, --help            show this help
+
+the fill's tuned numbers (inbetweening.runtime.settings.FillSettings):
+FILL_SETTINGS
 
 examples:
   python -m inbetweening.predict ckpt_path=run/checkpoints/last.ckpt input=walk.bvh 'keyframes=[0,30,75]' \\
@@ -92,6 +99,7 @@ OPTIONS = {
     "render": str, "render_dpi": int, "device": str, "force": parse_bool,
     "threads": int, "bone_map": str,
 }
+OPTIONS.update({f"fill.{name}": float for name in FillSettings.__dataclass_fields__})  # checked by FillSettings
 ALIASES = {"ckpt": "ckpt_path", "checkpoint": "ckpt_path", "in": "input", "out": "output", "o": "output",
            "keys": "keyframes"}
 
@@ -148,6 +156,7 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80, conta
 
 SHIPPED_MODELS = tuple(REPO / c for c in SHIPPED_CKPTS)
 USAGE = USAGE.replace("SHIPPED_LIST", f"[{','.join(SHIPPED_CKPTS)}]")  # one list: api/shipped.py
+USAGE = USAGE.replace("FILL_SETTINGS", FillSettings.describe())
 
 
 def default_checkpoint() -> list[str] | None:
@@ -188,10 +197,14 @@ def run(argv: Sequence[str]) -> int:
         fail(f"render: {args['render']} must end in .gif (an animation) or .png (a filmstrip)")
     if args.get("threads", 1) < 1:
         fail(f"threads: must be >= 1, got {args['threads']}")
+    try:  # before any work is done
+        settings = FillSettings.from_mapping({k[5:]: v for k, v in args.items() if k.startswith("fill.")})
+    except InbetweenError as e:
+        fail(e)
     device = args.get("device", "cpu")
     import torch
 
-    from inbetweening.api.inbetweener import Inbetweener, InbetweenError
+    from inbetweening.api.inbetweener import Inbetweener
     from inbetweening.data.bvh import BVHError, read_bvh
     from inbetweening.data.bvh_writer import write_bvh
     from inbetweening.predictor.checkpoint import CheckpointError
@@ -204,6 +217,7 @@ def run(argv: Sequence[str]) -> int:
     try:
         clip = read_bvh(args["input"])
         kw = {k: args[k] for k in ("max_gap", "segment", "foot_lock", "self_check") if k in args}
+        kw["settings"] = settings
         ib = Inbetweener.from_checkpoint(args["ckpt_path"], device=device, **kw)
         out = Path(args["output"])
         try:

@@ -2,7 +2,8 @@
 
 Each member predicts the same canonical windows; the ensemble's prediction is their mean, each member weighted by
 its calibrated do-no-harm weight for the window's gap length (:meth:`ModelInfo.blend_weight`: how much it beat
-interpolation on validation windows of that length; 1 for a member without a blend) raised to the power :data:`SHARE_POWER`,
+interpolation on validation windows of that length; 1 for a member without a blend) raised to the power
+``share_power`` (:class:`~inbetweening.runtime.settings.FillSettings`, default 4),
 so a member much less trusted at a length has almost no say there (RESULTS.md section 12.9): the root's position, the
 rotations' weighted, normalised sum (sign-aligned to the first member's), the foot contacts of the members that
 predict them.  Two models trained differently fail in different places, so their mean is closer to the motion than
@@ -18,10 +19,9 @@ from dataclasses import replace
 import numpy as np
 
 from .model import Backend, ModelError, ModelInfo
+from .settings import DEFAULT_SETTINGS
 
-__all__ = ["SHARE_POWER", "EnsembleBackend", "ensemble_info", "member_weights"]
-
-SHARE_POWER = 4  # a member's share grows with the fourth power of its calibrated weight for the gap's length
+__all__ = ["EnsembleBackend", "ensemble_info", "member_weights"]
 
 
 def _same_skeleton(a: ModelInfo, b: ModelInfo) -> bool:
@@ -61,25 +61,29 @@ def _weights(infos: Sequence[ModelInfo], gap: int) -> np.ndarray:
     return np.array([1.0 if x is None else x for x in w])
 
 
-def member_weights(infos: Sequence[ModelInfo], gap: int) -> np.ndarray:
+def member_weights(infos: Sequence[ModelInfo], gap: int, power: float = DEFAULT_SETTINGS.share_power) -> np.ndarray:
     """``(M,)``: each member's share of the ensemble's prediction in a gap of ``gap`` frames, its calibrated weight
-    for that length to the power :data:`SHARE_POWER`, normalised to sum 1 (equal shares where every weight is 0)."""
-    w = _weights(infos, gap) ** SHARE_POWER
+    for that length to the power ``power`` (``FillSettings.share_power``), normalised to sum 1 (equal shares where
+    every weight is 0)."""
+    w = _weights(infos, gap) ** power
     return w / w.sum() if w.sum() > 0 else np.full(len(w), 1.0 / len(w))
 
 
 class EnsembleBackend:
     """The members' mean prediction (module docstring); ``members``: backends of one skeleton, ``where``: their names
-    for error messages (e.g. the checkpoint paths).  ``calls``: the batches predicted, as a single backend counts them."""
+    for error messages (e.g. the checkpoint paths).  ``share_power``: the power of the members' shares (the
+    :class:`~inbetweening.runtime.FillRuntime` filling with it sets it from its settings).  ``calls``: the batches
+    predicted, as a single backend counts them."""
 
     def __init__(self, members: Sequence[Backend], where: Sequence[str] | None = None):
-        self.members = list(members)
+        self.members, self.share_power = list(members), DEFAULT_SETTINGS.share_power
         self.info = ensemble_info([m.info for m in self.members], where)
         self.calls = 0
 
     def predict(self, root, local_q, known, weight):
         self.calls += 1
-        a = member_weights([m.info for m in self.members], np.shape(root)[1] - self.info.n_past - 1)
+        a = member_weights([m.info for m in self.members], np.shape(root)[1] - self.info.n_past - 1,
+                           self.share_power)
         outs = [m.predict(root, local_q, known, weight) for m in self.members]
         roots = sum(w * np.asarray(o[0], np.float64) for w, o in zip(a, outs))
         qs = [np.asarray(o[1], np.float64) for o in outs]

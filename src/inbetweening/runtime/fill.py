@@ -46,6 +46,7 @@ from .model import Backend, InbetweenError
 from .partial import check_clip, known_values
 from .plan import GapPlan, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
 from .rig_fill import RigFilled, fill_rig
+from .settings import DEFAULT_SETTINGS, FillSettings
 from .trust import Check, blend, checks_of, gap_share, gap_weights, scored
 
 __all__ = ["Filled", "FillRuntime", "RigFilled"]
@@ -119,10 +120,18 @@ class FillRuntime:
             off: the calibrated weight per gap length alone.
         batch_size: gaps of the same length generated in one backend call (``fill_many``; about 4 runs fastest per
             gap on a 2-core CPU, BENCHMARKS.md "Inference latency").
+        settings: the fill's tuned numbers (:class:`~inbetweening.runtime.settings.FillSettings`: the self-check's
+            thresholds, foot locking's, a re-fill's tolerance, an :class:`~.ensemble.EnsembleBackend`'s members'
+            shares).
     """
 
     def __init__(self, backend: Backend, *, max_gap: int | None = None, segment: bool = True, foot_lock: bool = True,
-                 batch_size: int = 4, self_check: bool = True):
+                 batch_size: int = 4, self_check: bool = True, settings: FillSettings = DEFAULT_SETTINGS):
+        if not isinstance(settings, FillSettings):
+            raise InbetweenError(f"settings: expected a FillSettings, got {type(settings).__name__}")
+        self.settings = settings
+        if hasattr(backend, "share_power"):  # an ensemble: its members' shares are the fill's setting too
+            backend.share_power = settings.share_power
         self.backend, self.info = backend, backend.info  # info: ModelInfo
         self.max_gap, self.segment, self.foot_lock = self.check_max_gap(max_gap), bool(segment), bool(foot_lock)
         self.batch_size, self.self_check = _check_batch_size(batch_size), bool(self_check)
@@ -211,7 +220,7 @@ class FillRuntime:
         first = keys[0]
         bad = ~(np.isfinite(r[:first]).all(-1) & np.isfinite(q[:first]).all((-1, -2)))
         r[:first][bad], q[:first][bad] = r[first], q[first]  # no usable context there: the first key's pose
-        feet = clip_feet(info.contact, info.skeleton, info.fps, r, q, keys)  # on the keys as given
+        feet = clip_feet(info.contact, info.skeleton, info.fps, r, q, keys, self.settings)  # on the keys as given
         q[: keys[-1] + 1] = qnormalize(q[: keys[-1] + 1])
         plan = plan_gaps(keys, limit, seg, info.trained_gap)
         base = None
@@ -296,7 +305,7 @@ class FillRuntime:
                     t = ch.key - ch.a - 1
                     c.checks[i] = scored(ch, self.info.skeleton, base[0], base[1], pr[j, t], pq[j, t])
         for c in work:
-            weights = gap_weights(c.plan.segments, c.keys, c.checks, self.info.blend_weight)
+            weights = gap_weights(c.plan.segments, c.keys, c.checks, self.info.blend_weight, self.settings)
             c.weights = {k: w for k, (w, _) in weights.items()}
 
     def _choose(self, c: _Clip) -> None:
@@ -306,7 +315,7 @@ class FillRuntime:
         c.shares = {g: tuple(c.weights.get(w, 1.0) for w in ws) for g, ws in windows.items()}
         finite = np.isfinite(c.exact_root).all(-1) & np.isfinite(c.exact_q).all((-1, -2))
         c.generated = chosen_gaps(c.keys, c.shares, c.only, c.previous, self.info.n_past,
-                                  lambda a, b: bool(finite[a + 1 : b].all()))
+                                  lambda a, b: bool(finite[a + 1 : b].all()), self.settings.share_tolerance)
         c.todo = [w for g in c.generated for w in windows[g]]
         c.gap_ending = {b: (a, b) for a, b in c.generated}
         chosen = set(c.generated)
@@ -350,10 +359,10 @@ class FillRuntime:
             return
         pc = c.contact[a + 1 : b] if self.info.has_contacts and not np.isnan(c.contact[a + 1 : b]).any() else None
         c.planted[a + 1 : b] = gap_contacts(self.info.skeleton, c.feet, self.info.fps, c.root, c.q, a, b, pc,
-                                            share=gap_share(c.shares, (a, b)))
+                                            share=gap_share(c.shares, (a, b)), settings=self.settings)
         if lock:
             c.root[a + 1 : b], c.q[a + 1 : b] = lock_gap(self.info.skeleton, c.feet, c.root, c.q, c.planted, a, b,
-                                                         [t for t in c.partial if a < t < b])
+                                                         [t for t in c.partial if a < t < b], self.settings)
 
     def _finish(self, c: _Clip, lock: bool, file_frame: bool) -> Filled:
         """Keys exact, back to the file's frame; keys, outside frames and the frames of gaps not generated exactly the
@@ -377,7 +386,8 @@ class FillRuntime:
             kept[a + 1 : b] = True
             if gp is not None:
                 contact[a + 1 : b] = gap_contacts(info.skeleton, c.feet, info.fps, root, q, a, b,
-                                                  positions=gp[a - lo : b - lo + 1], share=gap_share(c.shares, (a, b)))
+                                                  positions=gp[a - lo : b - lo + 1], share=gap_share(c.shares, (a, b)),
+                                                  settings=self.settings)
         locked = lock and c.feet is not None
         if file_frame and not info.convention.is_project:
             root, q = info.convention.to_file(root, q)

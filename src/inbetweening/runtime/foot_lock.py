@@ -21,8 +21,8 @@ generated position to the held one.
   moved so its toe sits at the toe's hold, puts the ankle; then, wherever a toe is held, the foot is turned about the
   ankle to point the toe at its hold.  Without this the feet turned on their held toes and slid them 4-5 cm/s on
   Bandai-Namco-2 (RESULTS.md section 12.10).  A toe run is held only where that carried ankle stays within
-  :data:`PLANTED_REACH` leg lengths of the generated hip (beyond, on motions the model never saw, the wrongly held toes
-  cost joint error), and only in gaps of :data:`SHORT_GAP` frames or longer (in shorter ones it cost the standard
+  ``planted_reach`` leg lengths of the generated hip (beyond, on motions the model never saw, the wrongly held toes
+  cost joint error), and only in gaps of ``short_gap`` frames or longer (in shorter ones it cost the standard
   split and the held-out walks joint error).
 * Optionally (``move_root``), where a locked ankle is out of the leg's reach from the generated hip, the root of that
   frame is moved by the shortfall (the legs' mean, smoothed over ``blend`` frames either side) before the legs are
@@ -31,13 +31,15 @@ generated position to the held one.
 Keyframes are never changed: only the hip, knee and ankle rotations (and with ``move_root`` the root) of generated
 frames.
 
-Short gaps (under :data:`SHORT_GAP` frames) of a model with contact channels take the contact the keys say
+Short gaps (under ``short_gap`` frames) of a model with contact channels take the contact the keys say
 (:func:`gap_contacts`) instead of the prediction: with keys every 5 frames the predicted contact raised the joint
 error of the shipped contact model by 3 % (RESULTS.md section 12).  In longer gaps the prediction is distrusted where
 it is implausible: a predicted contact run whose held foot would be out of the leg's reach from the generated hip
-(:data:`PLANTED_REACH`) takes the rule's contact instead (a model that does not know the motion plants feet the body
+(``planted_reach``) takes the rule's contact instead (a model that does not know the motion plants feet the body
 walks away from; the locking then drags the leg, RESULTS.md section 12.9).  A gap the self-check gave back to
-interpolation takes the keys' contact alone, for every model (:data:`TRUSTED_SHARE`, RESULTS.md section 12.12).
+interpolation takes the keys' contact alone, for every model (``trusted_share``, RESULTS.md section 12.12).
+
+The numbers named ``like_this`` are :class:`~inbetweening.runtime.settings.FillSettings` fields (``settings``).
 """
 from __future__ import annotations
 
@@ -59,18 +61,11 @@ from inbetweening.geometry.ik import two_bone_ik
 from inbetweening.geometry.quaternion import qinv, qmul, qswing
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["BLEND_FRAMES", "MIN_RUN", "PLANTED_MARGIN", "PLANTED_MAX_GAP", "PLANTED_REACH", "PLANTED_SPEED", "SHORT_GAP",
-           "TRUSTED_SHARE", "ClipFeet", "clip_feet", "contact_rule", "gap_contacts", "key_contacts", "legs",
+from .settings import DEFAULT_SETTINGS, FillSettings
+
+__all__ = ["ClipFeet", "clip_feet", "contact_rule", "gap_contacts", "key_contacts", "legs",
            "lock_feet", "lock_gap", "plausible_contacts"]
 
-BLEND_FRAMES = 4  # frames over which a lock is blended in and out
-PLANTED_MARGIN = 0.1  # fill contact in longer gaps: a foot within this share of the contact height of its planted level
-PLANTED_SPEED = 3.0  # ... and slower than this many times the contact speed (a sliding fill is still planted)
-PLANTED_MAX_GAP = 20  # ... in gaps shorter than this (in longer ones it held feet that had left, RESULTS.md 12.4)
-MIN_RUN = 3  # detected contact: shorter runs (and shorter holes in a run) are dropped (filled)
-SHORT_GAP = 8  # gaps shorter than this take the keys' contact, not a model's prediction
-PLANTED_REACH = 1.1  # a contact run is kept where its held foot stays within this many leg lengths of the hip
-TRUSTED_SHARE = 0.25  # a gap whose network share is below this takes the keys' contact alone (RESULTS.md 12.12)
 
 
 def _ancestors(parents: Sequence[int], j: int) -> list[int]:
@@ -175,13 +170,15 @@ def _pull(pos: np.ndarray, target: np.ndarray, weight: np.ndarray) -> np.ndarray
 
 
 def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_frames: Sequence[int],
-              contact: np.ndarray, feet: Sequence[int], blend: int = BLEND_FRAMES,
-              move_root: bool = False, ends: np.ndarray | None = None, toes: bool = True) -> tuple[np.ndarray, np.ndarray]:
+              contact: np.ndarray, feet: Sequence[int], move_root: bool = False, ends: np.ndarray | None = None,
+              toes: bool = True, settings: FillSettings = DEFAULT_SETTINGS) -> tuple[np.ndarray, np.ndarray]:
     """``(root (F, 3), local_q (F, J, 4))`` with the feet locked (module docstring); ``contact (F, J)`` (contact in
     [0, 1]; keyframes: their own), ``feet``: foot joint indices; ``move_root``: move the root where a locked ankle is
     out of reach (off by default: on Bandai-Namco-2 it raised the joint error at every schedule and did not lower the
     skating, RESULTS.md section 12); ``toes``: hold the planted foot joints below the ankles too (off: the ankles
-    alone, the foot keeping its global rotation).  Returns new arrays; the keyframes' rows are the input's."""
+    alone, the foot keeping its global rotation); ``settings``: ``blend_frames``, ``planted_reach``.  Returns new
+    arrays; the keyframes' rows are the input's."""
+    blend = settings.blend_frames
     q = np.array(local_q, dtype=np.float64)
     root_out = np.array(root, dtype=np.float64)
     n = len(root)
@@ -193,7 +190,7 @@ def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_f
     parents = skeleton.parents
     plans, aims = [], []
     for hip, knee, ankle in legs(skeleton, feet):
-        reach = PLANTED_REACH * (np.linalg.norm(skeleton.offsets[knee]) + np.linalg.norm(skeleton.offsets[ankle]))
+        reach = settings.planted_reach * (np.linalg.norm(skeleton.offsets[knee]) + np.linalg.norm(skeleton.offsets[ankle]))
         target, weight = _hold(_planted(contact, ankle), gp[:, ankle], generated, keys, go_on[:, ankle], blend)
         shift = _pull(gp[:, ankle], target, weight)
         below = [j for j in feet if ankle in _ancestors(parents, j)] if toes else []
@@ -245,7 +242,7 @@ def _clean_runs(flags: np.ndarray, min_run: int) -> np.ndarray:
 class ClipFeet:
     """What the keys of one clip say about its feet: the contact ``rule`` (:func:`contact_rule`) and its foot joints
     ``feet``, the keys' own contact ``at_keys (F, J)`` (:func:`key_contacts`), each foot's planted ``levels (J,)``
-    (its median height at the keys where it is planted, plus :data:`PLANTED_MARGIN` of the contact height; ``-inf``
+    (its median height at the keys where it is planted, plus ``planted_margin`` of the contact height; ``-inf``
     where it is planted at no key), ``held {(a, b): (J,) bool}``: per key gap, whether both keys have the foot
     planted within a quarter of the contact height of each other (the keys say it stayed down), ``key_pose {key:
     (root, local_q)}``: the keys as given (a locked foot meets them exactly), and ``ends {(a, b): (2, J) bool}``:
@@ -262,7 +259,7 @@ class ClipFeet:
 
 
 def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.ndarray, local_q: np.ndarray,
-              known_frames: Sequence[int]) -> ClipFeet | None:
+              known_frames: Sequence[int], settings: FillSettings = DEFAULT_SETTINGS) -> ClipFeet | None:
     """:class:`ClipFeet` from the keys alone, ``None`` when no feet can be found (:func:`contact_rule`)."""
     keys = sorted(known_frames)
     rule = contact_rule(contact, skeleton, root, local_q, keys)
@@ -276,7 +273,7 @@ def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.nda
     for j in feet:
         planted = at_keys[keys, j] > 0.5
         if planted.any():
-            levels[j] = np.median(gp[planted, j, 1]) + PLANTED_MARGIN * rule.height
+            levels[j] = np.median(gp[planted, j, 1]) + settings.planted_margin * rule.height
         for i, g in enumerate(zip(keys, keys[1:])):
             near = np.linalg.norm(gp[i + 1, j] - gp[i, j]) < 0.25 * rule.height
             held[g][j] = bool(planted[i] and planted[i + 1] and near)
@@ -288,44 +285,46 @@ def clip_feet(contact: FootContact, skeleton: Skeleton, fps: float, root: np.nda
 
 
 def lock_gap(skeleton: Skeleton, feet: ClipFeet, root: np.ndarray, local_q: np.ndarray, contact: np.ndarray, a: int,
-             b: int, fixed: Sequence[int] = ()) -> tuple[np.ndarray, np.ndarray]:
+             b: int, fixed: Sequence[int] = (), settings: FillSettings = DEFAULT_SETTINGS) -> tuple[np.ndarray, np.ndarray]:
     """Frames ``a + 1 .. b - 1`` of ``root (F, 3)``, ``local_q (F, J, 4)`` with the feet of the gap between keys ``a``
     and ``b`` locked on ``contact (F, J)`` (:func:`lock_feet`, between the keys as given, the toes held in gaps of
-    :data:`SHORT_GAP` frames or longer; ``fixed``: frames inside the gap never moved, e.g. partial keys)."""
+    ``settings.short_gap`` frames or longer; ``fixed``: frames inside the gap never moved, e.g. partial keys)."""
     r, q = np.array(root[a : b + 1], np.float64), np.array(local_q[a : b + 1], np.float64)
     (r[0], q[0]), (r[-1], q[-1]) = feet.key_pose[a], feet.key_pose[b]
     r, q = lock_feet(skeleton, r, q, [0, b - a] + [t - a for t in fixed], contact[a : b + 1], feet.feet,
-                     ends=feet.ends[(a, b)], toes=b - a - 1 >= SHORT_GAP)
+                     ends=feet.ends[(a, b)], toes=b - a - 1 >= settings.short_gap, settings=settings)
     return r[1:-1], q[1:-1]
 
 
 def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarray, local_q: np.ndarray, a: int,
-                 b: int, predicted: np.ndarray | None = None, min_run: int = MIN_RUN,
-                 positions: np.ndarray | None = None, share: float = 1.0) -> np.ndarray:
+                 b: int, predicted: np.ndarray | None = None, positions: np.ndarray | None = None,
+                 share: float = 1.0, settings: FillSettings = DEFAULT_SETTINGS) -> np.ndarray:
     """Foot contact ``(b - a - 1, J)`` of the gap between keys ``a`` and ``b``, judged on frames ``a .. b`` (``positions
     (b - a + 1, J, 3)``: their joints' global positions where the caller has them) and what the
     keys say alone (so a re-fill of some gaps finds in a gap what a fill of every gap finds there): ``predicted``, the
-    model's contact channels there, where it has them and the gap is :data:`SHORT_GAP` frames or longer, but the rule
+    model's contact channels there, where it has them and the gap is ``short_gap`` frames or longer, but the rule
     below where they are implausible (:func:`plausible_contacts`); else, 1/0 on the feet and 0 elsewhere:
 
     * a gap whose two keys both have the foot planted within a quarter of the contact height of each other holds it
       planted throughout (the keys say the foot did not leave the ground between them);
     * elsewhere the data's rule on the filled motion itself (:func:`~inbetweening.data.contacts.planted_frames`), runs
       and holes shorter than ``min_run`` frames cleaned;
-    * in gaps of :data:`SHORT_GAP` to :data:`PLANTED_MAX_GAP` - 1 frames, also where the filled foot is as low as it
-      stands at the keys (below its planted level) and slower than :data:`PLANTED_SPEED` times the contact speed.  A
+    * in gaps of ``short_gap`` to ``planted_max_gap`` - 1 frames, also where the filled foot is as low as it
+      stands at the keys (below its planted level) and slower than ``planted_speed`` times the contact speed.  A
       fill slides where the real foot is planted, so the speed rule alone misses most of those frames (RESULTS.md
       section 12.4); in shorter gaps it cost joint error, in longer ones it held feet that had left.
 
     A gap the self-check gave back to interpolation (``share``, the network's share of it, under
-    :data:`TRUSTED_SHARE`) takes only what its keys say (the first rule): its fill is mostly interpolation, whose feet
+    ``trusted_share``) takes only what its keys say (the first rule): its fill is mostly interpolation, whose feet
     are low and slow where the real ones swing, and its predicted contacts are the network's that the check
-    distrusted; on motions never seen both planted feet that were moving (RESULTS.md section 12.12)."""
+    distrusted; on motions never seen both planted feet that were moving (RESULTS.md section 12.12).  The numbers
+    ``like_this`` are ``settings``' (:class:`~inbetweening.runtime.settings.FillSettings`)."""
+    s = settings
     n = b - a - 1
     out = np.zeros((n, skeleton.num_joints))
     if n < 1:
         return out
-    if share < TRUSTED_SHARE:
+    if share < s.trusted_share:
         out[:, feet.feet] = feet.held[(a, b)][feet.feet]
         return out
     rule = feet.rule
@@ -334,23 +333,23 @@ def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarra
     for j in feet.feet:
         seg = gp[:, j : j + 1]
         f = planted_frames(seg, fps, rule.height, rule.speed)[:, 0]
-        if SHORT_GAP <= n < PLANTED_MAX_GAP:
-            loose = planted_frames(seg, fps, rule.height, rule.speed * PLANTED_SPEED)[:, 0]
+        if s.short_gap <= n < s.planted_max_gap:
+            loose = planted_frames(seg, fps, rule.height, rule.speed * s.planted_speed)[:, 0]
             f |= loose & (seg[:, 0, 1] < feet.levels[j])
-        f = _clean_runs(f, min_run)
+        f = _clean_runs(f, s.min_run)
         if feet.held[(a, b)][j]:
             f[:] = True
         out[:, j] = f[1:-1]
-    if predicted is not None and n >= SHORT_GAP:
-        return plausible_contacts(skeleton, feet.feet, gp[1:-1], predicted, out)
+    if predicted is not None and n >= s.short_gap:
+        return plausible_contacts(skeleton, feet.feet, gp[1:-1], predicted, out, s)
     return out
 
 
 def plausible_contacts(skeleton: Skeleton, feet: Sequence[int], positions: np.ndarray, predicted: np.ndarray,
-                       fallback: np.ndarray) -> np.ndarray:
+                       fallback: np.ndarray, settings: FillSettings = DEFAULT_SETTINGS) -> np.ndarray:
     """``predicted (F, J)`` contact, but each run of a leg's ankle above :data:`~inbetweening.data.contacts.
     CONTACT_THRESHOLD` whose held position (the run's mean ankle position in ``positions (F, J, 3)``) is farther
-    from the hip than :data:`PLANTED_REACH` times the leg's length at some frame of the run: there the leg's
+    from the hip than ``settings.planted_reach`` times the leg's length at some frame of the run: there the leg's
     joints (the ankle and the foot joints below it) take ``fallback (F, J)`` instead."""
     out = np.array(predicted, np.float64)
     parents = skeleton.parents
@@ -359,7 +358,7 @@ def plausible_contacts(skeleton: Skeleton, feet: Sequence[int], positions: np.nd
         below = [j for j in feet if j == ankle or ankle in _ancestors(parents, j)]
         for s, e in _runs(out[:, ankle] > CONTACT_THRESHOLD):
             hold = positions[s:e, ankle].mean(axis=0)
-            if np.linalg.norm(positions[s:e, hip] - hold, axis=-1).max() > PLANTED_REACH * reach:
+            if np.linalg.norm(positions[s:e, hip] - hold, axis=-1).max() > settings.planted_reach * reach:
                 out[s:e, below] = fallback[s:e, below]
     return out
 

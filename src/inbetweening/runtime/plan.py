@@ -10,7 +10,7 @@ context the end of the previous one.  The true keys are never modified.
 gaps nothing changed for: it hands over every key and, in the other gaps, the earlier fill's output, names the key
 gaps whose own inputs changed (``only``) and the network shares the earlier fill gave each gap (``previous``).  A key
 gap is generated when it is named; when its share now (the self-check on the keys, :mod:`.trust`, reaches
-:data:`~.trust.REACH` gap lengths either side of a key) differs from the earlier one, or there is none; when its
+``reach`` gap lengths either side of a key, :class:`~.settings.FillSettings`) differs from the earlier one, or there is none; when its
 frames do not all hold finite values; or when one of its ``n_past - 1`` context frames lies in a gap generated now
 (each window's context is the output so far: a generated gap re-generates the gaps it is context for).  The other gaps
 keep their frames: where they hold what a fill of every gap gave, the result is what a fill of every gap gives now.
@@ -26,11 +26,7 @@ import numpy as np
 
 from .model import InbetweenError
 
-__all__ = ["SHARE_TOLERANCE", "GapPlan", "check_keys", "check_refill", "chosen_gaps", "gap_windows", "key_gaps",
-           "plan_gaps"]
-
-SHARE_TOLERANCE = 1e-6  # network shares closer than this are the same (the float noise of a batched network)
-
+__all__ = ["GapPlan", "check_keys", "check_refill", "chosen_gaps", "gap_windows", "key_gaps", "plan_gaps"]
 
 def check_keys(keys, length: int, what: str = "keyframes") -> list[int]:
     """``keys`` as a list of ints: at least 2, strictly increasing, inside ``[0, length)``; otherwise
@@ -127,10 +123,11 @@ def check_refill(keys: list[int], only, previous) -> tuple[set | None, dict]:
 
 
 def chosen_gaps(keys: list[int], shares: dict, only: set | None, previous: dict, n_past: int,
-                finite) -> list[tuple[int, int]]:
+                finite, tolerance: float) -> list[tuple[int, int]]:
     """The key gaps a fill generates, left to right (module docstring): every gap when ``only`` is ``None``.
-    ``shares``: ``{key gap: (share, ...)}`` now; ``previous``: the earlier ones (:func:`check_refill`);
-    ``finite(a, b)``: whether the input holds finite values on the gap's frames."""
+    ``shares``: ``{key gap: (share, ...)}`` now; ``previous``: the earlier ones (:func:`check_refill`), the same where
+    they differ by at most ``tolerance`` (``FillSettings.share_tolerance``); ``finite(a, b)``: whether the input holds
+    finite values on the gap's frames."""
     gaps = key_gaps(keys)
     if only is None:
         return gaps
@@ -139,7 +136,7 @@ def chosen_gaps(keys: list[int], shares: dict, only: set | None, previous: dict,
     for a, b in gaps:
         before = previous.get((a, b))
         take = ((a, b) in only or before is None or len(before) != len(shares[(a, b)])
-                or any(abs(x - y) > SHARE_TOLERANCE for x, y in zip(before, shares[(a, b)]))
+                or any(abs(x - y) > tolerance for x, y in zip(before, shares[(a, b)]))
                 or generated[max(a - n_past + 1, 0) : a].any() or not finite(a, b))
         if take:
             out.append((a, b))

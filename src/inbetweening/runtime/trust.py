@@ -8,16 +8,18 @@ one weight ``w`` in [0, 1] per gap, the product of two pieces of evidence:
 * **what it knows about this motion: the self-check on the user's own keys.**  For each interior key ``k`` whose
   neighbours' window fits the length the model was trained on, the key is hidden and the network predicts it across
   ``(previous key, next key)`` (context: the interpolation of the keys before); ``x`` = the network's mean joint
-  error at ``k`` over interpolation's there, pooled over the checked keys within :data:`REACH` gaps of the gap.  The
-  trust is ``clip((X_NONE - x) / (X_NONE - X_FULL), 0, 1)``: all of the calibrated weight where the network predicts
-  the user's keys at under :data:`X_FULL` of interpolation's error, none where it does no better than
-  :data:`X_NONE` (the keys are ground truth the user gave: a motion the model does not know shows there first).
-  Gaps under :data:`DENSE_GAP` frames are judged more strictly (:data:`DENSE_X_FULL`, :data:`DENSE_X_NONE`): with
+  error at ``k`` over interpolation's there, pooled over the checked keys within ``reach`` gaps of the gap.  The
+  trust is ``clip((x_none - x) / (x_none - x_full), 0, 1)``: all of the calibrated weight where the network predicts
+  the user's keys at under ``x_full`` of interpolation's error, none where it does no better than ``x_none`` (the
+  keys are ground truth the user gave: a motion the model does not know shows there first).  Gaps under
+  ``dense_gap`` frames are judged more strictly (``dense_x_full``, ``dense_x_none``): with
   dense keys the hidden key lies mid-way in a window twice as long as the gaps filled, where the network gains more
   over interpolation than in the gaps themselves, so the check overrates it there (RESULTS.md section 12.9).
 
 A gap with no checked key near it (two keys only; keys so far apart that the check's window is longer than the
 model's trained gap) keeps the calibrated weight.  RESULTS.md section 12 measures the rule against its alternatives.
+The thresholds are :class:`~inbetweening.runtime.settings.FillSettings` fields (defaults 0.65 / 1.05, 5 frames,
+0.60 / 0.95, 3 gaps).
 """
 from __future__ import annotations
 
@@ -29,16 +31,9 @@ import numpy as np
 from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["blend", "REACH", "DENSE_GAP", "DENSE_X_FULL", "DENSE_X_NONE", "X_FULL", "X_NONE", "Check", "checks_of", "gap_share",
-           "gap_weights", "trust_of"]
+from .settings import DEFAULT_SETTINGS, FillSettings
 
-X_FULL = 0.65  # the network's error at the hidden keys, as a share of interpolation's, below which it is fully trusted
-X_NONE = 1.05  # ... and above which it is not trusted at all
-DENSE_GAP = 5  # gaps shorter than this many frames ...
-DENSE_X_FULL = 0.6  # ... are fully trusted below this error ratio at the hidden keys
-DENSE_X_NONE = 0.95  # ... and not at all above this one
-REACH = 3  # checked keys within this many gaps (of the gap's own length) either side of a gap decide its trust
-
+__all__ = ["blend", "Check", "checks_of", "gap_share", "gap_weights", "trust_of"]
 
 
 def blend(interp_root: np.ndarray, interp_q: np.ndarray, net_root: np.ndarray, net_q: np.ndarray,
@@ -77,15 +72,17 @@ def scored(check: Check, skeleton: Skeleton, root: np.ndarray, q: np.ndarray, pr
     return Check(a, k, b, float(err[0]), float(err[1]))
 
 
-def trust_of(x: float, gap: int | None = None) -> float:
+def trust_of(x: float, gap: int | None = None, settings: FillSettings = DEFAULT_SETTINGS) -> float:
     """The self-check's trust for an error ratio ``x`` in a gap of ``gap`` frames (module docstring; ``None``: a gap
-    of :data:`DENSE_GAP` frames or more)."""
-    full, none = (DENSE_X_FULL, DENSE_X_NONE) if gap is not None and gap < DENSE_GAP else (X_FULL, X_NONE)
+    of ``settings.dense_gap`` frames or more)."""
+    s = settings
+    full, none = ((s.dense_x_full, s.dense_x_none) if gap is not None and gap < s.dense_gap
+                  else (s.x_full, s.x_none))
     return float(np.clip((none - x) / (none - full), 0.0, 1.0))
 
 
 def gap_weights(segments: Sequence[tuple[int, int]], keys: Sequence[int], checks: Sequence[Check],
-                prior) -> dict[tuple[int, int], tuple[float, float | None]]:
+                prior, settings: FillSettings = DEFAULT_SETTINGS) -> dict[tuple[int, int], tuple[float, float | None]]:
     """``{(a, b): (weight, x)}`` for each generated window ``(a, b)`` of a clip: the calibrated ``prior(gap length)``
     (``None``: 1) times the trust of the self-checks near the key gap the window lies in (``x``: their pooled error
     ratio, ``None`` where there is none)."""
@@ -94,7 +91,7 @@ def gap_weights(segments: Sequence[tuple[int, int]], keys: Sequence[int], checks
     for a, b in segments:
         i = int(np.searchsorted(keys, a, side="right")) - 1  # the key gap (keys[i], keys[i + 1]) holding the window
         lo, hi = keys[i], keys[min(i + 1, len(keys) - 1)]
-        reach = REACH * max(hi - lo, 1)
+        reach = settings.reach * max(hi - lo, 1)
         near = [c for c in checks if lo - reach <= c.key <= hi + reach and c.interp > 0]
         p = prior(b - a - 1)
         p = 1.0 if p is None else float(p)
@@ -102,7 +99,7 @@ def gap_weights(segments: Sequence[tuple[int, int]], keys: Sequence[int], checks
             out[(a, b)] = (p, None)
             continue
         x = sum(c.net for c in near) / sum(c.interp for c in near)
-        out[(a, b)] = (p * trust_of(x, b - a - 1), float(x))
+        out[(a, b)] = (p * trust_of(x, b - a - 1, settings), float(x))
     return out
 
 

@@ -243,8 +243,33 @@ def _check_train_extras(cfg) -> None:
     check_schedules("test_keyframes", list(_get(cfg, "test_keyframes") or []), allow_empty=True)
 
 
+def fill_settings(cfg: DictConfig):
+    """The fill's tuned numbers of a config (``fill``, ``conf/fill/default.yaml``: ``_target_`` a
+    :class:`~inbetweening.runtime.settings.FillSettings`, instantiated); the defaults where it has no ``fill``.  A bad
+    value or an unknown name is a :class:`ConfigError` naming its key."""
+    from hydra.errors import InstantiationException
+    from hydra.utils import instantiate
+
+    from inbetweening.runtime.model import InbetweenError
+    from inbetweening.runtime.settings import DEFAULT_SETTINGS, FillSettings
+
+    node = _get(cfg, "fill")
+    if node is None:
+        return DEFAULT_SETTINGS
+    try:
+        settings = instantiate(node)
+    except InstantiationException as e:  # Hydra wraps what the constructor raised
+        if isinstance(e.__cause__, InbetweenError):
+            raise ConfigError(str(e.__cause__)) from None
+        raise ConfigError(f"fill: {' '.join(str(e).split())}") from None
+    if not isinstance(settings, FillSettings):
+        raise ConfigError(f"fill._target_: must be inbetweening.runtime.settings.FillSettings, got {type(settings)}")
+    return settings
+
+
 def validate(cfg: DictConfig) -> None:
     """Raise :class:`ConfigError` naming the first invalid key."""
+    fill_settings(cfg)
     mask = _get(cfg, "mask.name")
     if mask not in MASK_NAMES:
         raise ConfigError(f"mask.name: unknown mask {mask!r}; choose one of {list(MASK_NAMES)}")

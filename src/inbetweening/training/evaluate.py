@@ -10,8 +10,9 @@ import torch
 from omegaconf import DictConfig
 
 from inbetweening.evaluation import benchmark as B
+from inbetweening.runtime.settings import DEFAULT_SETTINGS
 from inbetweening.training.builders import make_datamodule, make_trainer, output_dir
-from inbetweening.training.config import ConfigError, validate
+from inbetweening.training.config import ConfigError, fill_settings, validate
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.job import check_skeleton, use_threads, write_benchmark
 from inbetweening.training.module import load_module
@@ -62,18 +63,20 @@ def evaluate(cfg: DictConfig) -> dict[str, float]:
     return metrics
 
 
-def ensemble_transitions(paths: list[str]):
+def ensemble_transitions(paths: list[str], settings=None):
     """The LAFAN1 protocol's predictor (:func:`~inbetweening.evaluation.benchmark.evaluate_transitions`) of the ensemble
     of the checkpoints ``paths`` (:mod:`inbetweening.runtime.ensemble`): each window predicted through the fill
     runtime (:meth:`~inbetweening.runtime.FillRuntime.predict_windows`) and blended with the interpolation by the
-    ensemble's weight for the length, as a single model's windows are scored; ``(predict_fn, first predictor)``."""
+    ensemble's weight for the length, as a single model's windows are scored (``settings``: the fill's
+    :class:`~inbetweening.runtime.settings.FillSettings`, its ``share_power``); ``(predict_fn, first predictor)``."""
     from inbetweening.runtime import FillRuntime
     from inbetweening.runtime.ensemble import EnsembleBackend
     from inbetweening.runtime.torch_backend import TorchBackend
     from inbetweening.runtime.trust import blend
 
     members = [TorchBackend.from_checkpoint(p) for p in paths]
-    runtime = FillRuntime(EnsembleBackend(members, paths), foot_lock=False, self_check=False)
+    runtime = FillRuntime(EnsembleBackend(members, paths), foot_lock=False, self_check=False,
+                          settings=settings or DEFAULT_SETTINGS)
 
     def predict_fn(root, local_q, n):
         pr, pq, _ = runtime.predict_windows(root, local_q)
@@ -92,7 +95,7 @@ def evaluate_ensemble(cfg: DictConfig, paths: list[str]) -> dict[str, float]:
     dm = make_datamodule(cfg)
     dm.prepare_data()
     dm.setup("test")
-    predict_fn, predictor = ensemble_transitions(paths)
+    predict_fn, predictor = ensemble_transitions(paths, fill_settings(cfg))
     check_skeleton(paths, predictor, dm.data)
     lengths = tuple(cfg.data.test_lengths)
     metrics = B.evaluate_transitions(dm.test_benchmark_set(), predict_fn, lengths)
@@ -116,13 +119,14 @@ def with_baselines(name: str, metrics: dict, dm: InbetweenDataModule, lengths) -
 
 
 # ------------------------------------------------------------------------------------------ keyframes protocol
-def animator_fill(model, foot_lock: bool = True, self_check: bool = True):
+def animator_fill(model, foot_lock: bool = True, self_check: bool = True, settings=None):
     """The animator's fill (the fill runtime, :class:`~inbetweening.runtime.FillRuntime`, with the torch backend) of
     ``model``, a checkpoint path, a predictor, or a list of checkpoint paths (their ensemble,
     :mod:`inbetweening.runtime.ensemble`; the first one's predictor is returned) (feet locked unless
     ``foot_lock=False``; the self-check of the do-no-harm blend unless ``self_check=False``): ``(fill, predictor)``,
     ``fill(root, local_q, keys, partial=None) -> (root, local_q)``: what ``predict``, the Python API and Blender fill
-    with (``partial``: partial keys, ``{frame: joints}``)."""
+    with (``partial``: partial keys, ``{frame: joints}``); ``settings``: the fill's tuned numbers
+    (:class:`~inbetweening.runtime.settings.FillSettings`; ``None``: the shipped ones)."""
     from inbetweening.runtime import FillRuntime
     from inbetweening.runtime.ensemble import EnsembleBackend
     from inbetweening.runtime.torch_backend import TorchBackend
@@ -134,7 +138,8 @@ def animator_fill(model, foot_lock: bool = True, self_check: bool = True):
     else:
         members = [TorchBackend.from_checkpoint(str(p)) for p in model]
         backend, first = EnsembleBackend(members, [str(p) for p in model]), members[0]
-    runtime = FillRuntime(backend, foot_lock=foot_lock, self_check=self_check)
+    runtime = FillRuntime(backend, foot_lock=foot_lock, self_check=self_check,
+                          settings=settings or DEFAULT_SETTINGS)
 
     def fill(root, local_q, keys, partial=None):
         out = runtime.fill(root, local_q, keys, partial=partial)
@@ -156,7 +161,7 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
     if ckpt_path:
         ckpt_path = ckpt_path if isinstance(ckpt_path, str) else [str(p) for p in ckpt_path]
         fill, predictor = animator_fill(ckpt_path, foot_lock=bool(cfg.get("foot_lock", True)),
-                                        self_check=bool(cfg.get("self_check", True)))
+                                        self_check=bool(cfg.get("self_check", True)), settings=fill_settings(cfg))
         check_skeleton(ckpt_path, predictor, data)
         name = predictor.model_cfg.get("name", "model")
         if not isinstance(ckpt_path, str):
@@ -175,15 +180,16 @@ def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
 
 
 def score_keyframes(model, data, intervals: list, seed: int = 0, foot_lock: bool = True,
-                    max_clips: int | None = None, self_check: bool = True) -> dict:
+                    max_clips: int | None = None, self_check: bool = True, settings=None) -> dict:
     """The keyframes-only figures of ``model`` (a predictor, through the animator path, with its feet locked unless
     ``foot_lock=False``; or a fill function; ``None``: interpolation) on the whole test clips of ``data`` for each
     schedule of ``intervals`` (an interval ``K`` or a keypose schedule name; ``seed`` seeds the random one):
-    ``{schedule: {figure: value}}``.  ``max_clips``: score that many test clips, evenly spaced (quick comparisons)."""
+    ``{schedule: {figure: value}}``.  ``max_clips``: score that many test clips, evenly spaced (quick comparisons);
+    ``settings``: the fill's tuned numbers (``None``: the shipped ones)."""
     from inbetweening.evaluation import keyframes as KF
 
-    fill = (animator_fill(model, foot_lock=foot_lock, self_check=self_check)[0] if isinstance(model, torch.nn.Module)
-            else model)
+    fill = (animator_fill(model, foot_lock=foot_lock, self_check=self_check, settings=settings)[0]
+            if isinstance(model, torch.nn.Module) else model)
     feet = KF.foot_spec(data.skeleton, data.contact)
     clips = data.test
     if max_clips and max_clips < len(clips):

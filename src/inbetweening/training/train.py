@@ -17,7 +17,7 @@ from inbetweening.predictor.checkpoint import CheckpointError, predictor_state, 
 from inbetweening.training.builders import make_datamodule, make_module, make_trainer, output_dir
 from inbetweening.training.calibrate import calibrate_module
 from inbetweening.training.callbacks import trim_heap
-from inbetweening.training.config import validate
+from inbetweening.training.config import fill_settings, validate
 from inbetweening.training.datamodule import InbetweenDataModule
 from inbetweening.training.evaluate import score_keyframes, with_baselines
 from inbetweening.training.job import use_threads, write_benchmark
@@ -77,7 +77,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
         if cfg.get("test_keyframes"):  # the keyframes-only protocol on the whole test clips, through the animator path
             kf = score_keyframes(module.predictor, dm.data, list(cfg.test_keyframes), int(cfg.seed),
                                  bool(cfg.get("foot_lock", True)), cfg.get("keyframe_clips"),
-                                 bool(cfg.get("self_check", True)))
+                                 bool(cfg.get("self_check", True)), fill_settings(cfg))
         rows = with_baselines(name, metrics, dm, cfg.data.test_lengths)
         write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split,
                         keyframes=kf, interpolation=rows.get("interpolation"))
