@@ -1,11 +1,18 @@
-"""The learned retargeter's joint position error by frame index (RESULTS.md section 13): python benchmarks/retarget_early_frames.py"""
+"""The learned retargeter's joint position error by frame index (RESULTS.md section 13).
+
+    python benchmarks/retarget_early_frames.py
+"""
 # pos_err (% body height) of the learned retargeter by frame index: frames 0-9 against 10 on (held-out walk+run)
-import numpy as np, torch
-torch.set_num_threads(1)
-from inbetweening.data.datasets import load_dataset
+import numpy as np
+import torch
+
 from inbetweening.data.contacts import body_height
+from inbetweening.data.datasets import load_dataset
 from inbetweening.training.learned_retarget import LearnedRetarget
 from inbetweening.training.retarget_data import select, split_clips
+
+torch.set_num_threads(1)
+
 d = load_dataset("bandai_namco", "/work/shared/datasets/bandai-namco-2.zip")
 l = LearnedRetarget.from_checkpoint("models/retarget_cmu/model.ckpt")
 test = split_clips(select(sorted(d.train + d.test, key=lambda c: c.name), ["walk", "run"]), 0.6)[1]

@@ -9,14 +9,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import CONF_DIR, compose_cfg
 from omegaconf import OmegaConf
-from test_runtime import SK, Recorder, info, motion, walking_on_the_spot
 
+from conftest import CONF_DIR, compose_cfg
 from inbetweening.runtime import FillRuntime, InbetweenError
 from inbetweening.runtime.ensemble import EnsembleBackend, member_weights
 from inbetweening.runtime.settings import DEFAULT_SETTINGS, FillSettings
 from inbetweening.training.config import ConfigError, fill_settings
+from test_runtime import SK, Recorder, info, motion, walking_on_the_spot
 
 
 def test_the_hydra_group_holds_the_defaults_and_every_setting_has_its_evidence():

@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from inbetweening.api.shipped import REPO, SHIPPED_CKPTS
+from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool, parse_int_list, parse_partial_keys, parse_paths
 from inbetweening.runtime.model import InbetweenError
 from inbetweening.runtime.settings import FillSettings
-from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool, parse_int_list, parse_partial_keys, parse_paths
 
 USAGE = """\
 usage: python -m inbetweening.predict [ckpt_path=<model.ckpt>|[a.ckpt,b.ckpt]] input=<clip.bvh> output=<out.bvh>

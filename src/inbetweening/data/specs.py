@@ -41,8 +41,8 @@ Reader = Callable[["DatasetSpec", Path], Iterable[tuple[str, Clip, Skeleton, "fl
 DEFAULT_SPLIT = "standard"
 
 __all__ = [
-    "BN_CONTENTS", "BN_TEST_CONTENTS", "DATASETS", "DEFAULT_SPLIT", "DatasetSpec", "bandai_namco_content_split", "bandai_namco_split",
-    "get_spec", "lafan_split", "register",
+    "BN_CONTENTS", "BN_TEST_CONTENTS", "DATASETS", "DEFAULT_SPLIT", "DatasetSpec", "bandai_namco_content_split",
+    "bandai_namco_split", "get_spec", "lafan_split", "register",
 ]
 
 

@@ -10,7 +10,8 @@ context the end of the previous one.  The true keys are never modified.
 gaps nothing changed for: it hands over every key and, in the other gaps, the earlier fill's output, names the key
 gaps whose own inputs changed (``only``) and the network shares the earlier fill gave each gap (``previous``).  A key
 gap is generated when it is named; when its share now (the self-check on the keys, :mod:`.trust`, reaches
-``reach`` gap lengths either side of a key, :class:`~.settings.FillSettings`) differs from the earlier one, or there is none; when its
+``reach`` gap lengths either side of a key, :class:`~.settings.FillSettings`) differs from the earlier one, or there
+is none; when its
 frames do not all hold finite values; or when one of its ``n_past - 1`` context frames lies in a gap generated now
 (each window's context is the output so far: a generated gap re-generates the gaps it is context for).  The other gaps
 keep their frames: where they hold what a fill of every gap gave, the result is what a fill of every gap gives now.

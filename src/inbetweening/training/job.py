@@ -45,7 +45,8 @@ def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metric
     """Write ``benchmark.json`` (strict JSON, atomically); a non-finite metric is an error, never a number.
     ``split``: the dataset's split rule (``data.split``), recorded when given.  ``keyframes``: the
     ``protocol=keyframes`` figures ``{"<K>": {"model_cm": ..., "n_clips": ...}}``, written under the ``keyframes``
-    key (integers stay integers; the per-clip ratios and the worst clips' names as they are).  ``interpolation``: the interpolation baseline's metrics on the same windows
+    key (integers stay integers; the per-clip ratios and the worst clips' names as they are).  ``interpolation``: the
+    interpolation baseline's metrics on the same windows
     (the reference ratios are taken against), written under ``interpolation``."""
     res = {"dataset": dataset, **({"split": split} if split else {}), "model": model, "n_windows": int(n_windows),
            "metrics": {k: float(v) for k, v in metrics.items()}}

@@ -3,8 +3,8 @@ and *Auto Re-fill* settings, and the handlers behind Auto Re-fill.
 
 **What the model did.**  Per gap the fill re-filled: the network's share of each window (the do-no-harm blend
 weight, 100 % where the model has no blend) and the frames where each foot is planted (the model's predicted contact
-above one half, or the contact rule on the fill for a model without contact channels); kept in the record (:mod:`.record`), so gaps kept from an earlier fill
-show what was done then.
+above one half, or the contact rule on the fill for a model without contact channels); kept in the record
+(:mod:`.record`), so gaps kept from an earlier fill show what was done then.
 
 **Auto Re-fill.**  A ``depsgraph_update_post`` handler notices that the active armature's action changed (an update
 of an Action ID) and compares a fingerprint of its keys (frames, values, key types) with the one it last saw; a
