@@ -42,6 +42,7 @@ from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.runtime import FillRuntime, InbetweenError
 from inbetweening.runtime.ensemble import EnsembleBackend
+from inbetweening.runtime.partial import check_partial
 from inbetweening.runtime.plan import check_keys
 from inbetweening.runtime.settings import FillSettings
 from inbetweening.runtime.torch_backend import TorchBackend
@@ -49,36 +50,12 @@ from inbetweening.runtime.torch_backend import TorchBackend
 __all__ = ["FillResult", "InbetweenError", "Inbetweener"]
 
 
-def _partial_rows(bvh: BVH, partial, src: list[int]) -> dict[int, list[str]]:
-    """``partial`` (``{frame: [bone names]}`` of ``bvh``) checked: frames strictly between the first and the last of
-    the keyframes ``src`` and not one of them, bones of the file's hierarchy; ``{}`` for ``None``."""
-    if not partial:
-        return {}
-    if not isinstance(partial, dict):
-        raise InbetweenError(f"partial: must map frame -> bone names, got {type(partial).__name__}")
-    out = {}
-    for frame, bones in partial.items():
-        if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)):
-            raise InbetweenError(f"partial: {frame!r} is not an integer frame index")
-        t = int(frame)
-        if not src[0] < t < src[-1] or t in src:
-            raise InbetweenError(f"partial: frame {t} must lie strictly between the keyframes {src[0]} and {src[-1]} "
-                                 "and not be one of them")
-        bones = [bones] if isinstance(bones, str) else list(bones)
-        unknown = [b for b in bones if b not in bvh.names]
-        if unknown:
-            raise InbetweenError(f"partial: frame {t}: {', '.join(map(str, unknown))} not in {bvh.source}'s hierarchy")
-        out[t] = bones
-    return out
-
-
-def _keep_partial_rows(out: BVH, bvh: BVH, part: dict[int, list[str]], first: int) -> None:
+def _keep_partial_rows(out: BVH, bvh: BVH, part: dict[int, np.ndarray], first: int) -> None:
     """The partial keys' bones in ``out``'s rows as in ``bvh``'s (their raw channel values, bit for bit); ``part``:
-    ``{input frame: bone names}``, output row ``frame - first``."""
+    ``{input frame: (J,) bool mask of bvh's bones}``, output row ``frame - first``."""
     ends = np.cumsum([len(ch) for ch in bvh.channels])
-    for t, bones in part.items():
-        for b in bones:
-            j = bvh.names.index(b)
+    for t, mask in part.items():
+        for j in np.flatnonzero(mask):
             cols = slice(ends[j] - len(bvh.channels[j]), ends[j])
             out.motion[t - first, cols] = bvh.motion[t, cols]
 
@@ -295,8 +272,10 @@ class Inbetweener:
             raise InbetweenError("give exactly one of keyframes (frames of the clip to keep) or gap "
                                  "(frames to generate between consecutive input frames)")
         n_in = bvh.num_frames
-        if keyframes is not None:
+        part: dict[int, np.ndarray] = {}
+        if keyframes is not None:  # the keys and partial keys checked once, in the file's frames and bones
             src = check_keys(keyframes, n_in, "keyframes")
+            part, src = check_partial(partial, src, n_in, list(bvh.names), f"{bvh.source}'s hierarchy")
             out_pos = [k - src[0] for k in src]
         else:
             if isinstance(gap, bool) or not isinstance(gap, (int, np.integer)) or gap < 1:
@@ -309,7 +288,6 @@ class Inbetweener:
         if partial and gap is not None:
             raise InbetweenError("partial: partial keys are frames of the clip between its keyframes (form A, "
                                  "keyframes=[...]); with gap= every input frame is a whole key")
-        part = _partial_rows(bvh, partial, src)
         if self.retargets:  # every character, the model's own skeleton the identity case of the retargeting
             return self._fill_character(bvh, src, out_pos, bone_map, {**kw, "partial": part})
         try:  # a model of another skeleton than the humanoid slots: its own skeleton only
@@ -325,8 +303,8 @@ class Inbetweener:
         q = np.full((n_out, self.skeleton.num_joints, 4), np.nan)
         root[out_pos], q[out_pos] = root_in[src], q_in[src]
         model_part = {}
-        for t, bones in part.items():  # the file's bones -> the model's joints (a folded top joint: the hips)
-            names = [self.skeleton.names[0] if b == bvh.names[0] and fold else b for b in bones]
+        for t, mask in part.items():  # the file's bones -> the model's joints (a folded top joint: the hips)
+            names = [self.skeleton.names[0] if j == 0 and fold else bvh.names[j] for j in np.flatnonzero(mask)]
             missing = [b for b in names if b not in self.skeleton.names]
             if missing:
                 raise InbetweenError(f"partial: frame {t}: {', '.join(missing)} not among the model's joints")
@@ -355,8 +333,7 @@ class Inbetweener:
         lp = np.full((n_out, bvh.num_joints, 3), np.nan)
         lq[out_pos], lp[out_pos] = lq_in[src], lp_in[src]
         part = {}
-        for t, bones in (kw.pop("partial", None) or {}).items():
-            mask = np.isin(bvh.names, bones)
+        for t, mask in kw.pop("partial").items():
             lq[t - src[0], mask], lp[t - src[0], mask] = lq_in[t, mask], lp_in[t, mask]
             part[t - src[0]] = mask
         movers = [j for j, ch in enumerate(bvh.channels) if any(c.lower().endswith("position") for c in ch)]
@@ -366,8 +343,7 @@ class Inbetweener:
         out = self.runtime.fill_rig(retarget, lq, lp, out_pos, movers=movers, fps=fps, partial=part or None, **kw)
         clip = bvh.with_motion(out.local_q, out.local_p)
         clip.motion[out_pos] = bvh.motion[np.asarray(src)]
-        _keep_partial_rows(clip, bvh, {src[0] + t: [bvh.names[j] for j in np.flatnonzero(m)] for t, m in part.items()},
-                           src[0])
+        _keep_partial_rows(clip, bvh, {src[0] + t: m for t, m in part.items()}, src[0])
         m = out.model
         span = np.arange(out_pos[-1] + 1)
         root, q = retarget.to_model(out.local_q[span], out.local_p[span])  # the character's fill, on the model's

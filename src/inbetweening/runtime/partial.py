@@ -20,21 +20,25 @@ from .plan import check_keys
 __all__ = ["check_clip", "check_partial", "known_values"]
 
 
-def _joints_of(frame: int, joints, names: list[str]) -> np.ndarray:
-    """One partial key's joints (a bool mask of ``len(names)``, joint indices or joint names) as a bool mask."""
+def _joints_of(frame: int, joints, names: list[str], skeleton: str) -> np.ndarray:
+    """One partial key's joints (a bool mask of ``len(names)``, joint indices or joint names of ``skeleton``) as a
+    bool mask."""
     n = len(names)
     arr = np.asarray(joints) if isinstance(joints, np.ndarray) or not isinstance(joints, (list, tuple, set)) else None
     if arr is not None and arr.dtype == bool:
         if arr.shape != (n,):
-            raise InbetweenError(f"partial keys: frame {frame}: a joint mask needs {n} values (one per joint of the "
-                                 f"model's skeleton), got shape {arr.shape}")
+            raise InbetweenError(f"partial keys: frame {frame}: a joint mask needs {n} values (one per joint of "
+                                 f"{skeleton}), got shape {arr.shape}")
         return arr.copy()
     mask = np.zeros(n, dtype=bool)
+    if isinstance(joints, str):
+        joints = [joints]
+        arr = None
     items = list(joints) if arr is None else (list(np.atleast_1d(arr)) if arr.ndim else [arr.item()])
     for j in items:
         if isinstance(j, (str, np.str_)):
             if str(j) not in names:
-                raise InbetweenError(f"partial keys: frame {frame}: no joint named {str(j)!r} in the model's skeleton")
+                raise InbetweenError(f"partial keys: frame {frame}: no joint named {str(j)!r} in {skeleton}")
             mask[names.index(str(j))] = True
         elif isinstance(j, (int, np.integer)) and not isinstance(j, bool) and 0 <= int(j) < n:
             mask[int(j)] = True
@@ -43,11 +47,14 @@ def _joints_of(frame: int, joints, names: list[str]) -> np.ndarray:
     return mask
 
 
-def check_partial(partial, keys: list[int], num_frames: int, names: list[str]) -> tuple[dict[int, np.ndarray], list[int]]:
-    """``partial`` (``{frame: joints}``, ``None`` for none) checked against the whole ``keys``: ``({frame: (J,) bool
+def check_partial(partial, keys: list[int], num_frames: int, names: list[str],
+                  skeleton: str = "the model's skeleton") -> tuple[dict[int, np.ndarray], list[int]]:
+    """``partial`` (``{frame: joints}``, ``None`` or empty for none; joints: a bool mask, indices or names of
+    ``names``, the joints of ``skeleton``, for messages) checked against the whole ``keys``: ``({frame: (J,) bool
     mask}, keys)``.  A frame must lie strictly between the first and the last key and must not be a key; a frame
-    keyed on every joint is a whole key (moved into the returned keys); a frame keyed on none is left out."""
-    if partial is None:
+    keyed on every joint is a whole key (moved into the returned keys); a frame keyed on none is left out.  The one
+    check of partial keys: the API's (a file's frames and bones) and the runtime's (:func:`check_clip`)."""
+    if not partial:
         return {}, keys
     if not isinstance(partial, Mapping):
         raise InbetweenError(f"partial keys must map frame -> joints, got {type(partial).__name__}")
@@ -64,7 +71,7 @@ def check_partial(partial, keys: list[int], num_frames: int, names: list[str]) -
         if not keys[0] < t < keys[-1]:
             raise InbetweenError(f"partial keys: frame {t} lies outside the keys ({keys[0]}..{keys[-1]}); a partial "
                                  "key constrains the frames between two whole keys")
-        mask = _joints_of(t, joints, names)
+        mask = _joints_of(t, joints, names, skeleton)
         if mask.all():
             whole.add(t)
         elif mask.any():
@@ -91,7 +98,7 @@ def check_clip(where: str, n: int, keys, partial, names: list[str], joints: list
     values they keep finite: every key's in each of ``joints`` (arrays ``(F, J, ...)``) and ``root`` (``(F, 3)``), a
     partial key's on its keyed joints (the root where it keys joint 0).  :class:`InbetweenError` naming ``where``."""
     keys = check_keys(keys, n, "keys")
-    part, keys = check_partial(partial, keys, n, names)
+    part, keys = check_partial(partial, keys, n, names, "the rig" if where == "fill_rig" else "the model's skeleton")
     values = list(joints) + ([root] if root is not None else [])
     if not all(np.isfinite(a[keys]).all() for a in values):
         raise InbetweenError(f"{where}: the keys contain NaN or infinite values")
