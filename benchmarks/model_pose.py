@@ -1,5 +1,5 @@
 """The model's skeleton's natural pose, read off its training data: the table
-:data:`inbetweening.runtime.retarget.MODEL_POSE` (the pose its T-pose is built from when retargeting, so that its bones'
+:data:`inbetweening.runtime.tpose.MODEL_POSE` (the pose its T-pose is built from when retargeting, so that its bones'
 twists are the ones its data has; its zero pose has none of them).
 
     python benchmarks/model_pose.py [--data ../shared/datasets/bandai-namco-2.zip] [--clips 300]
@@ -30,7 +30,7 @@ def main(argv=None) -> int:
     from inbetweening.data.bvh import parse_bvh
     from inbetweening.data.clips import clip_in_skeleton
     from inbetweening.data.specs import bandai_namco_split
-    from inbetweening.runtime.retarget import mean_pose
+    from inbetweening.runtime.tpose import mean_pose
     from inbetweening.runtime.torch_backend import TorchBackend
 
     sk = TorchBackend.from_checkpoint(args.ckpt).info.skeleton

@@ -17,7 +17,7 @@ from inbetweening.data.bvh_writer import write_bvh  # noqa: E402
 from inbetweening.geometry.quaternion import qinv, qmul  # noqa: E402
 from inbetweening.geometry.skeleton import Skeleton  # noqa: E402
 from inbetweening.predictor.checkpoint import read_checkpoint  # noqa: E402
-from inbetweening.runtime.retarget import tpose  # noqa: E402
+from inbetweening.runtime.tpose import tpose  # noqa: E402
 
 SCALE = {"legs": 1.15, "Spine": 0.85, "Chest": 1.1, "UpperArm_L": 1.15, "UpperArm_R": 1.15, "LowerArm_L": 0.9,
          "LowerArm_R": 0.9, "Neck": 1.15}

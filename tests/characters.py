@@ -14,7 +14,8 @@ import numpy as np
 from inbetweening.data.bvh import BVH
 from inbetweening.geometry.quaternion import qinv, qmul, qrot, remove_discontinuities
 from inbetweening.geometry.skeleton import Skeleton, fk
-from inbetweening.runtime.retarget import euler_sign, tpose
+from inbetweening.runtime.retarget import euler_sign
+from inbetweening.runtime.tpose import tpose
 
 UE = {"Hips": "pelvis", "Spine": "spine_01", "Chest": "spine_03", "Neck": "neck_01", "Head": "head",
       "Shoulder_L": "clavicle_l", "UpperArm_L": "upperarm_l", "LowerArm_L": "lowerarm_l", "Hand_L": "hand_l",

@@ -12,7 +12,7 @@ from inbetweening.data.bvh import BVH
 from inbetweening.data.clips import Clip
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.predictor.checkpoint import read_checkpoint
-from inbetweening.runtime.retarget import tpose
+from inbetweening.runtime.tpose import tpose
 
 ROOT = Path(__file__).resolve().parents[1]
 CMU = Path("/usr/share/assimp/models/BVH/01_01.bvh")

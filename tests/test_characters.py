@@ -18,7 +18,8 @@ from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.geometry.interp import interpolate_keyframes
 from inbetweening.geometry.quaternion import qinv, qmul, remove_discontinuities
 from inbetweening.geometry.skeleton import fk
-from inbetweening.runtime.retarget import euler_sign, tpose
+from inbetweening.runtime.retarget import euler_sign
+from inbetweening.runtime.tpose import tpose
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "models" / "bn2_reference" / "model.ckpt"
