@@ -127,7 +127,7 @@ class Retarget:
             self.lift = MODEL_ANKLE - self.scale * float(ankles.min())
         self._plan_model()
         self._plan_rig()
-        self._planaims(reference)
+        self._plan_aims(reference)
 
     def _rig_start(self, keyed, m_start, reference) -> np.ndarray | None:
         """The rig's natural pose: the model's carried over where the rig is the model's skeleton (the same shape of
@@ -210,7 +210,7 @@ class Retarget:
                     plan[b] = ("limb", mapped[last], last)
         self.rig_plan = plan
 
-    def _planaims(self, reference) -> None:
+    def _plan_aims(self, reference) -> None:
         """The bones whose direction is matched: per mapped model joint with a chain child mapped too, the pair of rig
         joints it spans (``model_aims``: ``(model joint, model child, rig joint, rig joint)``); per mapped rig bone, the
         next mapped joint along its chain (``rig_aims``: ``(rig bone, rig joint, model joint, model joint, the

@@ -29,7 +29,7 @@ LEG = ("UpperLeg", "LowerLeg", "Foot", "Toes")
 UP, LEFT, FORWARD = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
 
 
-def _sidechains() -> list[tuple[tuple[str, ...], np.ndarray, np.ndarray]]:
+def _side_chains() -> list[tuple[tuple[str, ...], np.ndarray, np.ndarray]]:
     """``(slots, direction of the segments, direction of the last segment)`` of the four limbs."""
     out = []
     for side, sign in (("L", 1.0), ("R", -1.0)):
@@ -66,7 +66,7 @@ def chains(parents, slot_of: dict[str, int]) -> Chains:
     paths["body"] = path
     for a, b in zip(path, path[1:]):
         aim[a], direction[a] = b, UP
-    for slots, seg, last in _sidechains():
+    for slots, seg, last in _side_chains():
         present = [slot_of[s] for s in slots if s in slot_of]
         path = chain(parents, present[0], present[-1]) if len(present) > 1 else present
         paths[slots[0]] = path
