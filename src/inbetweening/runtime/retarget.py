@@ -34,8 +34,8 @@ from .tpose import (
     chain,
     chains,
     hip_height,
-    mean_pose,
     model_natural_pose,
+    nearest_pose,
     rest_pose,
     tpose,
     world_up,
@@ -110,7 +110,7 @@ class Retarget:
         m_start = model_pose if model_pose is not None else model_natural_pose(model)
         self.m_basis = m_basis = body_basis(model, self.model_slot, UP, start=m_start)  # the project's world: Y up
         self.t_model = tpose(model, self.model_slot, m_basis, start=m_start)
-        start = self._rig_start(keyed, m_start, reference)
+        start = self._rig_start(keyed, m_start, reference, up)
         self.basis = basis = body_basis(rig, self.rig_slot, up, reference, start)
         self.world = qmul(basis_quat(m_basis), qinv(basis_quat(basis)))  # rig world -> model world
         self.t_rig = tpose(rig, self.rig_slot, basis, reference, start, ends)
@@ -129,7 +129,7 @@ class Retarget:
         self._plan_rig()
         self._plan_aims(reference)
 
-    def _rig_start(self, keyed, m_start, reference) -> np.ndarray | None:
+    def _rig_start(self, keyed, m_start, reference, up) -> np.ndarray | None:
         """The rig's natural pose: the model's carried over where the rig is the model's skeleton (the same shape of
         the mapped joints at rest, up to the unit and a turn), else the mean of its keys (:func:`mean_pose`), else its
         rest (``None``)."""
@@ -155,7 +155,7 @@ class Retarget:
             return np.concatenate([g[:1], qmul(qinv(g[par]), g[1:])], axis=0)
         if keyed is None or same:
             return None
-        return mean_pose(np.asarray(keyed, dtype=np.float64).reshape(-1, self.rig.num_joints, 4))
+        return nearest_pose(self.rig, self.rig_slot, keyed, up, self.model, self.model_slot, m_start)
 
     # ------------------------------------------------------------------ where each joint's rotation comes from
     def _fractions(self, skeleton: Skeleton, path: list[int]) -> np.ndarray:

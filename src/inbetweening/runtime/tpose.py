@@ -20,7 +20,7 @@ from inbetweening.geometry.quaternion import qframe, qinv, qmul, qrot, qswing
 from inbetweening.geometry.skeleton import Skeleton, fk
 
 __all__ = ["ARM", "BODY", "HINGES", "LEG", "MODEL_POSE", "MODEL_REST", "UP", "Chains", "aims", "basis_quat", "body_basis",
-           "chain", "chains", "hip_height", "mean_pose", "model_natural_pose", "rest_pose", "tpose", "world_up"]
+           "chain", "chains", "frame_of", "hip_height", "mean_pose", "model_natural_pose", "nearest_pose", "rest_pose", "tpose", "world_up"]
 
 
 BODY = ("Hips", "Spine", "Chest", "Neck", "Head")
@@ -239,15 +239,62 @@ def body_basis(skeleton: Skeleton, slot_of: dict[str, int], up: np.ndarray, refe
     thighs across it in the pose :func:`rest_pose` gives; where they lie along it (a degenerate rest), the hips -> head
     across it, else a world axis.  Two skeletons that differ only in their names, their channels or their world's turn
     get bases that differ by that turn, so the retargeting between them is exact."""
-    rest = rest_pose(skeleton, slot_of, reference, start)[1]
+    return frame_of(rest_pose(skeleton, slot_of, reference, start)[1], slot_of, up)
+
+
+def frame_of(pos: np.ndarray, slot_of: dict[str, int], up: np.ndarray) -> np.ndarray:
+    """The body frame (columns left, up, forward) of a pose's joint positions ``pos (J, 3)``: ``up`` and the thighs
+    across it; where they lie along it, the hips -> head across it, else a world axis."""
     up = np.asarray(up, dtype=np.float64) / np.linalg.norm(up)
-    for v in (rest[slot_of["UpperLeg_L"]] - rest[slot_of["UpperLeg_R"]], rest[slot_of["Head"]] - rest[slot_of["Hips"]],
+    for v in (pos[slot_of["UpperLeg_L"]] - pos[slot_of["UpperLeg_R"]], pos[slot_of["Head"]] - pos[slot_of["Hips"]],
               np.roll(np.abs(up), 1)):
         across = v - (v @ up) * up
         if np.linalg.norm(across) > 0.1 * np.linalg.norm(v):
             break
     left = across / np.linalg.norm(across)
     return np.stack([left, up, np.cross(left, up)], axis=1)
+
+
+def nearest_pose(skeleton: Skeleton, slot_of: dict[str, int], poses: np.ndarray, up: np.ndarray,
+                 target: Skeleton, target_slot: dict[str, int], target_pose: np.ndarray | None = None) -> np.ndarray:
+    """A natural pose of the keys ``poses`` (local rotations ``(K, J, 4)``) for a T-pose that agrees with ``target``'s
+    (built from ``target_pose``, local rotations; ``None``: its zero pose): per chain (the body, each limb) the key
+    whose chain points most like the target's (the directions between the chain's mapped joints, in each pose's body
+    frame, :func:`frame_of`), carried onto the first key's body frame.  Local rotations ``(J, 4)``.
+
+    A T-pose is reached from its natural pose by the shortest turns, and the twist those turns leave depends on the
+    road: a limb raised in every key (a wave) reached the T-pose from above while the target's came from below, and
+    arrived half a turn twisted.  Starting each chain from the key nearest the target's pose keeps both roads short
+    and alike."""
+    q = np.asarray(poses, dtype=np.float64).reshape(-1, skeleton.num_joints, 4)
+    g, pos = fk(q, np.broadcast_to(skeleton.offsets, q.shape[:-1] + (3,)), skeleton.parents)
+    frames = np.stack([frame_of(p, slot_of, up) for p in pos])
+    t_local = np.tile([1.0, 0.0, 0.0, 0.0], (target.num_joints, 1)) if target_pose is None else target_pose
+    t_pos = fk(np.asarray(t_local, np.float64), target.offsets, target.parents)[1]
+    t_frame = frame_of(t_pos, target_slot, np.array([0.0, 1.0, 0.0]))
+    name_of = {j: s for s, j in slot_of.items()}
+    ch = chains(skeleton.parents, slot_of)
+    owner: dict[int, int] = {}
+    for path in ch.paths.values():
+        mapped = [j for j in path if name_of.get(j) in target_slot]
+        pairs = list(zip(mapped, mapped[1:]))
+        if not pairs:
+            continue
+        want = np.stack([t_frame.T @ (t_pos[target_slot[name_of[b]]] - t_pos[target_slot[name_of[a]]])
+                         for a, b in pairs])
+        have = np.stack([np.einsum("kji,kj->ki", frames, pos[:, b] - pos[:, a]) for a, b in pairs], axis=1)
+        cos = (have * want).sum(-1) / np.maximum(np.linalg.norm(have, axis=-1) * np.linalg.norm(want, axis=-1), 1e-12)
+        best = int(np.argmin(np.arccos(np.clip(cos, -1.0, 1.0)).sum(-1)))
+        for j in path:
+            owner[j] = best
+    turns = qmul(basis_quat(frames[0])[None], qinv(np.stack([basis_quat(f) for f in frames])))  # key k -> key 0
+    out = np.zeros((skeleton.num_joints, 4))
+    for j, p in enumerate(skeleton.parents):
+        if j not in owner:
+            owner[j] = owner.get(p, 0)
+        out[j] = qmul(turns[owner[j]], g[owner[j], j])
+    par = list(skeleton.parents[1:])
+    return np.concatenate([out[:1], qmul(qinv(out[par]), out[1:])], axis=0)
 
 
 def basis_quat(basis: np.ndarray) -> np.ndarray:
