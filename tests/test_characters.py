@@ -1,10 +1,11 @@
 """Any humanoid character through the front ends: the Python API (``Inbetweener``) and ``python -m inbetweening.predict``
 fill a clip of another skeleton with the shipped model by retargeting (the bone map detected, or overridden), keep
 every key of every bone exactly, and refuse a rig that cannot be mapped with one line and an override template.
-Characters are generated from the model's own motion (tests/characters.py); real rigs of other skeletons come from
+Characters are generated from a real Bandai-Namco-2 walk of the model's skeleton (tests/characters.py); real rigs of other skeletons come from
 Debian's assimp-testmodels (skipped where absent)."""
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -15,14 +16,16 @@ from inbetweening.api.inbetweener import Inbetweener, InbetweenError
 from inbetweening.cli import predict
 from inbetweening.data.bvh import BVH, read_bvh
 from inbetweening.data.bvh_writer import write_bvh
+from inbetweening.data.clips import clip_in_skeleton
 from inbetweening.geometry.interp import interpolate_keyframes
-from inbetweening.geometry.quaternion import qinv, qmul, remove_discontinuities
+from inbetweening.geometry.quaternion import remove_discontinuities
 from inbetweening.geometry.skeleton import fk
 from inbetweening.runtime.retarget import euler_sign
-from inbetweening.runtime.tpose import tpose
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "models" / "bn2_reference" / "model.ckpt"
+DATA = ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip"
+WALK = "Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk_normal_010.bvh"  # a standard-split test clip
 CMU = Path("/usr/share/assimp/models/BVH/01_01.bvh")
 
 
@@ -32,19 +35,19 @@ def ib():
 
 
 @pytest.fixture(scope="module")
-def motion(ib):
-    """A motion of the model's skeleton: the T-pose with every joint swinging, the root walking and turning."""
-    sk = ib.skeleton
-    t = tpose(sk, {n: i for i, n in enumerate(sk.names)})
-    local = np.array([t[0]] + [qmul(qinv(t[p]), t[j]) for j, p in enumerate(sk.parents) if p >= 0])
-    f = np.arange(91)[:, None, None]
-    rng = np.random.default_rng(1)
-    ang = 0.3 * np.sin(2 * np.pi * f / rng.uniform(30, 50, (1, sk.num_joints, 1)) + rng.uniform(0, 6, (1, sk.num_joints, 3)))
-    norm = np.linalg.norm(ang, axis=-1, keepdims=True)
-    wiggle = np.concatenate([np.cos(norm / 2), np.sin(norm / 2) * ang / np.maximum(norm, 1e-9)], -1)
-    q = qmul(local[None], wiggle)
-    root = np.stack([30 * np.sin(f[:, 0, 0] / 25), 93 + 2 * np.sin(f[:, 0, 0] / 4), 2.0 * f[:, 0, 0]], -1)
-    return root, q
+def motion(ib, tmp_path_factory):
+    """A real motion of the model's skeleton: the first 91 frames of a Bandai-Namco-2 standard-test walk, in the
+    project's frame."""
+    if not DATA.exists():
+        pytest.skip("Bandai-Namco-2 is not beside the checkout")
+    path = tmp_path_factory.mktemp("walk") / "walk.bvh"
+    with zipfile.ZipFile(DATA) as z:
+        path.write_bytes(z.read(WALK))
+    _, root, q = clip_in_skeleton(read_bvh(path), ib.skeleton)
+    convention = ib.runtime.info.convention
+    if not convention.is_project:
+        root, q = convention.to_project(root, q)
+    return root[:91], q[:91]
 
 
 @pytest.fixture(scope="module")

@@ -33,6 +33,7 @@ from .tpose import (
     body_basis,
     chain,
     chains,
+    hinge_axes,
     hip_height,
     model_natural_pose,
     nearest_pose,
@@ -73,8 +74,8 @@ class Retarget:
     names are the slots) through ``bone_map`` (slot -> rig bone).  :meth:`to_model` and :meth:`to_rig` (module
     docstring); ``reference``: the rig's local rotations ``(J, 4)`` at a key (its bones above the hips stand as there
     in the reference pose); ``poses``: the rig's local rotations ``(K, J, 4)`` at the keys: where its world's up is
-    (:func:`world_up`) and its natural pose (:func:`mean_pose`; default: the reference); ``up``: that direction when
-    the caller knows it (a host whose armature is turned as an object); ``model_pose``: the model's natural pose
+    (:func:`world_up`), its natural pose and its hinges' axes (:meth:`_rig_start`; default: the reference); ``up``:
+    that direction when the caller knows it (a host whose armature is turned as an object); ``model_pose``: the model's natural pose
     (default :data:`MODEL_POSE` where the model has the skeleton it was read on); ``ends``: the rig's end-site offsets
     per joint (a forearm without a hand, a foot without toes is pointed by its end site); ``translations``: the rig's
     local translations at the keys (as ``poses``): its floor, the lowest ankle there, goes where the model's data has
@@ -113,7 +114,8 @@ class Retarget:
         start = self._rig_start(keyed, m_start, reference, up)
         self.basis = basis = body_basis(rig, self.rig_slot, up, reference, start)
         self.world = qmul(basis_quat(m_basis), qinv(basis_quat(basis)))  # rig world -> model world
-        self.t_rig = tpose(rig, self.rig_slot, basis, reference, start, ends)
+        axes = hinge_axes(rig, self.rig_slot, keyed) if keyed is not None and not self.same else None
+        self.t_rig = tpose(rig, self.rig_slot, basis, reference, start, ends, axes)
         rig_height = hip_height(rig, self.t_rig, self.rig_slot, basis[:, 1])
         if not rig_height > 1e-3 * size:
             raise InbetweenError(f"{where}: its scale cannot be found: in its T-pose the hips are not above the ankles "
@@ -131,8 +133,9 @@ class Retarget:
 
     def _rig_start(self, keyed, m_start, reference, up) -> np.ndarray | None:
         """The rig's natural pose: the model's carried over where the rig is the model's skeleton (the same shape of
-        the mapped joints at rest, up to the unit and a turn), else the mean of its keys (:func:`mean_pose`), else its
-        rest (``None``)."""
+        the mapped joints at rest, up to the unit and a turn), else per chain the key nearest the model's natural
+        pose (:func:`~.tpose.nearest_pose`), else its rest (``None``).  Its hinges then take their axes from every key
+        (:func:`~.tpose.hinge_axes`), not from that one pose."""
         slots = [s for s in self.rig_slot if s in self.model_slot]
         mine, theirs = [self.rig_slot[s] for s in slots], [self.model_slot[s] for s in slots]
         self.same = same = bool(np.abs(_shape(self.rig, mine) - _shape(self.model, theirs)).max() < 1e-4)

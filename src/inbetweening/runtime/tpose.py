@@ -1,12 +1,13 @@
 """Reference poses of a humanoid skeleton: the **T-pose** the retargeting (:mod:`.retarget`) measures a motion
 against, the up axis of its world and its body frame.
 
-A T-pose is built from a *natural pose* (:func:`mean_pose` of the keys for a rig; :data:`MODEL_POSE`, the training
-data's mean, for the model): the body chain (hips to head) up, the legs down, the feet forward, the arms out to the
-sides, each bone turned from the natural pose by the shortest rotation, the limbs' hinges (:data:`HINGES`) framed by
-their bend, a limb without a hand or toes pointed by its end site; the hips and the bone the arms hang from turned as
-a whole so the legs and the shoulders lie across (left to +X, up +Y, forward +Z in the model's world).  Up is the world
-axis nearest the keys' hips -> head (:func:`world_up`), and both skeletons' body frames come from one rule
+A T-pose is built from a *natural pose* (for a rig: per chain the key nearest the model's natural pose,
+:func:`nearest_pose`; for the model: :data:`MODEL_POSE`, its training data's mean): the body chain (hips to head) up,
+the legs down, the feet forward, the arms out to the sides, each bone turned from the natural pose by the shortest
+rotation, the limbs' hinges (:data:`HINGES`) framed by their bend (a rig's bend axis taken from every key,
+:func:`hinge_axes`), a limb without a hand or toes pointed by its end site; the hips and the bone the arms hang from
+turned as a whole so the legs and the shoulders lie across (left to +X, up +Y, forward +Z in the model's world).  Up is
+the world axis nearest the keys' hips -> head (:func:`world_up`), and both skeletons' body frames come from one rule
 (:func:`body_basis`), so two skeletons that differ only in names, channels, units or their world's turn get T-poses
 that differ by exactly that.
 """
@@ -19,8 +20,9 @@ import numpy as np
 from inbetweening.geometry.quaternion import qframe, qinv, qmul, qrot, qswing
 from inbetweening.geometry.skeleton import Skeleton, fk
 
-__all__ = ["ARM", "BODY", "HINGES", "LEG", "MODEL_POSE", "MODEL_REST", "UP", "Chains", "aims", "basis_quat", "body_basis",
-           "chain", "chains", "frame_of", "hip_height", "mean_pose", "model_natural_pose", "nearest_pose", "rest_pose", "tpose", "world_up"]
+__all__ = ["ARM", "BODY", "HINGES", "LEG", "MODEL_POSE", "MODEL_REST", "UP", "Chains", "aims", "basis_quat",
+           "body_basis", "chain", "chains", "frame_of", "hinge_axes", "hip_height", "mean_pose", "model_natural_pose",
+           "nearest_pose", "rest_pose", "tpose", "world_up"]
 
 
 BODY = ("Hips", "Spine", "Chest", "Neck", "Head")
@@ -137,6 +139,7 @@ HINGES = {f"{bone}_{s}": (tuple(f"{j}_{s}" for j in joints), np.array(axis))
                                      ("UpperArm", ("UpperArm", "LowerArm", "Hand"), (0.0, 0.0, -sign)),
                                      ("LowerArm", ("UpperArm", "LowerArm", "Hand"), (0.0, 0.0, -sign)))}
 HINGE_BEND = 0.17  # sin 10 degrees: a hinge bent less than this in the starting pose does not say its axis
+HINGE_AGREE = 0.7  # a joint whose bend axes over the keys agree less than this (mean vector / mean length) is no hinge
 
 
 def _hinges(slot_of: dict[str, int], pos: np.ndarray, tips: dict[int, np.ndarray] | None = None
@@ -155,6 +158,29 @@ def _hinges(slot_of: dict[str, int], pos: np.ndarray, tips: dict[int, np.ndarray
         n = np.cross(u, v) / max(np.linalg.norm(u) * np.linalg.norm(v), 1e-12)
         if np.linalg.norm(n) >= HINGE_BEND:
             out[slot_of[bone]] = (n, natural)
+    return out
+
+
+def hinge_axes(skeleton: Skeleton, slot_of: dict[str, int], poses: np.ndarray) -> dict[int, np.ndarray]:
+    """Per hinged joint (:data:`HINGES`) its bend axis in its own frame, from every pose of ``poses`` (local rotations
+    ``(K, J, 4)``, e.g. the keys): each pose's ``a->b x b->c`` (as long as the sine of its bend) taken into the joint's
+    frame and summed, so the poses that bend it most say the most.  Left out (the pose a T-pose starts from says it
+    then): a limb straight in every pose (the mean sine under :data:`HINGE_BEND`), and a joint that does not bend as a
+    hinge (its axes in its frame disagree: their mean's length under :data:`HINGE_AGREE` of their mean length)."""
+    q = np.asarray(poses, dtype=np.float64).reshape(-1, skeleton.num_joints, 4)
+    g, pos = fk(q, np.broadcast_to(skeleton.offsets, q.shape[:-1] + (3,)), skeleton.parents)
+    out = {}
+    for bone, (joints, _) in HINGES.items():
+        if bone not in slot_of or not all(j in slot_of for j in joints):
+            continue
+        a, b, c = (pos[:, slot_of[j]] for j in joints)
+        u, v = b - a, c - b
+        n = np.cross(u, v) / np.maximum(np.linalg.norm(u, axis=-1) * np.linalg.norm(v, axis=-1), 1e-12)[:, None]
+        each = qrot(qinv(g[:, slot_of[bone]]), n)
+        local = each.mean(0)
+        agree = np.linalg.norm(local) / max(float(np.linalg.norm(each, axis=-1).mean()), 1e-12)
+        if np.linalg.norm(local) >= HINGE_BEND and agree >= HINGE_AGREE:
+            out[slot_of[bone]] = local / np.linalg.norm(local)
     return out
 
 
@@ -177,7 +203,7 @@ def _tips(slot_of: dict[str, int], ch: Chains, rq: np.ndarray, pos: np.ndarray,
 
 def tpose(skeleton: Skeleton, slot_of: dict[str, int], basis: np.ndarray | None = None,
           reference: np.ndarray | None = None, start: np.ndarray | None = None,
-          ends: dict[int, np.ndarray] | None = None) -> np.ndarray:
+          ends: dict[int, np.ndarray] | None = None, axes: dict[int, np.ndarray] | None = None) -> np.ndarray:
     """Global rotations ``(J, 4)`` of the skeleton in its T-pose (module docstring) in its own world, whose body frame
     is ``basis`` (columns: left, up, forward; default: the model's world, the identity), built from the pose
     :func:`rest_pose` gives (``start``, ``reference``) by turning each bone the shortest way, the hips and the chest
@@ -195,6 +221,9 @@ def tpose(skeleton: Skeleton, slot_of: dict[str, int], basis: np.ndarray | None 
     aim = aims(ch, rest)
     tips = _tips(slot_of, ch, rq, rest, ends)
     hinged = _hinges(slot_of, rest, {j: tip for j, (tip, _) in tips.items()})
+    for j, axis in (axes or {}).items():  # hinge axes known from more poses than the start (:func:`hinge_axes`)
+        natural = next(n for bone, (_, n) in HINGES.items() if slot_of.get(bone) == j)
+        hinged[j] = (qrot(rq[j], axis), natural)
     t = rq.copy()
     for j in range(len(parents)):
         p = parents[j]
