@@ -30,8 +30,8 @@ def main(argv=None) -> int:
     from inbetweening.data.bvh import parse_bvh
     from inbetweening.data.clips import clip_in_skeleton
     from inbetweening.data.specs import bandai_namco_split
-    from inbetweening.runtime.tpose import mean_pose
     from inbetweening.runtime.torch_backend import TorchBackend
+    from inbetweening.runtime.tpose import mean_pose
 
     sk = TorchBackend.from_checkpoint(args.ckpt).info.skeleton
     qs, ankles = [], []

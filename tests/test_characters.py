@@ -1,8 +1,8 @@
 """Any humanoid character through the front ends: the Python API (``Inbetweener``) and ``python -m inbetweening.predict``
 fill a clip of another skeleton with the shipped model by retargeting (the bone map detected, or overridden), keep
 every key of every bone exactly, and refuse a rig that cannot be mapped with one line and an override template.
-Characters are generated from a real Bandai-Namco-2 walk of the model's skeleton (tests/characters.py); real rigs of other skeletons come from
-Debian's assimp-testmodels (skipped where absent)."""
+Characters are generated from a real Bandai-Namco-2 walk of the model's skeleton (tests/characters.py); real rigs of
+other skeletons come from Debian's assimp-testmodels (skipped where absent)."""
 from __future__ import annotations
 
 import zipfile
