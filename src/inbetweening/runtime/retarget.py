@@ -78,8 +78,8 @@ class Retarget:
     that direction when the caller knows it (a host whose armature is turned as an object); ``model_pose``: the
     model's natural pose (default :data:`MODEL_POSE` where the model has the skeleton it was read on); ``ends``: the
     rig's end-site offsets per joint (a forearm without a hand, a foot without toes is pointed by its end site);
-    ``translations``: the rig's local translations at the keys (as ``poses``): its floor, the lowest ankle there, goes where the model's data has
-    it (:data:`MODEL_ANKLE`; the model sees heights).  ``scale``: model lengths per rig
+    ``translations``: the rig's local translations at the keys (as ``poses``): its floor, the lowest ankle there, goes
+    where the model's data has it (:data:`MODEL_ANKLE`; the model sees heights).  ``scale``: model lengths per rig
     length (hip heights); ``world``: the rotation from the rig's world to the model's (wxyz); ``lift``: model lengths
     the rig's motion is raised by in the model's world.
 
