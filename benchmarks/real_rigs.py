@@ -117,15 +117,16 @@ def main(argv=None) -> int:
 
     import bvh_variants as V
     from inbetweening import Inbetweener
-    from inbetweening.api.inbetweener import _bone_map
     from inbetweening.api.shipped import SHIPPED_CKPTS
     from inbetweening.data.bvh import read_bvh
+    from inbetweening.runtime.bone_map import detect_bone_map
 
     inb = Inbetweener.from_checkpoint(args.ckpt if args.ckpt else [str(ROOT / p) for p in SHIPPED_CKPTS])
     rows = []
     with tempfile.TemporaryDirectory() as d:
         for rig, name, kind, path in clips(Path(d), args.seconds):
-            bm = _bone_map(read_bvh(path), None)
+            bvh = read_bvh(path)
+            bm = detect_bone_map(bvh.names, bvh.parents, bvh.offsets, where=bvh.source)
             mapped = sorted(set(bm.slots.values()))
             c = V.read(path)
             for sched, keys in schedules(c, False).items():
