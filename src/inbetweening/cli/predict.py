@@ -13,7 +13,7 @@ import numpy as np
 
 from inbetweening.api.shipped import REPO, SHIPPED_CKPTS
 from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool, parse_int_list, parse_partial_keys, parse_paths
-from inbetweening.runtime.model import InbetweenError
+from inbetweening.runtime.errors import InbetweenError
 from inbetweening.runtime.settings import FillSettings
 
 USAGE = """\

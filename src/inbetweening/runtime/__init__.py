@@ -12,7 +12,20 @@ extension bundles the very same files (``python -m inbetweening.blender build``)
 """
 from __future__ import annotations
 
-from .fill import Filled, FillRuntime
-from .model import Backend, InbetweenError, ModelError, ModelInfo
+from .errors import InbetweenError, ModelError
 
 __all__ = ["Backend", "FillRuntime", "Filled", "InbetweenError", "ModelError", "ModelInfo"]
+
+
+def __getattr__(name: str):
+    """The rest on first use: a command line that reads its options (``predict --help``, the fill's settings,
+    :mod:`.settings`) loads neither the fill nor the geometry behind it (which loads PyTorch where it is installed)."""
+    if name in ("FillRuntime", "Filled"):
+        from . import fill
+
+        return getattr(fill, name)
+    if name in ("Backend", "ModelInfo"):
+        from . import model
+
+        return getattr(model, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -11,18 +11,12 @@ from inbetweening.data.contacts import FootContact
 from inbetweening.data.convention import FileConvention
 from inbetweening.geometry.skeleton import Skeleton
 
+from .errors import InbetweenError, ModelError
+
 __all__ = ["Backend", "InbetweenError", "ModelError", "ModelInfo", "WINDOW_FORMAT"]
 
 WINDOW_FORMAT = "inbetweening-window-onnx/2"
 REQUIRED = ("skeleton_names", "skeleton_parents", "skeleton_offsets", "n_past", "forward_axis", "trained_gap")
-
-
-class InbetweenError(ValueError):
-    """Bad keyframes, gap or skeleton for in-betweening; the message says what and where."""
-
-
-class ModelError(ValueError):
-    """The model file is missing, unreadable, or not an in-betweening window model of this version."""
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ import textwrap
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 
-from .model import InbetweenError
+from .errors import InbetweenError
 
 __all__ = ["DEFAULT_SETTINGS", "FillSettings"]
 
