@@ -16,7 +16,7 @@ from inbetweening.runtime import FillRuntime, InbetweenError
 from inbetweening.runtime.ensemble import EnsembleBackend, member_weights
 from inbetweening.runtime.settings import DEFAULT_SETTINGS, FillSettings
 from inbetweening.training.config import ConfigError, fill_settings
-from test_runtime import SK, Recorder, info, motion, walking_on_the_spot
+from test_runtime import Recorder, info, motion, walking_on_the_spot
 
 
 def test_the_hydra_group_holds_the_defaults_and_every_setting_has_its_evidence():
@@ -129,4 +129,3 @@ def test_the_command_line_lists_and_checks_the_settings(tmp_path):
     assert bad.returncode == 2 and bad.stderr.strip() == "error: fill.min_run: expected an integer, got 2.5"
     unknown = cli(f"input={clip}", f"output={tmp_path / 'out.bvh'}", "keyframes=0,30", "fill.minrun=2")
     assert unknown.returncode == 2 and "unknown option 'fill.minrun'" in unknown.stderr
-    assert SK.num_joints == 6  # the runtime tests' skeleton this module borrows
