@@ -58,3 +58,46 @@ def test_collect_ratios_to_interpolation_and_mean_over_seeds(tmp_path):
     assert md[3] == "| +recipe=base | graph_transformer | standard | 2.500 ± 0.707 (2) | 0.625 ± 0.177 (2) |"
     csv = (tmp_path / "results.csv").read_text().splitlines()
     assert csv[0] == "config,model,dataset,split,n_windows,n,l2p@15,l2p_ratio@15,l2p@15_std,l2p_ratio@15_std,run"
+
+
+def _fold_run(root: Path, name: str, fold: int, seed: int, lever: str | None, model_cm: float, frames: int,
+              worse: float = 0.0) -> None:
+    run = root / name
+    (run / ".hydra").mkdir(parents=True)
+    over = ["experiment=folds", f"data.split=fold-{fold}", f"seed={seed}"] + ([lever] if lever else [])
+    (run / ".hydra" / "overrides.yaml").write_text("\n".join(f"- {o}" for o in over) + "\n")
+    (run / ".hydra" / "config.yaml").write_text(f"seed: {seed}\n")
+    kf = {k: {"model_cm": model_cm, "interp_cm": 2.0, "n_frames": frames, "n_clips": 10, "worse_share": worse,
+              "skate_model": 4.0, "skate_interp": 8.0, "skate_gt": 2.0} for k in ("15", "30")}
+    res = {"dataset": "bandai_namco", "split": f"fold-{fold}", "model": "graph_transformer", "n_windows": 8,
+           "metrics": {"l2p@15": 1.0}, "keyframes": kf}
+    (run / "benchmark.json").write_text(json.dumps(res))
+
+
+def test_folds_pool_every_clips_frames_and_spread_over_seeds(tmp_path):
+    from inbetweening.evaluation.collect import by_folds
+
+    # the baseline: fold 1 (100 frames at 1.0 cm) and fold 2 (300 frames at 2.0 cm) against 2.0 cm interpolation
+    _fold_run(tmp_path, "base/0", 1, 1, None, 1.0, 100, worse=0.1)
+    _fold_run(tmp_path, "base/1", 2, 1, None, 2.0, 300, worse=0.3)
+    # a lever, two seeds
+    for seed, cm in ((1, 1.0), (2, 1.6)):
+        _fold_run(tmp_path, f"mirror_{seed}/0", 1, seed, "data.mirror=true", cm, 100)
+        _fold_run(tmp_path, f"mirror_{seed}/1", 2, seed, "data.mirror=true", cm, 100)
+    rows = by_folds(tmp_path)
+    base = [r for r in rows if r["config"] == "(shared settings)"]
+    assert [r["fold"] for r in base] == ["fold-1", "fold-2", "pooled"]
+    assert abs(base[0]["15"] - 0.5) < 1e-12 and abs(base[1]["15"] - 1.0) < 1e-12
+    assert abs(base[2]["15"] - (100 * 1.0 + 300 * 2.0) / (400 * 2.0)) < 1e-12  # frames, not folds, weigh
+    assert abs(base[2]["worse@30"] - 0.2) < 1e-12 and abs(base[2]["skate@15"] - 2.0) < 1e-12
+    lever = [r for r in rows if r["config"] == "data.mirror=true"][-1]
+    assert lever["seeds"] == 2 and abs(lever["30"] - 0.65) < 1e-12 and abs(lever["30_std"] - 0.3 / 2 ** 0.5) < 1e-12
+    assert main([str(tmp_path), "--folds"]) == 0
+    md = (tmp_path / "folds.md").read_text()
+    assert "| data.mirror=true | **pooled** (2 seeds) | – | 0.650 ± 0.212 (0.0 %) |" in md
+
+
+def test_folds_without_fold_runs_is_one_line(tmp_path, capsys):
+    _run(tmp_path, "a", 2.0, "content")
+    assert main([str(tmp_path), "--folds"]) == 2
+    assert capsys.readouterr().err.startswith("error: no benchmark.json of a fold")

@@ -14,7 +14,7 @@ from inbetweening.data.clips import Clip
 from inbetweening.data.datasets import load_dataset, resolve_path
 from inbetweening.data.errors import DatasetError
 from inbetweening.data.mirror import side_pairs
-from inbetweening.data.specs import BN_CONTENTS, DATASETS, DatasetSpec, get_spec, lafan_split, register
+from inbetweening.data.specs import BN_CONTENTS, BN_TEST_CONTENTS, DATASETS, DatasetSpec, get_spec, lafan_split, register
 from inbetweening.data.synthetic import NAMES, OFFSETS, PARENTS, generate_clip, make_bvh
 from inbetweening.geometry.skeleton import Skeleton
 
@@ -179,9 +179,15 @@ def test_named_splits(tmp_path, registry):
     bn = get_spec("bandai_namco")
     assert list(bn.splits)[:2] == ["standard", "content"] and bn.split is bn.split_rule("standard")
     assert bn.split_rule("content")("dataset-2_run_normal_001.bvh") == "test"
-    assert sorted(list(bn.splits)[2:]) == sorted(f"holdout-{c}" for c in BN_CONTENTS) and len(BN_CONTENTS) == 10
+    assert sorted(n for n in bn.splits if n.startswith("holdout-")) == sorted(f"holdout-{c}" for c in BN_CONTENTS)
+    assert len(BN_CONTENTS) == 10
     walk = bn.split_rule("holdout-walk")  # leave-one-content-out: that content alone is the test set
     assert [walk(f"dataset-2_{c}_normal_001.bvh") for c in ("walk", "walk-turn-left", "run")] == ["test", "train", "train"]
+    # the folds: every content is held out by exactly one of them, fold-1 is the content split
+    folds = [bn.split_rule(f"fold-{i}") for i in range(1, 6)]
+    held = [[c for c in BN_CONTENTS if fold(f"dataset-2_{c}_normal_001.bvh") == "test"] for fold in folds]
+    assert sorted(c for pair in held for c in pair) == sorted(BN_CONTENTS) and all(len(p) == 2 for p in held)
+    assert sorted(held[0]) == sorted(BN_TEST_CONTENTS)
     with pytest.raises(DatasetError, match=r"^dataset 'one' has no split 'content'; its splits are \['standard'\]$"):
         single.split_rule("content")
     with pytest.raises(ValueError, match=r"splits must map names to split rules and include 'standard', got \['b'\]"):

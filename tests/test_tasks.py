@@ -93,3 +93,21 @@ def test_partial_keys_know_one_body_part_or_the_rest_and_only_on_keyframes():
     _, _, known = task_window(torch.zeros(128, 50, 3), torch.zeros(128, 50, 6, 4), c, n, part)
     assert (known.any(-1) & ~known.all(-1)).any()  # frames known on some joints only
     assert torch.equal(partial_keys(torch.Generator().manual_seed(4), keys, parents, 0.0), keys[..., None].expand_as(part))
+
+
+def test_body_part_mixing_takes_another_windows_upper_body_and_keeps_the_legs():
+    from inbetweening.training.tasks import mix_upper_body, upper_body
+
+    # hips 0; legs 1-2 (foot 2) and 3-4 (foot 4); spine 5 with head 6 and arm 7-8
+    parents = [-1, 0, 1, 0, 3, 0, 5, 5, 7]
+    upper = upper_body(parents, [2, 4])
+    assert upper.tolist() == [False, False, False, False, False, True, True, True, True]
+    q = torch.randn(6, 4, 9, 4, generator=torch.Generator().manual_seed(1))
+    out = mix_upper_body(torch.Generator().manual_seed(0), q, upper, prob=1.0)
+    assert torch.equal(out[:, :, ~upper], q[:, :, ~upper])  # root and legs: each window its own
+    for b in range(6):  # the upper body: another window's, whole
+        donors = [d for d in range(6) if d != b and torch.equal(out[b][:, upper], q[d][:, upper])]
+        assert len(donors) == 1
+    assert torch.equal(mix_upper_body(None, q, upper, prob=0.0), q)
+    with pytest.raises(ValueError, match="data.mix_parts: no joint under the root without a foot"):
+        upper_body([-1, 0, 1], [2])

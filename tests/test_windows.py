@@ -138,6 +138,29 @@ def test_time_warp_plays_the_clip_faster_and_stays_inside_it(cache_dir):
         np.testing.assert_array_equal(a, b)
 
 
+def test_a_time_warp_that_varies_within_the_window(cache_dir):
+    d = load_dataset("synthetic", cache_dir=cache_dir, synthetic={"num_clips": 6, "min_frames": 120, "max_frames": 160})
+    cw = ClipWindows(d.train, d.skeleton, 30, 10)
+    idx = np.arange(len(cw))
+    first = int(np.argmax(cw.max_speed(idx) >= 2))
+    # equal ends: the constant speed, exactly
+    for a, b in zip(cw.windows([first], speed=[[1.5, 1.5]]), cw.windows([first], speed=[1.5])):
+        np.testing.assert_array_equal(a, b)
+    # 0.5 -> 1.5: the clip time advances by the mean of the speeds at each step's two ends (the test's own sum)
+    rate = 0.5 + np.linspace(0, 1, 30)
+    t = cw.starts[first] + np.concatenate([[0.0], np.cumsum((rate[1:] + rate[:-1]) / 2)])
+    from inbetweening.geometry.interp import interpolate_pose
+    f0 = np.floor(t + 1e-9).astype(int)
+    want = interpolate_pose(cw.root[f0], cw.q[f0], cw.root[f0 + 1], cw.q[f0 + 1], t - f0)
+    got = cw.windows([first], speed=[[0.5, 1.5]])
+    np.testing.assert_allclose(got[0][0], want[0], atol=1e-6)
+    np.testing.assert_allclose(got[1][0], want[1], atol=1e-6)
+    # too fast for the clip's end: slowed as a whole, the last frame the clip's last
+    last = int(np.argmin(cw.max_speed(idx)))
+    root, _ = cw.windows([last], speed=[[3.0, 4.0]])
+    np.testing.assert_array_equal(root[0, -1], cw.root[cw.ends[last] - 1])
+
+
 def test_data_module_time_warp_is_seeded_and_changes_the_windows(tmp_path, cache_dir):
     warp = _dm(tmp_path, cache_dir, "data.speed=[1.0,2.0]")
     plain = _dm(tmp_path, cache_dir)
@@ -155,9 +178,21 @@ def test_config_rejects_bad_task_options(tmp_path, cache_dir):
     for extra, match in [(["data.context_min=0"], "data.context_min/max"),
                          (["data.context_min=5", "data.context_max=11"], "data.context_min/max"),
                          (["data.keyframe_prob=1.5"], "data.keyframe_prob"),
-                         (["data.speed=[0.5,1.0]"], "data.speed: need 1 <= lo"),
+                         (["data.speed=[0.1,1.0]"], r"data.speed: need 0.25 <= lo"),
+                         (["data.speed_vary=yes"], "data.speed_vary: must be true or false"),
+                         (["data.mix_parts=1"], "data.mix_parts: must be true or false"),
+                         (["data.extra_repeat=0"], "data.extra_repeat: must be an integer >= 1"),
                          (["data.speed=fast"], "data.speed: must be null or"),
                          (["centre=middle"], "centre")]:
         cfg = compose_cfg("train", [*DATA, *extra], tmp_path, cache_dir)
         with pytest.raises(ConfigError, match=match):
             validate(cfg)
+
+
+def test_data_module_varying_warp_and_part_mixing_are_seeded(tmp_path, cache_dir):
+    dm = _dm(tmp_path, cache_dir, "data.speed=[0.5,2.0]", "data.speed_vary=true", "data.mix_parts=true")
+    plain = _dm(tmp_path, cache_dir)
+    batch, again = (next(iter(dm.train_dataloader())) for _ in range(2))
+    assert all(torch.equal(batch[k], again[k]) for k in batch)  # a pure function of seed, epoch, batch
+    other = next(iter(plain.train_dataloader()))
+    assert torch.isfinite(batch["q"]).all() and not torch.equal(batch["q"], other["q"])

@@ -53,7 +53,7 @@ from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.quaternion import qinv, qrot
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["BVH_DATASET", "DERIVATION", "FolderOptions", "derive_spec", "hash_split", "pattern_split", "source_paths"]
+__all__ = ["BVH_DATASET", "DERIVATION", "FolderOptions", "derive_spec", "hash_split", "pattern_split", "resample_clip", "source_paths"]
 
 BVH_DATASET = "bvh"
 DERIVATION = 2  # in the prepared-data cache key: 2: a moving top joint above a hips-like root folds too
@@ -188,7 +188,7 @@ def _check_skeletons(items, auto_fold: bool) -> Skeleton:
     return ref
 
 
-def _resample(clip: Clip, rate: float, fps: float) -> Clip:
+def resample_clip(clip: Clip, rate: float, fps: float) -> Clip:
     """``clip`` at ``rate`` fps played at ``fps``: frames at times ``k / fps`` by root lerp and per-joint slerp."""
     n = int(math.floor((clip.num_frames - 1) * fps / rate + 1e-9)) + 1
     t = np.arange(n) * rate / fps
@@ -247,7 +247,7 @@ def derive_spec(paths: list[Path], options: FolderOptions) -> tuple[DatasetSpec,
     fps = float(o.fps) if o.fps is not None else max(rates, key=lambda r: (rates[r], r))
     if not fps > 0:
         raise DatasetError(f"data.fps must be positive, got {o.fps!r}")
-    clips = [(f, c if abs(r - fps) <= 0.01 * fps else _resample(c, r, fps)) for f, c, _, r in items]
+    clips = [(f, c if abs(r - fps) <= 0.01 * fps else resample_clip(c, r, fps)) for f, c, _, r in items]
     resampled = sum(abs(r - fps) > 0.01 * fps for *_, r in items)
 
     # up axis and unit, measured in the file's frame

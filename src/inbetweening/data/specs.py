@@ -41,8 +41,8 @@ Reader = Callable[["DatasetSpec", Path], Iterable[tuple[str, Clip, Skeleton, "fl
 DEFAULT_SPLIT = "standard"
 
 __all__ = [
-    "BN_CONTENTS", "BN_TEST_CONTENTS", "DATASETS", "DEFAULT_SPLIT", "DatasetSpec", "bandai_namco_content_split",
-    "bandai_namco_split", "get_spec", "lafan_split", "register",
+    "BN_CONTENTS", "BN_FOLDS", "BN_TEST_CONTENTS", "DATASETS", "DEFAULT_SPLIT", "DatasetSpec", "bandai_namco_content_split",
+    "bandai_namco_fold_splits", "bandai_namco_split", "get_spec", "lafan_split", "register",
 ]
 
 
@@ -116,9 +116,11 @@ class DatasetSpec:
     def split_names(self) -> str:
         """The split names for a message: ``['standard', 'content']``, then ``holdout-<content> for the contents a, b,
         ...`` where the spec has leave-one-content-out splits."""
-        plain = [n for n in self.splits if not n.startswith("holdout-")]
+        plain = [n for n in self.splits if not n.startswith(("holdout-", "fold-"))]
         held = [n[len("holdout-"):] for n in self.splits if n.startswith("holdout-")]
-        return f"{plain}" + (f" and holdout-<content> for the contents {', '.join(held)}" if held else "")
+        folds = [n for n in self.splits if n.startswith("fold-")]
+        return (f"{plain}" + (f" and holdout-<content> for the contents {', '.join(held)}" if held else "")
+                + (f" and the folds {', '.join(folds)}" if folds else ""))
 
     def reads(self, fname: str) -> bool:
         """Whether some split of the spec uses the file ``fname`` (the reader skips the others unparsed)."""
@@ -172,6 +174,21 @@ def bandai_namco_holdout_splits() -> dict[str, SplitRule]:
     return {f"holdout-{c}": rule(c) for c in BN_CONTENTS}
 
 
+# The generalisation folds: five pairs of contents, each held out whole by split ``fold-<i>``, so every content is a
+# test content once.  Fold 1 is the content split; each other fold pairs a walk with an arm gesture, so no fold holds
+# out a whole kind of motion (benchmarks/folds.sh, RESULTS.md "Motions it never saw").
+BN_FOLDS = (("run", "wave-both-hands"), ("walk", "raise-up-both-hands"), ("walk-turn-left", "wave-left-hand"),
+            ("walk-turn-right", "raise-up-right-hand"), ("raise-up-left-hand", "wave-right-hand"))
+
+
+def bandai_namco_fold_splits() -> dict[str, SplitRule]:
+    """``fold-<i>`` (1-5) for each pair of :data:`BN_FOLDS`: test = every take of the two contents, train = the eight
+    others."""
+    def rule(contents: tuple[str, ...]) -> SplitRule:
+        return lambda fname: bandai_namco_content_split(fname, contents)
+    return {f"fold-{i}": rule(pair) for i, pair in enumerate(BN_FOLDS, 1)}
+
+
 # ------------------------------------------------------------------------------------------
 # The registry
 # ------------------------------------------------------------------------------------------
@@ -211,7 +228,7 @@ register(DatasetSpec(
 ))  # fmt: skip
 register(DatasetSpec(
     "bandai_namco", {DEFAULT_SPLIT: bandai_namco_split, "content": bandai_namco_content_split,
-                     **bandai_namco_holdout_splits()}, (0.0, 0.0, 1.0),
+                     **bandai_namco_holdout_splits(), **bandai_namco_fold_splits()}, (0.0, 0.0, 1.0),
     env_var="BANDAI_NAMCO_PATH",
     default_path="../shared/datasets/bandai-namco-2.zip",
     path_hint="pass the Bandai-Namco-Research-Motiondataset zip or its data/ folder as data.path=...",

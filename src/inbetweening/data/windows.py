@@ -218,23 +218,34 @@ class ClipWindows:
         return (self.ends[i] - 1 - self.starts[i]) / max(self.window - 1, 1)
 
     def windows(self, idx: Sequence[int], mirrored: Sequence[bool] | None = None,
-                speed: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                speed: Sequence[float] | np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Windows ``root (B, W, 3), local_q (B, W, J, 4)`` (float64, the clips' own frame) of window numbers ``idx``; those
         flagged in ``mirrored`` are mirrored first (needs ``mirror``).  ``speed (B,)``: play each window that many
         times faster (frame ``i`` is the clip at ``start + i * speed``, root lerp and per-joint slerp between the two
-        nearest frames), capped by :meth:`max_speed`; ``1`` (or ``None``) cuts the frames exactly as they are."""
+        nearest frames); ``speed (B, 2)``: the play-back speed changes linearly from the first value at the window's
+        first frame to the second at its last (a time warp varying within the window).  Either is slowed as a whole
+        where it would run past its clip's end (:meth:`max_speed` for a constant speed); ``1`` (or ``None``) cuts the
+        frames exactly as they are."""
         i = np.asarray(idx, dtype=np.int64)
         if speed is None:
             frames = self.starts[i][:, None] + np.arange(self.window)[None, :]
             root, q = self.root[frames], self.q[frames]
         else:
-            sp = np.minimum(np.asarray(speed, dtype=np.float64), self.max_speed(i))
-            t = self.starts[i][:, None] + np.arange(self.window)[None, :] * sp[:, None]
-            f0 = np.minimum(np.floor(t).astype(np.int64), self.ends[i][:, None] - 1)
+            sp = np.asarray(speed, dtype=np.float64).reshape(len(i), -1)
+            if sp.shape[1] == 1 or np.array_equal(sp[:, 0], sp[:, -1]):  # constant: frame k at k * speed, exactly
+                steps = np.arange(self.window)[None, :] * np.minimum(sp[:, 0], self.max_speed(i))[:, None]
+            else:
+                ramp = np.linspace(0.0, 1.0, self.window)[None, :]
+                rate = sp[:, :1] + (sp[:, -1:] - sp[:, :1]) * ramp  # (B, W) clip frames per frame played
+                steps = np.concatenate([np.zeros((len(i), 1)), np.cumsum(0.5 * (rate[:, 1:] + rate[:, :-1]), 1)], 1)
+                room = (self.ends[i] - 1 - self.starts[i]).astype(np.float64)
+                steps *= np.minimum(1.0, room / np.maximum(steps[:, -1], 1e-12))[:, None]
+            t = self.starts[i][:, None] + steps
+            f0 = np.minimum(np.floor(t + 1e-9).astype(np.int64), self.ends[i][:, None] - 1)
             f1 = np.minimum(f0 + 1, self.ends[i][:, None] - 1)
-            w = t - f0
+            w = np.clip(t - f0, 0.0, 1.0)
             root, q = interpolate_pose(self.root[f0], self.q[f0], self.root[f1], self.q[f1], w)
-            exact = w == 0  # whole frames stay bit-exact (slerp renormalises)
+            exact = w < 1e-9  # whole frames stay bit-exact (slerp renormalises)
             root[exact], q[exact] = self.root[f0[exact]], self.q[f0[exact]]
         if mirrored is not None and np.any(mirrored):
             if self.mirror is None:

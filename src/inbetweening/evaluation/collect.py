@@ -10,6 +10,11 @@ get a ``split`` column; older files without it leave that cell empty.  Runs of `
 ``kf_skate_model@15``, ...); files that record the interpolation baseline add ``l2p_ratio@<n>`` (model / interpolation).
 
 ``--seeds``: one row per configuration over its seeds (``seed=`` overrides), each figure as ``mean ± std`` (n runs).
+
+``--folds``: the generalisation protocol (``experiment=folds``, ``data.split=fold-<i>``): per configuration one row per
+fold and one pooled over the folds (errors summed over every clip's frames, clips worse than interpolation by more than
+5 % counted over every clip, foot skating over the ground truth's), keys-only figures; with several seeds, the pooled
+row per seed and their mean ± std.
 """
 from __future__ import annotations
 
@@ -60,6 +65,99 @@ def collect(sweep_dir: str | Path, sort: str = "l2p@15") -> list[dict]:
         r["config"] = " ".join(o for o in r["config"].split() if o not in common) or "(shared settings)"
     rows.sort(key=lambda r: (r.get(sort) is None, r.get(sort, 0.0)))
     return rows
+
+
+FOLD_SCHEDULES = ("5", "15", "30", "45", "random", "extremes")
+
+
+def _kf_pool(parts: list[dict]) -> dict[str, float]:
+    """Keys-only figures pooled over ``parts`` (``benchmark.json`` ``keyframes`` entries of one schedule): the ratio of
+    summed errors (each part's mean weighted by its frames), the share of clips worse by > 5 % over all clips, the
+    skating over the ground truth's (frame-weighted)."""
+    fr = [p["n_frames"] for p in parts]
+    model = sum(p["model_cm"] * f for p, f in zip(parts, fr))
+    interp = sum(p["interp_cm"] * f for p, f in zip(parts, fr))
+    clips = sum(p["n_clips"] for p in parts)
+    out = {"ratio": model / interp, "worse": sum(p.get("worse_share", 0.0) * p["n_clips"] for p in parts) / clips}
+    gt = sum(p["skate_gt"] * f for p, f in zip(parts, fr))
+    if gt > 0:
+        out["skate"] = sum(p["skate_model"] * f for p, f in zip(parts, fr)) / gt
+    return out
+
+
+def by_folds(sweep_dir: str | Path) -> list[dict]:
+    """The folds table's rows (``--folds``): ``{"config", "fold", "seeds", "<K>", "worse@<K>", "skate@<K>"}`` for every
+    fold of every configuration found under ``sweep_dir``, then its pooled row (``fold`` = ``"pooled"``; with several
+    seeds each figure is the mean over the seeds' pooled figures and ``<figure>_std`` their spread)."""
+    root = Path(sweep_dir)
+    runs = []
+    for f in sorted(root.rglob("benchmark.json")):
+        res = json.loads(f.read_text())
+        split = str(res.get("split") or "")
+        if not split.startswith("fold-") or not res.get("keyframes"):
+            continue
+        cfg = f.parent / ".hydra" / "config.yaml"
+        seed = (yaml.safe_load(cfg.read_text()) or {}).get("seed") if cfg.exists() else None
+        label = " ".join(o for o in run_label(f.parent).split() if not o.startswith("data.split="))
+        runs.append((label, split, seed, res["keyframes"]))
+    if not runs:
+        raise FileNotFoundError(f"no benchmark.json of a fold (data.split=fold-<i>) with keys-only figures under {root}")
+    common = set.intersection(*(set(r[0].split()) for r in runs)) if len({r[0] for r in runs}) > 1 else set()
+    groups: dict[str, list] = {}
+    for label, split, seed, kf in runs:
+        groups.setdefault(" ".join(o for o in label.split() if o not in common) or "(shared settings)", []).append(
+            (split, seed, kf))
+
+    def row(config, fold, parts_by_schedule, seeds):
+        r = {"config": config, "fold": fold, "seeds": seeds}
+        for k, parts in parts_by_schedule.items():
+            pooled = _kf_pool(parts)
+            r[k], r[f"worse@{k}"] = pooled["ratio"], pooled["worse"]
+            if "skate" in pooled:
+                r[f"skate@{k}"] = pooled["skate"]
+        return r
+
+    out = []
+    for config in sorted(groups):
+        items = groups[config]
+        seeds = sorted({s for _, s, _ in items}, key=str)
+        for fold in sorted({f for f, _, _ in items}, key=lambda f: int(f.split("-")[1])):
+            sched = {k: [kf[k] for f, _, kf in items if f == fold and k in kf] for k in FOLD_SCHEDULES}
+            out.append(row(config, fold, {k: v for k, v in sched.items() if v}, len(seeds)))
+        per_seed = []
+        for s in seeds:
+            sched = {k: [kf[k] for _, ss, kf in items if ss == s and k in kf] for k in FOLD_SCHEDULES}
+            per_seed.append(row(config, "pooled", {k: v for k, v in sched.items() if v}, 1))
+        pooled = {"config": config, "fold": "pooled", "seeds": len(seeds),
+                  "folds": len({f for f, _, _ in items})}
+        for c in {c for r in per_seed for c in r if c not in ("config", "fold", "seeds")}:
+            vals = [r[c] for r in per_seed if c in r]
+            mean = sum(vals) / len(vals)
+            pooled[c] = mean
+            if len(vals) > 1:
+                pooled[c + "_std"] = (sum((v - mean) ** 2 for v in vals) / (len(vals) - 1)) ** 0.5
+        out.append(pooled)
+    return out
+
+
+def folds_markdown(rows: list[dict]) -> str:
+    """The folds table: keys-only ratio per schedule (share of clips worse by > 5 %), skating over the ground truth's
+    at keys every 15 / 30 / 45."""
+    head = ("| config | fold | " + " | ".join(f"keys {k}" for k in FOLD_SCHEDULES)
+            + " | skate / truth @15 / 30 / 45 |")
+    lines = [head, "|---|---|" + "---:|" * len(FOLD_SCHEDULES) + "---|"]
+
+    def cell(r, k):
+        if k not in r:
+            return "–"
+        std = f" ± {r[k + '_std']:.3f}" if k + "_std" in r else ""
+        return f"{r[k]:.3f}{std} ({100 * r.get(f'worse@{k}', 0.0):.1f} %)"
+
+    for r in rows:
+        fold = f"**pooled** ({r['seeds']} seed{'s' if r['seeds'] > 1 else ''})" if r["fold"] == "pooled" else r["fold"]
+        sk = " / ".join(f"{r[f'skate@{k}']:.1f}" if f"skate@{k}" in r else "–" for k in ("15", "30", "45"))
+        lines.append(f"| {r['config']} | {fold} | " + " | ".join(cell(r, k) for k in FOLD_SCHEDULES) + f" | {sk} |")
+    return "\n".join(lines)
 
 
 def ratio_columns(res: dict) -> dict[str, float]:
@@ -146,7 +244,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sort", default="l2p@15", help="metric to sort by (ascending), default l2p@15")
     ap.add_argument("--out", default=None, help="output path without extension (default <sweep_dir>/results)")
     ap.add_argument("--seeds", action="store_true", help="one row per configuration: mean ± std over its seeds")
+    ap.add_argument("--folds", action="store_true", help="the generalisation folds: per fold and pooled")
     args = ap.parse_args(argv)
+    if args.folds:
+        try:
+            rows = by_folds(args.sweep_dir)
+        except FileNotFoundError as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 2
+        out = Path(args.out) if args.out else Path(args.sweep_dir) / "folds"
+        md = folds_markdown(rows)
+        out.with_suffix(".md").write_text(md + "\n")
+        cols = sorted({c for r in rows for c in r}, key=lambda c: (c not in ("config", "fold", "seeds", "folds"), c))
+        with open(out.with_suffix(".csv"), "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=cols)
+            w.writeheader()
+            w.writerows(rows)
+        print(md)
+        print(f"\n{len(rows)} rows -> {out.with_suffix('.md')}, {out.with_suffix('.csv')}")
+        return 0
     try:
         rows = collect(args.sweep_dir, args.sort)
         if args.seeds:

@@ -326,7 +326,7 @@ def validate(cfg: DictConfig) -> None:
 
 
 def _check_task(cfg: DictConfig) -> None:
-    """The training task's options: context range, intermediate keyframes, time warp."""
+    """The training task's options: context range, intermediate keyframes, time warp, other rigs' takes."""
     cmin, cmax = int(_get(cfg, "data.context_min", N_PAST)), int(_get(cfg, "data.context_max", N_PAST))
     if not 1 <= cmin <= cmax <= N_PAST:
         raise ConfigError(f"data.context_min/max: need 1 <= min <= max <= {N_PAST}, got {cmin}..{cmax}")
@@ -338,11 +338,17 @@ def _check_task(cfg: DictConfig) -> None:
     partial = float(_get(cfg, "data.partial_prob", 0.0))
     if not 0.0 <= partial <= 1.0:
         raise ConfigError(f"data.partial_prob: must be in [0, 1], got {partial}")
+    repeat = _get(cfg, "data.extra_repeat", 1)
+    if not (isinstance(repeat, int) and not isinstance(repeat, bool) and repeat >= 1):
+        raise ConfigError(f"data.extra_repeat: must be an integer >= 1, got {repeat!r}")
+    for key in ("speed_vary", "mix_parts"):
+        if not isinstance(_get(cfg, f"data.{key}", False), bool):
+            raise ConfigError(f"data.{key}: must be true or false, got {_get(cfg, f'data.{key}')!r}")
     speed = _get(cfg, "data.speed", None)
     if speed is not None:
         try:
             lo, hi = (float(v) for v in speed)
         except (TypeError, ValueError):
-            raise ConfigError(f"data.speed: must be null or [lo, hi] with 1 <= lo <= hi, got {speed!r}") from None
-        if not 1.0 <= lo <= hi or hi > 4.0:
-            raise ConfigError(f"data.speed: need 1 <= lo <= hi <= 4 (play-back faster than recorded), got {[lo, hi]}")
+            raise ConfigError(f"data.speed: must be null or [lo, hi] with 0.25 <= lo <= hi <= 4, got {speed!r}") from None
+        if not 0.25 <= lo <= hi <= 4.0:
+            raise ConfigError(f"data.speed: need 0.25 <= lo <= hi <= 4 (play-back speeds), got {[lo, hi]}")

@@ -30,7 +30,7 @@ from inbetweening.training.sampling import (
     mix_seed,
     rank_world,
 )
-from inbetweening.training.tasks import draw_task, partial_keys, task_window
+from inbetweening.training.tasks import draw_task, mix_upper_body, partial_keys, task_window, upper_body
 
 
 def _plain(v):
@@ -85,9 +85,16 @@ class InbetweenDataModule(L.LightningDataModule):
             known frames inside its transition.
         partial_prob: each of those keyframes is, with this probability, a partial key: known on one body part only
             (:func:`~inbetweening.training.tasks.partial_keys`; the animator keyed some bones).
+        extra, extra_repeat: takes of other rigs added to the training clips (folders, zips or BVH files of any
+            humanoid skeleton, each moved onto the dataset's skeleton by the fill's retargeter:
+            :mod:`inbetweening.training.other_rigs`), each clip ``extra_repeat`` times; ``None``: none.
         mirror: mirror each training window left/right with probability 0.5 (the dataset's mirror map).
-        speed: ``[lo, hi]`` play each training window at a speed drawn uniformly in that range (time warp: faster
-            versions of the training motions; capped where the clip ends); ``None``: off.
+        speed: ``[lo, hi]`` play each training window at a speed drawn log-uniformly in that range (time warp: faster
+            and slower versions of the training motions; slowed where the clip ends); ``None``: off.
+        speed_vary: with ``speed``, draw two speeds per window, the play-back speed changing linearly from one to
+            the other across it (a time warp that varies within the motion).
+        mix_parts: body-part mixing: half the training windows take the upper body of another window of the batch
+            (:func:`~inbetweening.training.tasks.mix_upper_body`; the legs and root, the feet on the ground, stay).
         val_lengths, test_lengths: transition lengths the validation and test benchmarks score (passed on to
             the LightningModule by :meth:`model_kwargs`).
         max_train_windows, max_eval_windows, max_val_windows: caps for quick runs (``None``: all windows;
@@ -130,8 +137,12 @@ class InbetweenDataModule(L.LightningDataModule):
         keyframes_max: int,
         keyframe_prob: float,
         partial_prob: float,
+        extra: str | list[str] | None,
+        extra_repeat: int,
         mirror: bool,
         speed: list[float] | None,
+        speed_vary: bool,
+        mix_parts: bool,
         val_lengths: list[int],
         test_lengths: list[int],
         max_train_windows: int | None,
@@ -180,6 +191,10 @@ class InbetweenDataModule(L.LightningDataModule):
         h, data = self.hparams, self.data
         sk, axis = data.skeleton, data.forward_axis
         train_clips, val_clips = split_train_val(data.train, h.val_fraction)
+        if h.extra:
+            from inbetweening.training.other_rigs import other_rig_clips
+
+            train_clips = train_clips + other_rig_clips(_plain(h.extra), sk, data.fps, h.cache_dir) * int(h.extra_repeat)
         cw = W.ClipWindows(train_clips, sk, h.train_window, h.train_offset, data.mirror if h.mirror else None)
         if h.max_train_windows:
             cw.starts = cw.starts[: h.max_train_windows]
@@ -229,6 +244,9 @@ class InbetweenDataModule(L.LightningDataModule):
         else:
             gen, idx = None, list(items)
         root, q = self._train_windows(idx, gen)
+        if h.mix_parts:
+            feet = list(self.data.contact.indices(self.data.skeleton.names)) or self._feet_guess()
+            q = mix_upper_body(gen, q, upper_body(self.data.skeleton.parents, feet))
         b, w, j, _ = q.shape
         if self.mask_name == "joints":
             known = self.joint_gaps.known(b, w, j, generator=gen)
@@ -247,10 +265,20 @@ class InbetweenDataModule(L.LightningDataModule):
         if self.hparams.mirror:
             flip = (torch.rand(len(idx), generator=gen) < 0.5).numpy()
         if self.hparams.speed:
-            lo, hi = (float(v) for v in self.hparams.speed)
-            sp = (lo + (hi - lo) * torch.rand(len(idx), generator=gen, dtype=torch.float64)).numpy()
+            lo, hi = (np.log(float(v)) for v in self.hparams.speed)
+            n = 2 if self.hparams.speed_vary else 1
+            sp = np.exp(lo + (hi - lo) * torch.rand(len(idx), n, generator=gen, dtype=torch.float64).numpy())
         root, q = self.clip_windows.windows(idx, flip, sp)
         return torch.from_numpy(root), torch.from_numpy(q)
+
+    def _feet_guess(self) -> list[int]:
+        """A dataset without foot joints: the deepest joint of each of the root's two longest chains stands in."""
+        parents = self.data.skeleton.parents
+        depth = [0] * len(parents)
+        for c in range(1, len(parents)):
+            depth[c] = depth[int(parents[c])] + 1
+        leaves = [c for c in range(len(parents)) if c not in set(int(p) for p in parents)]
+        return sorted(leaves, key=lambda c: -depth[c])[:2]
 
     def _n_train(self) -> int:
         return len(self.clip_windows)

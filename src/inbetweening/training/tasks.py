@@ -13,7 +13,7 @@ import torch
 from inbetweening.data.windows import N_PAST
 from inbetweening.predictor.masks import transition_known
 
-__all__ = ["draw_task", "partial_keys", "subtrees", "task_window"]
+__all__ = ["draw_task", "mix_upper_body", "partial_keys", "subtrees", "task_window", "upper_body"]
 
 
 def draw_task(gen: torch.Generator | None, batch: int, transition: tuple[int, int], per_sample: bool,
@@ -57,6 +57,30 @@ def subtrees(parents) -> torch.Tensor:
         if p >= 0:
             below[p] |= below[c]
     return below
+
+
+def upper_body(parents, feet: list[int]) -> torch.Tensor:
+    """``(J,)`` bool: the upper body, the largest subtree under the root's children that holds no foot (the spine,
+    neck, head and arms; the legs and the root stay out).  :class:`ValueError` when every child holds a foot."""
+    below = subtrees(parents)
+    tops = [c for c in range(len(parents)) if int(parents[c]) == 0 and not below[c, list(feet)].any()]
+    if not tops:
+        raise ValueError("data.mix_parts: no joint under the root without a foot below it (no upper body to mix)")
+    return below[max(tops, key=lambda c: int(below[c].sum()))]
+
+
+def mix_upper_body(gen: torch.Generator | None, q: torch.Tensor, upper: torch.Tensor, prob: float = 0.5) -> torch.Tensor:
+    """Body-part mixing: each window of ``q (B, W, J, 4)`` (local rotations), with probability ``prob``, takes the
+    upper body's local rotations (``upper (J,)``) of another window of the batch; its root, hips and legs -- its
+    feet on the ground -- stay its own."""
+    b = q.shape[0]
+    if b < 2:
+        return q
+    donor = (torch.arange(b) + torch.randint(1, b, (b,), generator=gen)) % b  # never the window itself
+    take = torch.rand(b, generator=gen) < prob
+    out = q.clone()
+    sel = take[:, None, None, None] & upper[None, None, :, None]
+    return torch.where(sel, q[donor], out)
 
 
 def partial_keys(gen: torch.Generator | None, keyframes: torch.Tensor, parents, prob: float) -> torch.Tensor:
