@@ -80,6 +80,12 @@ class EnsembleBackend:
         self.info = ensemble_info([m.info for m in self.members], where)
         self.calls = 0
 
+    def adapted(self, groups, steps: int, lr: float) -> EnsembleBackend:
+        """Test-time adaptation (:mod:`.adapt`): each member adapted on ``groups`` (its ``adapted``)."""
+        out = EnsembleBackend([m.adapted(groups, steps, lr) for m in self.members])
+        out.info, out.share_power = self.info, self.share_power
+        return out
+
     def predict(self, root, local_q, known, weight):
         self.calls += 1
         a = member_weights([m.info for m in self.members], np.shape(root)[1] - self.info.n_past - 1,

@@ -41,6 +41,7 @@ from inbetweening.geometry import canonical
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_known, interpolate_pose
 from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities
 
+from .adapt import Adaptation, adapt_clip, check_adaptable
 from .foot_lock import ClipFeet, clip_feet, gap_contacts, lock_gap
 from .model import Backend, InbetweenError
 from .partial import check_clip, known_values
@@ -63,7 +64,8 @@ class Filled:
     re-fill's ``previous``); ``generated``: the key gaps generated, in order (every gap but in a re-fill);
     ``checks``: the self-checks on the keys (:class:`~inbetweening.runtime.trust.Check`); ``locked``: whether the feet
     were locked; ``feet``: the foot joints ``contact`` is about (the model's, or found by name for a model whose data
-    did not record them)."""
+    did not record them); ``adaptation``: what test-time adaptation did (:class:`~.adapt.Adaptation`; ``None`` when
+    off)."""
 
     root: np.ndarray
     local_q: np.ndarray
@@ -75,6 +77,7 @@ class Filled:
     shares: dict[tuple[int, int], tuple[float, ...]] = field(default_factory=dict)
     generated: list[tuple[int, int]] = field(default_factory=list)
     feet: list[int] = field(default_factory=list)
+    adaptation: Adaptation | None = None
 
 
 def _check_batch_size(batch_size) -> int:
@@ -104,6 +107,8 @@ class _Clip:
         self.generated: list[tuple[int, int]] = []
         self.todo: list[tuple[int, int]] = []
         self.shares: dict[tuple[int, int], tuple[float, ...]] = {}
+        self.backend = None  # test-time adaptation: the clip's own network (None: the runtime's)
+        self.adaptation: Adaptation | None = None
 
 
 class FillRuntime:
@@ -135,6 +140,8 @@ class FillRuntime:
         self.backend, self.info = backend, backend.info  # info: ModelInfo
         self.max_gap, self.segment, self.foot_lock = self.check_max_gap(max_gap), bool(segment), bool(foot_lock)
         self.batch_size, self.self_check = _check_batch_size(batch_size), bool(self_check)
+        if settings.adapt_steps > 0:
+            check_adaptable(backend)
 
     def check_max_gap(self, max_gap: int | None) -> int:
         """``max_gap`` checked against the network (default: the model's ``trained_gap``)."""
@@ -189,7 +196,7 @@ class FillRuntime:
             for c in work:
                 if step < len(c.todo):
                     a, b = c.todo[step]
-                    groups.setdefault(b - a, []).append((c, a, b))
+                    groups.setdefault((b - a, id(c.backend)), []).append((c, a, b))
             for items in groups.values():
                 for i in range(0, len(items), size):
                     self._generate(items[i : i + size])
@@ -260,20 +267,27 @@ class FillRuntime:
                     known[i, p + t - starts[i] - 1] = mask
         return known
 
-    def predict_windows(self, wr: np.ndarray, wq: np.ndarray,
-                        known: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Windows in the clip's frame -> the network's prediction of the gap (no blend): ``root (B, n, 3), local_q
-        (B, n, J, 4)`` (unit), contact ``(B, n, J)`` or ``None``: canonical frame, backend, back.  ``known``: the
-        windows' mask (default :meth:`known_mask` without partial keys)."""
+    def canonical_windows(self, wr: np.ndarray, wq: np.ndarray, known: np.ndarray):
+        """Windows in the clip's frame -> ``(root, local_q, (centre, rotation))`` in their canonical frame (decided by
+        the known frames), as the backend takes them."""
         info = self.info
-        b, t = wr.shape[:2]
-        p = info.n_past
-        n = t - p - 1
-        known = self.known_mask(b, n) if known is None else known
-        centre, rot = canonical.canonical_frame(wr, wq, info.forward_axis, p - 1, known[..., 0],
+        centre, rot = canonical.canonical_frame(wr, wq, info.forward_axis, info.n_past - 1, known[..., 0],
                                                 centre_at_frame=info.centre == "last")
         croot, cq = canonical.canonicalise(wr, wq, centre, rot)
-        pr, pq, pc = self.backend.predict(croot, cq, known, None)
+        return croot, cq, (centre, rot)
+
+    def predict_windows(self, wr: np.ndarray, wq: np.ndarray, known: np.ndarray | None = None,
+                        backend=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """Windows in the clip's frame -> the network's prediction of the gap (no blend): ``root (B, n, 3), local_q
+        (B, n, J, 4)`` (unit), contact ``(B, n, J)`` or ``None``: canonical frame, backend, back.  ``known``: the
+        windows' mask (default :meth:`known_mask` without partial keys); ``backend``: another network than the
+        runtime's (a clip's adapted one)."""
+        b, t = wr.shape[:2]
+        p = self.info.n_past
+        n = t - p - 1
+        known = self.known_mask(b, n) if known is None else known
+        croot, cq, (centre, rot) = self.canonical_windows(wr, wq, known)
+        pr, pq, pc = (backend or self.backend).predict(croot, cq, known, None)
         pr, pq = canonical.uncanonicalise(np.asarray(pr, np.float64), np.asarray(pq, np.float64), centre, rot)
         pr, pq = pr[:, p : p + n], pq[:, p : p + n]
         pq = pq / np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit
@@ -283,12 +297,12 @@ class FillRuntime:
     def _weigh(self, work: list[_Clip], size: int, check: bool) -> None:
         """The do-no-harm weight of every window of every clip (:func:`.trust.gap_weights`): the self-checks first
         (``size`` windows of one length per backend call; context: the keys' interpolation)."""
-        todo = []
+        todo, bases = [], {}
         for c in work:
             if check:
                 c.checks = checks_of(c.keys, self.info.trained_gap)
                 known = [t for t in range(c.keys[0])] + list(c.keys)
-                base = interpolate_keyframes(c.root, c.q, known)
+                base = bases[id(c)] = interpolate_keyframes(c.root, c.q, known)
                 todo += [(c, base, i) for i in range(len(c.checks))]
         groups: dict[int, list] = {}
         for item in todo:
@@ -305,6 +319,8 @@ class FillRuntime:
                     t = ch.key - ch.a - 1
                     c.checks[i] = scored(ch, self.info.skeleton, base[0], base[1], pr[j, t], pq[j, t])
         for c in work:
+            if check and self.settings.adapt_steps > 0:
+                c.backend, c.adaptation = adapt_clip(self, bases[id(c)], c.checks)
             weights = gap_weights(c.plan.segments, c.keys, c.checks, self.info.blend_weight, self.settings)
             c.weights = {k: w for k, (w, _) in weights.items()}
 
@@ -333,7 +349,7 @@ class FillRuntime:
         parts = [{t: m for t, m in c.partial.items() if a < t < b} for c, a, b in items]
         wr, wq = self.windows([c.root for c, _, _ in items], [c.q for c, _, _ in items], spans, parts)
         known = self.known_mask(len(items), spans[0][1] - spans[0][0] - 1, [a for a, _ in spans], parts)
-        pr, pq, pc = self.predict_windows(wr, wq, known)
+        pr, pq, pc = self.predict_windows(wr, wq, known, backend=items[0][0].backend)
         for i, (c, a, b) in enumerate(items):
             w = c.weights.get((a, b), 1.0)
             r, q = pr[i], pq[i]
@@ -402,4 +418,4 @@ class FillRuntime:
                 root[t] = c.exact_root[t]
         segments = [(a, b, c.weights.get((a, b), 1.0)) for a, b in c.plan.segments]
         return Filled(root, q, contact, c.plan.pseudo_keyframes, segments, locked, c.checks, c.shares,
-                      list(c.generated), feet)
+                      list(c.generated), feet, c.adaptation)

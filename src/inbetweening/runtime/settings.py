@@ -87,6 +87,13 @@ class FillSettings:
         0.25, "a gap whose network share is below this takes the keys' contact alone",
         "RESULTS.md 12.12: leave-one-content-out's walks worse than interpolation were the feet; a gap given back "
         "to interpolation takes its keys' contact", 0.0, 1.0)
+    # --- test-time adaptation on the user's keys (runtime/adapt.py)
+    adapt_steps: int = _setting(
+        0, "test-time adaptation: gradient steps of the network on the self-check's hide-a-key windows of the clip "
+        "before its fill (0: off; needs the PyTorch backend)",
+        "issue 51's lever, measured in RESULTS.md \"Motions it never saw\"; off by default", 0)
+    adapt_lr: float = _setting(
+        1e-4, "test-time adaptation: the learning rate of its steps (Adam)", "issue 51's lever, as adapt_steps", 0.0)
     # --- re-fills (runtime/plan.py)
     share_tolerance: float = _setting(
         1e-6, "network shares closer than this are the same when a re-fill decides which gaps changed",

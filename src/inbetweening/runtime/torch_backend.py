@@ -9,6 +9,7 @@ This is the one module of the runtime that imports PyTorch (it is not bundled in
 """
 from __future__ import annotations
 
+import copy
 import json
 from pathlib import Path
 
@@ -92,3 +93,31 @@ class TorchBackend:
             out = self.path.from_features(feats, known_t, w)
         arrays = [o.cpu().numpy() for o in out]
         return arrays[0], arrays[1], arrays[2] if len(arrays) > 2 else None
+
+    def adapted(self, groups, steps: int, lr: float) -> TorchBackend:
+        """A copy of this backend whose network took ``steps`` Adam steps (learning rate ``lr``, full batch) on
+        ``groups``: ``(root (B, T, 3), local_q (B, T, J, 4), known (B, T, J), hidden (B,))`` canonical windows of one
+        length each, the truth at frame ``hidden[i]`` of window ``i`` (unknown to the network); the loss is the L1 of
+        the prediction's features there (the training loss, at the hidden keys).  Test-time adaptation
+        (:mod:`.adapt`); this backend is left as it was."""
+        pred = copy.deepcopy(self.predictor)
+        pred.eval()  # normalisation statistics stay; gradients flow all the same
+        params = [p for p in pred.net.parameters() if p.requires_grad]
+        for p in params:
+            p.requires_grad_(True)
+        opt = torch.optim.Adam(params, lr=float(lr))
+        with torch.inference_mode(False), torch.enable_grad():
+            batches = []
+            for root, local_q, known, hidden in groups:
+                feats = pred.encode(root, local_q)
+                rows = torch.arange(len(hidden), device=feats.device)
+                at = torch.as_tensor(hidden, device=feats.device)
+                batches.append((feats, torch.as_tensor(known, device=feats.device), rows, at, feats[rows, at]))
+            for _ in range(int(steps)):
+                opt.zero_grad(set_to_none=True)
+                loss = sum((pred.network_forward(f, k, blend=False)[0][r, h] - t).abs().mean()
+                           for f, k, r, h, t in batches) / len(batches)
+                loss.backward()
+                opt.step()
+        pred.requires_grad_(False)
+        return TorchBackend(pred, self.info.trained_gap)
