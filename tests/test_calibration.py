@@ -122,3 +122,12 @@ def test_train_calibrates_the_best_checkpoint_tests_it_and_eval_reproduces_it(tm
     assert got.keys() == want.keys()
     for k in want:
         assert got[k] == pytest.approx(want[k], rel=1e-6), k
+    # benchmark.json holds the network alone beside the blended fill: eval.py of the best checkpoint (no blend)
+    import json
+
+    res = json.loads((tmp_path / "run" / "benchmark.json").read_text())
+    net = evaluate(compose_cfg("eval", [*DATA, f"ckpt_path={best[0]}"], tmp_path / "eval_net", cache_dir))
+    assert res["network"].keys() == net.keys() and res["metrics"] == pytest.approx(want, rel=1e-6)
+    for k in net:
+        assert res["network"][k] == pytest.approx(net[k], rel=1e-6), k
+    assert res["network"] != res["metrics"]

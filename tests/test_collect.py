@@ -101,3 +101,13 @@ def test_folds_without_fold_runs_is_one_line(tmp_path, capsys):
     _run(tmp_path, "a", 2.0, "content")
     assert main([str(tmp_path), "--folds"]) == 2
     assert capsys.readouterr().err.startswith("error: no benchmark.json of a fold")
+
+
+def test_the_network_alone_is_a_column_beside_the_blended_fill(tmp_path):
+    res = {"dataset": "bandai_namco", "model": "graph_transformer", "n_windows": 8, "metrics": {"l2p@15": 2.0},
+           "interpolation": {"l2p@15": 4.0}, "network": {"l2p@15": 3.0}}
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "benchmark.json").write_text(json.dumps(res))
+    row = collect(tmp_path)[0]
+    assert row["l2p_ratio@15"] == 0.5 and row["net_l2p@15"] == 3.0 and row["net_l2p_ratio@15"] == 0.75
+    assert to_markdown([row]).splitlines()[0] == "| config | model | L2P@15 | L2P_RATIO@15 | NET_L2P@15 | NET_L2P_RATIO@15 |"

@@ -5,6 +5,7 @@ starts TensorBoard on 127.0.0.1 and reads its HTTP API like the browser does."""
 from __future__ import annotations
 
 import json
+import re
 import os
 import socket
 import subprocess
@@ -21,7 +22,7 @@ from conftest import TINY, compose_cfg
 from inbetweening.training.builders import make_datamodule, make_module
 from inbetweening.training.figures import HEIGHT_PX, WIDTH_PX, frames_to_draw, per_joint_figure, transition_figure
 from inbetweening.training.tb_logging import BASELINE, custom_scalars_layout, hparams_metrics, tb_scalars
-from inbetweening.training.tb_runs import curated_hparams, resumed_run, run_label, run_version
+from inbetweening.training.tb_runs import curated_hparams, resumed_run, run_label, run_version, trial_id
 from inbetweening.training.train import train
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,7 +33,7 @@ FIT = [o for o in TINY if "max_steps" not in o and "max_epochs" not in o] + [
 def _events(run_dir: Path):
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-    dirs = sorted({p.parent for p in run_dir.rglob("events.out.tfevents.*")})
+    dirs = sorted({p.parent for p in run_dir.rglob("events.out.tfevents.*") if p.parent.name != "~columns"})
     assert len(dirs) == 1, dirs
     ea = EventAccumulator(str(dirs[0]), size_guidance={"scalars": 0, "images": 0, "tensors": 0})
     ea.Reload()
@@ -56,7 +57,8 @@ def test_curated_hparams_put_swept_keys_first_with_the_budget(tmp_path, cache_di
                                       "hydra.run.dir=/x", "ckpt_path=a.ckpt"])
     assert list(hp)[:4] == ["model/depth", "mask/name", "optim/optimizer/lr", "seed"]
     assert hp["model/depth"] == 2 and hp["mask/name"] == "zero" and hp["optim/optimizer/lr"] == 0.01
-    assert shown == ["model/depth", "mask/name", "optim/optimizer/lr", "seed"]  # the keys set, nothing constant
+    # the keys set, and always calibrate and the representation; nothing else constant
+    assert shown == ["model/depth", "mask/name", "optim/optimizer/lr", "seed", "calibrate", "representation"]
     assert {"trainer/max_epochs", "trainer/max_steps", "trainer/max_time", "data/name", "model/name"} <= set(hp)
     assert hp["trainer/max_time"] == "none" and hp["optim/optimizer"] == "AdamW"
     assert not any(k.startswith(("hydra", "ckpt_path", "paths")) for k in hp)
@@ -69,7 +71,7 @@ def test_curated_hparams_put_swept_keys_first_with_the_budget(tmp_path, cache_di
     assert len(long) <= 100 and long.endswith("more - graph_transformer") and long.startswith("key_0=value_0")
     # in a sweep: the swept keys come first, are the ones shown, and name the run
     hp, shown = curated_hparams(cfg, ["model.depth=2", "mask=zero", "seed=3"], swept=["seed"])
-    assert list(hp)[0] == "seed" and shown == ["seed"]  # constant columns (model/name, data/name, ...) not shown
+    assert list(hp)[0] == "seed" and shown == ["seed", "calibrate", "representation"]  # no model/name, data/name...
     assert run_label(cfg, ["model.depth=2", "seed=3"], swept=["seed"]) == "seed=3 - graph_transformer"
     # what distinguishes the run leads (the issue's example: a mask x norm sweep), the model last unless swept
     assert run_label(cfg, ["data=synthetic", "mask=zero", "model.norm=layer"], swept=["mask", "model.norm"]) == \
@@ -134,8 +136,15 @@ def test_groups_read_train_val_test(fitted):
     assert run.parent.name == "graph_transformer"  # <label>/<start time>: named after the configuration
     scalars = set(ea.Tags()["scalars"])
     # no "epoch", "hp", per-joint; the baseline in a group of its own that TensorBoard lists after the model's
-    assert {t.split("/")[0] for t in scalars} == {"train", "val", "test", BASELINE}, scalars
-    assert sorted(["val", "test", "train", BASELINE])[-1] == BASELINE  # TensorBoard compares group names by code
+    assert {t.split("/")[0] for t in scalars} == {"train", "val", "test", "test_network", BASELINE}, scalars
+    assert sorted(["val", "test", "test_network", "train", BASELINE])[-1] == BASELINE  # compared by character code
+    # test/: the calibrated fill (what the tools deliver); test_network/: the network alone, beside it
+    for n in (5, 15, 30, 45):
+        net, fill = ea.Scalars(f"test_network/l2p@{n}")[-1].value, ea.Scalars(f"test/l2p@{n}")[-1].value
+        assert ea.Scalars(f"test_network/l2p_ratio@{n}")[-1].value == pytest.approx(
+            net / ea.Scalars(f"{BASELINE}/test/l2p@{n}")[-1].value, rel=1e-5)
+    assert any(ea.Scalars(f"test_network/l2p@{n}")[-1].value != ea.Scalars(f"test/l2p@{n}")[-1].value
+               for n in (5, 15, 30, 45))
     assert {"train/lr", "train/windows_per_s", "train/epoch_time_s", "train/grad_norm", "train/epoch",
             "train/sampled_transition_frames", "val/l2p@45", "val/l2p_mean_best", "test/l2p@45"} <= scalars
     for n in (5, 15, 30, 45):
@@ -147,7 +156,8 @@ def test_groups_read_train_val_test(fitted):
         assert len(model) == len(interp) == 2 and interp[0].value == interp[1].value  # cached, deterministic
         assert ratio[-1].value == pytest.approx(model[-1].value / interp[-1].value, rel=1e-5)
     # the test values sit where the validation curves end, not alone one step further
-    assert {e.step for t in scalars if t.startswith(("test/", f"{BASELINE}/test/")) for e in ea.Scalars(t)} == \
+    assert {e.step for t in scalars if t.startswith(("test/", "test_network/", f"{BASELINE}/test/"))
+            for e in ea.Scalars(t)} == \
         {ea.Scalars("val/l2p@15")[-1].step}
     best = [e.value for e in ea.Scalars("val/l2p_mean_best")]
     assert best == [min(e.value for e in ea.Scalars("val/l2p_mean")[: i + 1]) for i in range(2)]
@@ -166,8 +176,9 @@ def test_figures_are_logged_at_the_validation_steps(fitted):
 
 
 def test_hparams_session_starts_with_the_fit(fitted):
-    """The session is written when fitting starts (running runs appear) and ended after the test; a single run
-    writes no HParams experiment of its own (a sweep's job does: see the test below)."""
+    """The session is written when fitting starts (running runs appear) and ended after the test; no run writes an
+    HParams experiment of its own: the folder's columns are in the run ``~columns`` (see the test below), with
+    ``calibrate`` and the representation among them."""
     from tensorboard.plugins.hparams import metadata
 
     out, _ = fitted
@@ -181,6 +192,9 @@ def test_hparams_session_starts_with_the_fit(fitted):
     content = ea.SummaryMetadata(metadata.SESSION_START_INFO_TAG).plugin_data.content
     names = set(metadata.parse_session_start_info_plugin_data(content).hparams)
     assert "trainer/max_epochs" in names and "hp_metric" not in names
+    columns = json.loads((out / "tensorboard" / "~columns" / "columns.json").read_text())
+    assert {"calibrate", "representation"} <= set(columns["hparams"])
+    assert "test_network/l2p_ratio@15" in columns["metrics"]
 
 
 def test_logging_leaves_the_results_and_the_rng_alone(tmp_path, cache_dir, fitted):
@@ -263,15 +277,15 @@ def _default_columns(exp) -> list[str]:
 
 
 def _session(logdir: Path, cfg, overrides: list[str], swept: list[str], version: str) -> Path:
-    """One run's HParams session written as a fit writes it (:func:`make_trainer`'s wiring: curated hparams, an
-    experiment only in a sweep's job) and a few of its scalars; returns the run's folder."""
+    """One run's HParams session written as a fit writes it (:func:`make_trainer`'s wiring: curated hparams, the
+    folder's columns updated) and a few of its scalars; returns the run's folder."""
     import lightning as L
 
     from inbetweening.training.tb_logging import HParamsSession, RunLogger
 
     logger = RunLogger(save_dir=str(logdir), name="", version=version)
     hp, shown = curated_hparams(cfg, overrides, swept)
-    session = HParamsSession(hp, shown, [5, 15], [5, 15], experiment=bool(swept))
+    session = HParamsSession(hp, shown, [5, 15], [5, 15])
     trainer = L.Trainer(logger=logger, enable_checkpointing=False, enable_progress_bar=False,
                         enable_model_summary=False)
     session.start(trainer)
@@ -281,29 +295,56 @@ def _session(logdir: Path, cfg, overrides: list[str], swept: list[str], version:
     return logdir / version
 
 
+def _rows(logdir: Path) -> dict[str, dict[str, object]]:
+    """The HParams table as TensorBoard's plugin backend serves it: ``{trial id: {column: value}}``."""
+    from tensorboard import context
+    from tensorboard.backend.event_processing import data_provider, plugin_event_multiplexer
+    from tensorboard.plugins import base_plugin
+    from tensorboard.plugins.hparams import api_pb2, backend_context, list_session_groups
+
+    mux = plugin_event_multiplexer.EventMultiplexer()
+    mux.AddRunsFromDirectory(str(logdir))
+    mux.Reload()
+    tb = base_plugin.TBContext(logdir=str(logdir), multiplexer=mux,
+                               data_provider=data_provider.MultiplexerDataProvider(mux, str(logdir)))
+    request = api_pb2.ListSessionGroupsRequest(
+        experiment_name="", allowed_statuses=[api_pb2.STATUS_UNKNOWN, api_pb2.STATUS_SUCCESS, api_pb2.STATUS_RUNNING],
+        aggregation_type=api_pb2.AGGREGATION_AVG, start_index=0, slice_size=100)
+    groups = list_session_groups.Handler(context.RequestContext(), backend_context.Context(tb), "", request).run()
+    from google.protobuf.json_format import MessageToDict
+
+    return {g.name: {k: MessageToDict(v) for k, v in g.hparams.items()} for g in groups.session_groups}
+
+
 @pytest.mark.parametrize("single_first", [True, False])
-def test_a_sweeps_keys_stay_the_default_columns_next_to_a_single_run(tmp_path, cache_dir, single_first):
-    """One --logdir holding a single run and a 2-job sweep over model.norm: whichever run TensorBoard lists first,
-    the HParams experiment it serves is the sweep's, with model/norm among the columns shown by default and the
-    curated metric columns first (before the fix the single run's experiment could win: its overrides shown, the
-    swept model/norm not)."""
+def test_every_sweeps_keys_are_columns_with_every_runs_value(tmp_path, cache_dir, single_first):
+    """One --logdir holding two single runs and two sweeps (``mask=zero,lerp model.norm=layer,batch``, then
+    ``model.depth=2,4``), in either order: TensorBoard's plugin serves one experiment whose columns are every swept
+    key of both sweeps (and the single runs' keys, calibrate and the representation), and every run's row has a
+    value in each (before: the second sweep's experiment hid the first sweep's columns)."""
     logdir = tmp_path / "logs"
-    single_over = ["data.batch_size=8", "trainer.max_steps=3", "seed=1"]
-    single = _session(logdir, compose_cfg("train", single_over, tmp_path / "s", cache_dir), single_over, [],
-                      "graph_transformer data.batch_size=8 seed=1 trainer.max_steps=3")
-    sweep = []
-    for norm in ("layer", "batch"):
-        over = [f"model.norm={norm}", "trainer.max_steps=3"]
-        cfg = compose_cfg("train", over, tmp_path / norm, cache_dir)
-        sweep.append(_session(logdir, cfg, over, ["model.norm"], f"multiruns/{norm}/model.norm={norm}"))
-    exp = _served_experiment(logdir, [single, *sweep] if single_first else [*sweep, single])
-    assert _default_columns(exp) == ["model/norm"]  # the swept key, no constant column (data/name, model/name)
-    assert all(h.differs for h in exp.hparam_infos)
-    assert [m.name.tag for m in exp.metric_infos][:3] == ["val/l2p_mean_best", "test/l2p_ratio@5",
-                                                          "test/l2p_ratio@15"]
-    # the single run alone: no experiment of its own; the plugin builds one from its session
-    alone = _served_experiment(logdir, [single])
-    assert {"data/batch_size", "seed", "model/norm"} <= {h.name for h in alone.hparam_infos}
+    singles = [(["data.batch_size=8", "seed=1"], [], "single/a"), (["data.batch_size=8", "seed=1"], [], "single/b")]
+    first = [([f"mask={m}", f"model.norm={n}"], ["mask", "model.norm"], f"s1/{m}-{n}")
+             for m in ("zero", "lerp") for n in ("layer", "batch")]
+    second = [([f"model.depth={d}"], ["model.depth"], f"s2/{d}") for d in (2, 4)]
+    for over, swept, version in (singles + first + second) if single_first else (second + first + singles):
+        cfg = compose_cfg("train", over, tmp_path / version, cache_dir)
+        _session(logdir, cfg, over, swept, version)
+    runs = sorted(p.parent for p in logdir.rglob("events.out.tfevents.*"))
+    exp = _served_experiment(logdir, runs)
+    columns = [h.name for h in exp.hparam_infos]
+    assert {"mask/name", "model/norm", "model/depth", "data/batch_size", "seed", "calibrate", "representation"} \
+        <= set(columns)
+    assert all(h.differs for h in exp.hparam_infos) and len(columns) == len(set(columns))
+    assert [m.name.tag for m in exp.metric_infos][:3] == ["val/l2p_mean_best", "test/l2p_ratio@5", "test/l2p_ratio@15"]
+    rows = _rows(logdir)
+    assert len(rows) == 8  # one row per run
+    for trial, row in rows.items():
+        assert {"mask/name", "model/norm", "model/depth"} <= set(row), trial  # every run: a value in every swept column
+    depth = {t: r["model/depth"] for t, r in rows.items()}
+    assert depth["s2/2"] == 2 and depth["s2/4"] == 4 and depth["s1/zero-layer"] == 6  # not swept there: its value
+    assert rows["s1/zero-batch"]["model/norm"] == "batch" and rows["single/a"]["mask/name"] == "lerp"
+    assert (logdir / "~columns" / "columns.json").exists()
 
 
 def _session_groups(logdir: Path):
@@ -343,8 +384,12 @@ def test_rerunning_the_same_command_is_a_row_of_its_own(tmp_path, cache_dir):
     assert sorted((o / "tensorboard").resolve() for o in outs) == [r.resolve() for r in runs]
     groups, names = _session_groups(root)
     assert len(groups) == 2 and all(len(v) == 1 for v in groups.values()), groups  # one row per run
-    assert sorted(groups) == names == sorted(str(r.relative_to(root)) for r in runs)  # the trial id: the run's path
-    assert all(n.startswith("graph_transformer/") for n in names)
+    assert names == sorted(str(r.relative_to(root)) for r in runs) + ["~columns"]  # the runs, and the columns' run
+    # trial ids: the start time first (a re-run differs within the ~15 characters the table shows), label, date
+    assert sorted(groups) == sorted(trial_id(r.parent.name, r.name) for r in runs)
+    assert all(re.match(r"^\d\d:\d\d:\d\d graph_transformer \(\d{4}-\d\d-\d\d(_\d+)?\)$", g) for g in groups), groups
+    assert trial_id("mask=zero norm=layer - graph_transformer", "2026-11-25_19-21-49_2") == \
+        "19:21:49 zero layer (2026-11-25_2)"
     # a version is never reused, even within the same second
     (root / "graph_transformer" / run_version(root, "graph_transformer", when=0)).mkdir()
     assert run_version(root, "graph_transformer", when=0).endswith("_2")
@@ -363,7 +408,8 @@ def test_sweep_runs_are_named_by_their_swept_values(tmp_path, cache_dir, monkeyp
     logger = builders._make_logger(cfg, cfg.logger.tensorboard)
     run = Path(logger.log_dir)
     assert run.relative_to(logs / "tensorboard").parts[0] == "mask=zero norm=layer - graph_transformer"
-    assert logger.trial_id == str(run.relative_to(logs / "tensorboard"))
+    assert logger.trial_id == trial_id("mask=zero norm=layer - graph_transformer", run.name)
+    assert logger.trial_id.split(" ")[1:3] == ["zero", "layer"]
     assert (Path(cfg.paths.output_dir) / "tensorboard").resolve() == run.resolve()
     # a run given a directory of its own outside the log folder keeps its events in it
     cfg = compose_cfg("train", TINY, tmp_path / "elsewhere", cache_dir)

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import yaml
 
-METRIC_ORDER = ("l2q", "l2p", "l2p_ratio", "npss", "kf_model_cm", "kf_interp_cm", "kf_ratio", "kf_skate_model", "kf_skate_interp",
+METRIC_ORDER = ("l2q", "l2p", "l2p_ratio", "net_l2p", "net_l2p_ratio", "npss", "kf_model_cm", "kf_interp_cm", "kf_ratio", "kf_skate_model", "kf_skate_interp",
                 "kf_skate_gt")
 KEYFRAME_FIGURES = tuple(m[3:] for m in METRIC_ORDER if m.startswith("kf_"))
 IGNORED = ("hydra.", "paths.", "seed=", "ckpt_path=", "trainer.max_steps=", "trainer.max_epochs=", "ablation=",
@@ -161,9 +161,14 @@ def folds_markdown(rows: list[dict]) -> str:
 
 
 def ratio_columns(res: dict) -> dict[str, float]:
-    """``{"l2p_ratio@<n>": model / interpolation}`` where the file records the interpolation baseline."""
-    ref, met = res.get("interpolation") or {}, res.get("metrics") or {}
-    return {f"l2p_ratio@{k[4:]}": met[k] / ref[k] for k in met if k.startswith("l2p@") and ref.get(k)}
+    """``{"l2p_ratio@<n>": model / interpolation}`` where the file records the interpolation baseline; for a run
+    whose figures are a blended fill's and that records the network alone too (``network``), ``net_l2p@<n>`` and
+    ``net_l2p_ratio@<n>``."""
+    ref, met, net = res.get("interpolation") or {}, res.get("metrics") or {}, res.get("network") or {}
+    out = {f"l2p_ratio@{k[4:]}": met[k] / ref[k] for k in met if k.startswith("l2p@") and ref.get(k)}
+    out.update({f"net_l2p@{k[4:]}": v for k, v in net.items() if k.startswith("l2p@")})
+    out.update({f"net_l2p_ratio@{k[4:]}": net[k] / ref[k] for k in net if k.startswith("l2p@") and ref.get(k)})
+    return out
 
 
 def by_seeds(rows: list[dict]) -> list[dict]:

@@ -103,7 +103,7 @@ def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
         swept = swept_keys()
         hp, shown = curated_hparams(cfg, task_overrides(), swept)
         cbs += [TrainStats(), HParamsSession(hp, shown, cfg.data.val_lengths, cfg.data.test_lengths,
-                                             end_at_fit_end=not cfg.get("run_test", True), experiment=bool(swept))]
+                                             end_at_fit_end=not cfg.get("run_test", True))]
     if callbacks:  # always on while fitting: NaN stop, RNG state in checkpoints, a checkpoint at Ctrl-C / SIGTERM
         cbs += [NonFiniteGuard(), ResumeState(), TrimHeap(),  # freed heap returned when it has grown
                 InterruptCheckpoint(str(Path(cfg.paths.output_dir) / "checkpoints"), resume_command(cfg))]

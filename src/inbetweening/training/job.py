@@ -41,18 +41,23 @@ def check_skeleton(ckpt_path, predictor, data) -> None:
 
 
 def write_benchmark(path: Path, dataset: str, model: str, n_windows: int, metrics: dict,
-                    split: str | None = None, keyframes: dict | None = None, interpolation: dict | None = None) -> dict:
+                    split: str | None = None, keyframes: dict | None = None, interpolation: dict | None = None,
+                    network: dict | None = None) -> dict:
     """Write ``benchmark.json`` (strict JSON, atomically); a non-finite metric is an error, never a number.
     ``split``: the dataset's split rule (``data.split``), recorded when given.  ``keyframes``: the
     ``protocol=keyframes`` figures ``{"<K>": {"model_cm": ..., "n_clips": ...}}``, written under the ``keyframes``
     key (integers stay integers; the per-clip ratios and the worst clips' names as they are).  ``interpolation``: the
     interpolation baseline's metrics on the same windows
-    (the reference ratios are taken against), written under ``interpolation``."""
+    (the reference ratios are taken against), written under ``interpolation``.  ``network``: the network's metrics
+    without the do-no-harm blend (``metrics`` are the blended fill's), under ``network``."""
     res = {"dataset": dataset, **({"split": split} if split else {}), "model": model, "n_windows": int(n_windows),
            "metrics": {k: float(v) for k, v in metrics.items()}}
     if interpolation is not None:
         res["interpolation"] = {k: float(v) for k, v in interpolation.items()}
-    checked = {**res["metrics"], **{f"interpolation.{k}": v for k, v in res.get("interpolation", {}).items()}}
+    if network is not None:
+        res["network"] = {k: float(v) for k, v in network.items()}
+    checked = {**res["metrics"], **{f"interpolation.{k}": v for k, v in res.get("interpolation", {}).items()},
+               **{f"network.{k}": v for k, v in res.get("network", {}).items()}}
     if keyframes is not None:
         res["keyframes"] = {str(k): {m: (v if isinstance(v, (int, str, dict)) else float(v)) for m, v in row.items()}
                             for k, row in keyframes.items()}

@@ -11,6 +11,7 @@ skeleton and the frame rate.  A file whose rig cannot be mapped is one :class:`D
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -90,7 +91,7 @@ def other_rig_clips(paths, skeleton: Skeleton, fps: float, cache_dir: str | Path
             except ValueError as e:  # the bone map's or the retargeter's one line, which names the file
                 raise DatasetError(str(e)) from None
         entry.parent.mkdir(parents=True, exist_ok=True)
-        tmp = entry.with_suffix(".tmp.npz")
+        tmp = entry.with_suffix(f".{os.getpid()}.tmp.npz")  # parallel jobs of a sweep may build it at once
         np.savez(tmp, meta=json.dumps([c.name for c in clips]),
                  **{f"q{i}": c.local_q for i, c in enumerate(clips)}, **{f"r{i}": c.root_pos for i, c in enumerate(clips)})
         tmp.replace(entry)

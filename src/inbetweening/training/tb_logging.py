@@ -7,21 +7,26 @@
 - :class:`RunLogger`: Lightning's TensorBoard logger with ``train/epoch`` and ``train/lr`` in the ``train`` group,
   the test scalars at the last validation's step, and an HParams session (:meth:`RunLogger.start_session`) written
   when fitting starts (running or interrupted runs appear) whose trial id is the run's path, unique per run;
-- which run says the HParams dashboard's columns: only the jobs of a sweep write an HParams *experiment* (see
-  :class:`HParamsSession`);
+- the HParams dashboard's columns: one experiment for the whole TensorBoard folder, in a run of its own
+  (:data:`COLUMNS_RUN`, :func:`update_columns`), which every run adds its swept (or set) keys to;
 - :func:`custom_scalars_layout`: per metric and length one chart of the ratio to interpolation (the runs of a sweep
   as its lines), one of the model's values, the training curves each in a chart of its own;
 - :class:`TrainStats`: windows/s, epoch time and gradient norm under ``train/``.
 """
 from __future__ import annotations
 
+import fcntl
+import json
 import re
 import time
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import lightning as L
 import torch
 from lightning.pytorch.loggers import TensorBoardLogger
+
+from inbetweening.training.tb_runs import COLUMNS_RUN, trial_id
 
 METRICS = ("l2p", "l2q", "npss")
 #: The group of the interpolation baseline's scalars (``~interpolation/val/l2p@15``): TensorBoard sorts its scalar
@@ -47,10 +52,66 @@ def tb_scalars(stage: str, res: Mapping[str, float], interp: Mapping[str, float]
     return logs
 
 
+
+
+def _column_type(v) -> str:
+    return "bool" if isinstance(v, bool) else "float" if isinstance(v, (int, float)) else "string"
+
+
+def update_columns(root: str | Path, hparams: Mapping, shown: Sequence[str], metrics: Sequence[str]) -> bool:
+    """Add ``shown`` (hparam names, typed by their values in ``hparams``) and ``metrics`` to the HParams columns of
+    the TensorBoard folder ``root``: one experiment in the run :data:`COLUMNS_RUN`, rewritten (its state in
+    ``columns.json``, under a file lock: a sweep's jobs update it at once) whenever a column is new.  TensorBoard's
+    HParams plugin serves the first experiment it finds and never merges them (``backend_context.
+    _find_experiment_tag``, 2.21), so the folder holds exactly one: every sweep's keys and every single run's are its
+    columns, and every run's session records every config value (a row shows its value of a key another sweep
+    varied).  Returns whether it was rewritten (a running TensorBoard shows new columns after a restart)."""
+    from tensorboard.plugins.hparams import api_pb2, metadata
+    from tensorboard.plugins.hparams import summary_v2 as hp_summary
+    from torch.utils.tensorboard.writer import FileWriter
+
+    folder = Path(root) / COLUMNS_RUN
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / ".lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        state_file = folder / "columns.json"
+        state = json.loads(state_file.read_text()) if state_file.exists() else {"hparams": {}, "metrics": []}
+        before = json.dumps(state)
+        for k in shown:
+            if k in hparams:
+                state["hparams"].setdefault(k, _column_type(hparams[k]))
+        state["metrics"] += [m for m in metrics if m not in state["metrics"]]
+        events = sorted(folder.glob("events.out.tfevents.*"))
+        if json.dumps(state) == before and events:
+            return False
+        exp = hp_summary.hparams_config_pb([hp_summary.HParam(k) for k in state["hparams"]],
+                                           [hp_summary.Metric(m) for m in state["metrics"]])
+        config = exp.value[0]
+        data = metadata.parse_experiment_plugin_data(config.metadata.plugin_data.content)
+        kinds = {"bool": api_pb2.DATA_TYPE_BOOL, "float": api_pb2.DATA_TYPE_FLOAT64, "string": api_pb2.DATA_TYPE_STRING}
+        for info in data.hparam_infos:
+            info.differs = True  # the dashboard shows these columns first
+            info.type = kinds[state["hparams"][info.name]]  # numbers get an interval axis in the parallel coordinates
+        config.metadata.CopyFrom(metadata.create_summary_metadata(metadata.plugin_data_pb2.HParamsPluginData(
+            experiment=data, version=metadata.PLUGIN_DATA_VERSION)))
+        for old in events:
+            old.unlink()
+        writer = FileWriter(str(folder))
+        writer.add_summary(exp)
+        writer.close()
+        tmp = state_file.with_suffix(".tmp")
+        tmp.write_text(json.dumps(state, indent=1))
+        tmp.replace(state_file)
+        return True
+
+
 def hparams_metrics(test_lengths: Sequence[int], val_lengths: Sequence[int]) -> list[str]:
-    """Metric columns of the HParams dashboard, in order (it shows the first 5 by default): best validation
-    L2P, the test L2P ratios to interpolation, then the test L2P values, the validation ratios and L2Q/NPSS."""
-    return ["val/l2p_mean_best", *[f"test/l2p_ratio@{n}" for n in test_lengths], *[f"test/l2p@{n}" for n in test_lengths],
+    """Metric columns of the HParams dashboard, in order: best validation L2P (the network: the blend is fitted
+    after training), the test L2P ratios to interpolation of the fill (``test/``: the calibrated blend, what the tools
+    deliver) and of the network alone (``test_network/``), then the test L2P values, the validation ratios and
+    L2Q/NPSS."""
+    return ["val/l2p_mean_best", *[f"test/l2p_ratio@{n}" for n in test_lengths],
+            *[f"test_network/l2p_ratio@{n}" for n in test_lengths], *[f"test/l2p@{n}" for n in test_lengths],
             *[f"val/l2p_ratio@{n}" for n in val_lengths], "test/l2p_mean", *[f"test/l2q@{n}" for n in test_lengths],
             *[f"test/npss@{n}" for n in test_lengths]]
 
@@ -91,15 +152,16 @@ class RunLogger(TensorBoardLogger):
 
     @property
     def trial_id(self) -> str:
-        """The run's HParams trial id: its path under the TensorBoard folder (``<label>/<start time>``)."""
-        return "/".join(str(p) for p in (self.name, self.version) if p not in (None, ""))
+        """The run's HParams trial id, from its folder ``<label>/<start time>`` (:func:`~inbetweening.training.tb_runs.
+        trial_id`: ``19:21:49 zero layer (2026-11-25)``)."""
+        return trial_id(str(self.name or ""), str(self.version or ""))
 
     def log_metrics(self, metrics: Mapping[str, float], step: int | None = None) -> None:
         renamed = {self.RENAME.get(k, "train/lr" if k.startswith("lr-") else k): v for k, v in metrics.items()}
         if any(k.startswith("val/") for k in renamed) and step is not None:
             self.last_val_step = int(step)
         elif renamed and self.last_val_step is not None and all(
-                k.startswith(("test/", f"{BASELINE}/test/")) for k in renamed):
+                k.startswith(("test/", "test_network/", f"{BASELINE}/test/")) for k in renamed):
             step = self.last_val_step
         super().log_metrics(renamed, step)
 
@@ -123,45 +185,20 @@ class RunLogger(TensorBoardLogger):
             self._reopened.close()
             self._reopened = None
 
-    def start_session(self, hparams: Mapping, shown: Sequence[str], metrics: Sequence[str], layout: dict | None = None,
-                      experiment: bool = True) -> None:
-        """Write this run's session start (its ``hparams`` values, trial id :attr:`trial_id`), the Custom Scalars
-        ``layout`` and, with ``experiment``, the HParams experiment (the dashboard's columns: the names of ``shown``,
-        every name of ``hparams`` when ``shown`` holds none of them; the ``metrics`` columns in order).  Once per
-        logger."""
+    def start_session(self, hparams: Mapping, shown: Sequence[str], metrics: Sequence[str],
+                      layout: dict | None = None) -> None:
+        """Write this run's session start (its ``hparams`` values, trial id :attr:`trial_id`) and the Custom Scalars
+        ``layout``, and add ``shown`` and ``metrics`` to the folder's HParams columns (:func:`update_columns`).  Once
+        per logger."""
         if self._session_started or self.experiment is None:
             return
         from tensorboard.plugins.hparams import summary_v2 as hp_summary
 
-        if experiment:
-            self._write(self._experiment_summary(hparams, shown, metrics))
         self._write(hp_summary.hparams_pb(dict(hparams), trial_id=self.trial_id or None))
         if layout:
             self.experiment.add_custom_scalars(layout)
+        update_columns(self.save_dir, hparams, shown, metrics)
         self._session_started = True
-
-    @staticmethod
-    def _experiment_summary(hparams: Mapping, shown: Sequence[str], metrics: Sequence[str]):
-        """The HParams experiment summary: typed columns for the names of ``shown`` (in ``hparams``' order, marked
-        ``differs``), or for every name of ``hparams`` when ``shown`` holds none.  The dashboard shows the first 5
-        columns (``differs`` first), so a constant one would take the place of a key that varies."""
-        from tensorboard.plugins.hparams import summary_v2 as hp_summary
-
-        columns = [k for k in hparams if k in shown] or list(hparams)
-        exp = hp_summary.hparams_config_pb([hp_summary.HParam(k) for k in columns],
-                                           [hp_summary.Metric(m) for m in metrics])
-        config = exp.value[0]
-        from tensorboard.plugins.hparams import api_pb2, metadata
-
-        data = metadata.parse_experiment_plugin_data(config.metadata.plugin_data.content)
-        for info in data.hparam_infos:
-            info.differs = info.name in shown  # the dashboard sorts these first
-            v = hparams[info.name]  # typed columns: numbers get an interval axis in the parallel coordinates
-            info.type = (api_pb2.DATA_TYPE_BOOL if isinstance(v, bool) else api_pb2.DATA_TYPE_FLOAT64
-                         if isinstance(v, (int, float)) else api_pb2.DATA_TYPE_STRING)
-        config.metadata.CopyFrom(metadata.create_summary_metadata(metadata.plugin_data_pb2.HParamsPluginData(
-            experiment=data, version=metadata.PLUGIN_DATA_VERSION)))
-        return exp
 
     def end_session(self, status: str = "success") -> None:
         """Mark this run's HParams session ended (``success`` | ``failure``)."""
@@ -179,20 +216,14 @@ class RunLogger(TensorBoardLogger):
 
 class HParamsSession(L.Callback):
     """Starts each :class:`RunLogger`'s HParams session (and Custom Scalars layout) when fitting starts, and
-    marks it failed if fitting raises.  ``hparams``, ``shown``: :func:`~inbetweening.training.tb_runs.curated_hparams`.
-
-    ``experiment`` (a sweep's job): also write the HParams experiment, the dashboard's columns with the swept keys
-    marked to be shown first and the curated metric columns.  TensorBoard's HParams plugin (2.21,
-    ``backend_context._find_experiment_tag``) does not merge experiments: it serves the first one it finds, in the
-    order it happens to list the runs.  So a single run writes none: in a logdir that holds a sweep, the sweep's is
-    the one served (its swept keys stay the default columns); in a logdir of single runs only, the plugin builds
-    the columns from every run's session (the hparams whose values differ between the runs first)."""
+    marks it failed if fitting raises.  ``hparams``, ``shown``: :func:`~inbetweening.training.tb_runs.curated_hparams`
+    (``shown``: the swept keys of a sweep's job, the keys a single run's command line set; the folder's columns,
+    :func:`update_columns`)."""
 
     def __init__(self, hparams: Mapping, shown: Sequence[str], val_lengths: Sequence[int], test_lengths: Sequence[int],
-                 end_at_fit_end: bool = False, experiment: bool = True):
+                 end_at_fit_end: bool = False):
         self.hparams, self.shown, self.end_at_fit_end = dict(hparams), list(shown), end_at_fit_end
         self.val_lengths, self.test_lengths = list(val_lengths), list(test_lengths)
-        self.experiment = bool(experiment)
 
     def start(self, trainer: L.Trainer) -> None:
         if not trainer.is_global_zero:
@@ -200,7 +231,7 @@ class HParamsSession(L.Callback):
         for lg in trainer.loggers:
             if isinstance(lg, RunLogger):
                 lg.start_session(self.hparams, self.shown, hparams_metrics(self.test_lengths, self.val_lengths),
-                                 custom_scalars_layout(self.val_lengths, self.test_lengths), self.experiment)
+                                 custom_scalars_layout(self.val_lengths, self.test_lengths))
 
     def on_fit_start(self, trainer, pl_module) -> None:
         self.start(trainer)

@@ -15,6 +15,9 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+#: The run folder under the TensorBoard root that holds the folder's HParams columns (``tb_logging.update_columns``):
+#: not a run of its own.
+COLUMNS_RUN = "~columns"
 #: Hyper-parameters shown by default after the swept keys (TensorBoard's HParams dashboard shows 5 at first).
 SHOWN = ("model/name", "trainer/max_epochs", "data/name", "mask/name", "trainer/max_steps", "model/depth")
 #: The curated hyper-parameters after the swept keys: ``(name, config key)``.
@@ -31,6 +34,17 @@ ESSENTIALS = (
     ("trainer/max_time", "trainer.max_time"), ("trainer/devices", "trainer.devices"),
 )
 _NOT_HPARAMS = re.compile(r"^(hydra|paths|ckpt_path|callbacks|logger|experiment|ablation|run_test|optimized_metric)\b")
+#: Always HParams columns: what decides whether the test figures are the network's or the blended fill's, and the
+#: network's input/output layout.
+ALWAYS = ("calibrate", "representation")
+#: The config groups and top-level keys every session records in full (so that a key swept by any sweep has a value in
+#: every run's row); the paths, the data's generator settings and values interpolated from elsewhere are left out.
+RECORDED = ("model", "data", "mask", "optim", "loss", "trainer", "fill", "centre", "representation", "calibrate",
+            "calibrate_windows", "seed", "init_from", "init_stats", "compile", "test_keyframes", "foot_lock",
+            "self_check", "keyframe_clips", "task_name")
+_NOT_RECORDED = re.compile(r"^(data/(path|cache_dir|synthetic|mask|seed|download)|trainer/(_target_|callbacks|logger|"
+                           r"plugins|default_root_dir|enable_\w+|log_every_n_steps)|model/_target_|fill/_target_|"
+                           r"optim/scheduler/_target_|data/_target_)\b")
 
 
 def task_overrides() -> list[str]:
@@ -104,8 +118,31 @@ def curated_hparams(cfg: DictConfig, overrides: Sequence[str] = (), swept: Seque
     for k, v in (cfg.get("loss") or {}).items():
         if v:
             hp.setdefault(f"loss/{k}", _value(v))
+    for name, v in _leaves(cfg):  # every other recorded value: a key another sweep varies has this run's value too
+        hp.setdefault(name, v)
     shown = [name for name, was_swept in set_keys if was_swept or not swept]
+    shown += [k for k in ALWAYS if k in hp]
     return hp, list(dict.fromkeys(shown))
+
+
+def _leaves(cfg: DictConfig) -> list[tuple[str, object]]:
+    """``(name, value)`` of every recorded config value (:data:`RECORDED`), names ``model/depth``, lists as strings."""
+    out = []
+
+    def walk(prefix: str, node) -> None:
+        if OmegaConf.is_dict(node):
+            for k in node:
+                try:
+                    walk(f"{prefix}/{k}", node[k])
+                except Exception:  # an interpolation that does not resolve outside a run: not recorded
+                    continue
+        elif not _NOT_RECORDED.match(prefix):
+            out.append((prefix, _value(node)))
+
+    for key in RECORDED:
+        if key in cfg:
+            walk(key, cfg[key])
+    return out
 
 
 _LABEL_SKIP = re.compile(r"^(data\.path|data\.cache_dir|threads|compile|trainer\.(log_every_n_steps|enable_\w+|"
@@ -143,6 +180,21 @@ def run_label(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[st
     return re.sub(r"[^\w.=,@+\- ]", "_", label.strip())[:LABEL_MAX].strip()
 
 
+def trial_id(label: str, version: str) -> str:
+    """A run's HParams trial id from its folder ``<label>/<version>`` (``version``: its start time,
+    ``2026-11-25_19-21-49[_2]``): the start time of day, then the label's values (``mask=zero norm=layer -
+    graph_transformer`` -> ``zero layer``), then the date (and the same-second suffix), e.g. ``19:21:49 zero layer
+    (2026-11-25)``.  TensorBoard's table cuts trial ids to about 15 characters: a re-run differs from the first run in
+    its first 8, the jobs of a sweep started in the same second in the values that follow.  Unique as the folder is;
+    a resumed run keeps it."""
+    m = re.match(r"^(\d{4}-\d{2}-\d{2})_(\d{2})-(\d{2})-(\d{2})(_\d+)?$", str(version))
+    values = " ".join(p.split("=", 1)[1] for p in str(label).split(" - ")[0].split(" ") if "=" in p)
+    if not m:
+        return "/".join(p for p in (str(label), str(version)) if p)
+    date, hh, mm, ss, k = m.groups()
+    return " ".join(p for p in (f"{hh}:{mm}:{ss}", values or str(label), f"({date}{k or ''})") if p)
+
+
 def tensorboard_root(cfg: DictConfig) -> Path:
     """The folder every run's TensorBoard events go under: ``<paths.log_dir>/tensorboard`` for a run inside the log
     folder (the default Hydra directories), so that ``tensorboard --logdir logs/tensorboard`` names each run by what
@@ -175,7 +227,7 @@ def resumed_run(cfg: DictConfig) -> Path | None:
         if d.is_symlink() and d.resolve().is_dir():
             return d.resolve()
         if d.is_dir():
-            runs = sorted({e.parent for e in d.rglob("events.out.tfevents.*")})
+            runs = sorted({e.parent for e in d.rglob("events.out.tfevents.*") if e.parent.name != COLUMNS_RUN})
             if len(runs) == 1:
                 return runs[0]
     return None

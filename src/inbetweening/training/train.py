@@ -71,6 +71,7 @@ def train(cfg: DictConfig) -> dict[str, float]:
         test_trainer.test(module, datamodule=dm, verbose=False)
         metrics = dict(module.test_results)
         name = cfg.model.name
+        network = network_alone(module, dm, cfg) if module.predictor.blend is not None else None
         if not test_trainer.is_global_zero:  # DDP: metrics are synced; rank 0 alone writes and prints
             return metrics
         kf = None
@@ -80,18 +81,38 @@ def train(cfg: DictConfig) -> dict[str, float]:
                                  bool(cfg.get("self_check", True)), fill_settings(cfg))
         rows = with_baselines(name, metrics, dm, cfg.data.test_lengths)
         write_benchmark(out / "benchmark.json", dm.data.name, name, len(dm.test_set), metrics, dm.hparams.split,
-                        keyframes=kf, interpolation=rows.get("interpolation"))
+                        keyframes=kf, interpolation=rows.get("interpolation"),
+                        network=network[0] if network else None)
         print(f"\nTest benchmark ({dm.data.name}, split {dm.hparams.split}, {len(dm.test_set)} windows, "
               f"checkpoint: {best or 'final weights'})")
         print(B.format_table(rows, cfg.data.test_lengths))
+        if network:
+            print("The network alone (without the do-no-harm blend):\n"
+                  + B.format_table({name: network[0], "interpolation": rows["interpolation"]}, cfg.data.test_lengths))
         if "recovery_rmse" in metrics:
             print(f"mocap recovery: RMSE of recovered joint positions = {metrics['recovery_rmse']:.3f}")
         if kf is not None:
             from inbetweening.evaluation.keyframes import format_table
 
             print(f"\nKeyframes-only protocol ({len(dm.data.test)} whole test clips)\n" + format_table(kf))
-        log_test(trainer, module)
+        log_test(trainer, module, network[1] if network else None)
     return metrics
+
+
+def network_alone(module: InbetweenModule, dm, cfg: DictConfig) -> tuple[dict, dict]:
+    """The test benchmark of the network without its do-no-harm blend (the blended fill's figures are the ``test/``
+    ones): ``(metrics, TensorBoard scalars under test_network/)``; the module's blend and test results are left as
+    they were."""
+    blend, results, logs = module.predictor.blend, dict(module.test_results), dict(module.stage_logs.get("test", {}))
+    module.predictor.blend = None
+    try:
+        make_trainer(cfg, callbacks=False, loggers=False).test(module, datamodule=dm, verbose=False)
+        net = dict(module.test_results)
+        scalars = {"test_network/" + k[len("test/"):]: v for k, v in module.stage_logs.get("test", {}).items()
+                   if k.startswith("test/")}
+    finally:
+        module.predictor.blend, module.test_results, module.stage_logs["test"] = blend, results, logs
+    return net, scalars
 
 
 def report_derived(data, out: Path) -> None:
@@ -104,15 +125,16 @@ def report_derived(data, out: Path) -> None:
           f"any value):\n{text}")
 
 
-def log_test(trainer: L.Trainer, module: InbetweenModule) -> None:
-    """The test scalars (``test/l2p@15``, ``test/interp_l2p@15``, ``test/l2p_ratio@15``, ...) into the fit's
+def log_test(trainer: L.Trainer, module: InbetweenModule, network: dict | None = None) -> None:
+    """The test scalars (``test/l2p@15``, ``~interpolation/test/l2p@15``, ``test/l2p_ratio@15``, ...: the fill as the
+    tools deliver it, blend included; ``network``: the network alone's, ``test_network/...``) into the fit's
     TensorBoard run at its last step, and its HParams session marked ended."""
     for cb in trainer.callbacks:
         if isinstance(cb, HParamsSession):
             cb.start(trainer)  # a baseline was not fitted: its session starts here
     for lg in trainer.loggers:
         if isinstance(lg, RunLogger):
-            lg.log_metrics(module.stage_logs.get("test", {}), step=trainer.global_step)
+            lg.log_metrics({**module.stage_logs.get("test", {}), **(network or {})}, step=trainer.global_step)
             lg.end_session("success")
         lg.finalize("success")
 
