@@ -66,17 +66,22 @@ def test_curated_hparams_put_swept_keys_first_with_the_budget(tmp_path, cache_di
     # what distinguishes the run leads, keys shortened, the model last
     assert run_label(cfg, ["model.depth=2", "hydra.run.dir=/x", "data.path=/a/b"]) == "depth=2 - graph_transformer"
     assert run_label(cfg, []) == "graph_transformer"
+    # a group set to its default option says nothing about the run (the primary config's defaults list)
+    assert run_label(cfg, ["data=synthetic", "model.depth=2"], defaults={"data": "synthetic"}) == \
+        "depth=2 - graph_transformer"
+    assert run_label(cfg, ["mask=lerp", "model.depth=2"], swept=["mask"], defaults={"mask": "lerp"}) == \
+        "lerp (mask) - graph_transformer"  # in a sweep the default value is one of the values swept
     assert run_label(cfg, ["model.dropout=0.1", "loss.dropout=0"]) == "loss.dropout=0 model.dropout=0.1 - graph_transformer"
     long = run_label(cfg, [f"data.synthetic.key_{i}=value_{i}" for i in range(20)])
     assert len(long) <= 100 and long.endswith("more - graph_transformer") and long.startswith("key_0=value_0")
     # in a sweep: the swept keys come first, are the ones shown, and name the run
     hp, shown = curated_hparams(cfg, ["model.depth=2", "mask=zero", "seed=3"], swept=["seed"])
     assert list(hp)[0] == "seed" and shown == ["seed", "calibrate", "representation"]  # no model/name, data/name...
-    assert run_label(cfg, ["model.depth=2", "seed=3"], swept=["seed"]) == "seed=3 - graph_transformer"
+    assert run_label(cfg, ["model.depth=2", "seed=3"], swept=["seed"]) == "3 (seed) - graph_transformer"
     # what distinguishes the run leads (the example: a mask x norm sweep), the model last unless swept
     assert run_label(cfg, ["data=synthetic", "mask=zero", "model.norm=layer"], swept=["mask", "model.norm"]) == \
-        "mask=zero norm=layer - graph_transformer"
-    assert run_label(cfg, ["model=unet1d", "seed=3"], swept=["model", "seed"]) == "model=unet1d seed=3"
+        "zero layer (mask norm) - graph_transformer"  # the values first: an image card shows ~16 characters
+    assert run_label(cfg, ["model=unet1d", "seed=3"], swept=["model", "seed"]) == "unet1d 3 (model seed)"
     assert hparams_metrics([5, 45], [5])[:3] == ["val/l2p_mean_best", "test/l2p_ratio@5", "test/l2p_ratio@45"]
 
 
@@ -335,7 +340,9 @@ def test_every_sweeps_keys_are_columns_with_every_runs_value(tmp_path, cache_dir
     columns = [h.name for h in exp.hparam_infos]
     assert {"mask/name", "model/norm", "model/depth", "data/batch_size", "seed", "calibrate", "representation"} \
         <= set(columns)
-    assert all(h.differs for h in exp.hparam_infos) and len(columns) == len(set(columns))
+    assert len(columns) == len(set(columns))
+    differs = {h.name for h in exp.hparam_infos if h.differs}  # shown first: what the runs vary
+    assert differs == {"mask/name", "model/norm", "model/depth", "data/batch_size", "seed"}, differs
     assert [m.name.tag for m in exp.metric_infos][:3] == ["val/l2p_mean_best", "test/l2p_ratio@5", "test/l2p_ratio@15"]
     rows = _rows(logdir)
     assert len(rows) == 8  # one row per run
@@ -388,7 +395,8 @@ def test_rerunning_the_same_command_is_a_row_of_its_own(tmp_path, cache_dir):
     # trial ids: the start time first (a re-run differs within the ~15 characters the table shows), label, date
     assert sorted(groups) == sorted(trial_id(r.parent.name, r.name) for r in runs)
     assert all(re.match(r"^\d\d:\d\d:\d\d graph_transformer \(\d{4}-\d\d-\d\d(_\d+)?\)$", g) for g in groups), groups
-    assert trial_id("mask=zero norm=layer - graph_transformer", "2026-11-25_19-21-49_2") == \
+    assert trial_id("depth=2 - graph_transformer", "2026-11-25_19-21-49") == "19:21:49 2 (2026-11-25)"
+    assert trial_id("zero layer (mask norm) - graph_transformer", "2026-11-25_19-21-49_2") == \
         "19:21:49 zero layer (2026-11-25_2)"
     # a version is never reused, even within the same second
     (root / "graph_transformer" / run_version(root, "graph_transformer", when=0)).mkdir()
@@ -407,8 +415,8 @@ def test_sweep_runs_are_named_by_their_swept_values(tmp_path, cache_dir, monkeyp
     cfg.paths.log_dir = str(logs)
     logger = builders._make_logger(cfg, cfg.logger.tensorboard)
     run = Path(logger.log_dir)
-    assert run.relative_to(logs / "tensorboard").parts[0] == "mask=zero norm=layer - graph_transformer"
-    assert logger.trial_id == trial_id("mask=zero norm=layer - graph_transformer", run.name)
+    assert run.relative_to(logs / "tensorboard").parts[0] == "zero layer (mask norm) - graph_transformer"
+    assert logger.trial_id == trial_id("zero layer (mask norm) - graph_transformer", run.name)
     assert logger.trial_id.split(" ")[1:3] == ["zero", "layer"]
     assert (Path(cfg.paths.output_dir) / "tensorboard").resolve() == run.resolve()
     # a run given a directory of its own outside the log folder keeps its events in it
@@ -425,11 +433,18 @@ def test_custom_scalars_keep_model_and_baseline_apart():
     tags = ["train/loss", "val/loss", "train/lr", "train/windows_per_s", "train/grad_norm", "val/l2p_mean",
             "val/pos_rmse_cm",
             *[f"{p}val/{m}@{n}" for p in ("", f"{BASELINE}/") for m in ("l2p", "l2q", "npss") for n in (5, 15, 30, 45)],
-            *[f"val/{m}_ratio@{n}" for m in ("l2p", "l2q", "npss") for n in (5, 15, 30, 45)]]
+            *[f"val/{m}_ratio@{n}" for m in ("l2p", "l2q", "npss") for n in (5, 15, 30, 45)],
+            *[f"{p}/l2p_ratio@{n}" for p in ("test", "test_network") for n in (5, 15, 30, 45)]]
+    ones = [f"{BASELINE}/val/ratio", f"{BASELINE}/test/ratio"]  # the constant 1 (interpolation) in ratio charts
     for charts in layout.values():
         for title, (_, patterns) in charts.items():
             matched = {t for t in tags for pat in patterns if re.search(pat, t)}
-            assert len(matched) == 1, (title, matched)  # one quantity per chart: its lines are the runs
+            if title.startswith("L2P@") and "test_network" in title:  # the fill and the network: two, named apart
+                assert len(matched) == 2 and {t.split("/")[0] for t in matched} == {"test", "test_network"}, title
+            else:
+                assert len(matched) == 1, (title, matched)  # one quantity per chart: its lines are the runs
+            if "ratio" in " ".join(patterns):
+                assert sum(bool(re.search(p, o)) for p in patterns for o in ones) == 1, title  # and the line at 1
     assert list(layout)[0].startswith("1 val: model / interpolation")  # the ratios first: below 1 beats the baseline
 
 
@@ -467,24 +482,26 @@ def test_tensorboard_server_shows_groups_hparams_and_figures(tmp_path, cache_dir
     try:
         deadline = time.time() + 120
         runs: list = []
-        while time.time() < deadline and len(runs) < 3:
+        while time.time() < deadline and len(runs) < 4:  # the three runs and ~columns (the HParams columns)
             try:
                 runs = _get(port, "/data/runs")
             except OSError:
                 pass
             time.sleep(1)
-        names = sorted(r.split("/")[0] for r in runs)  # <what distinguishes the run>/<start time>
-        assert names[1:] == ["depth=1 - graph_transformer", "depth=2 - graph_transformer"], runs
-        assert names[0].startswith("batch_size=8 ") and names[0].endswith(" - graph_transformer")  # the overrides
+        assert "~columns" in runs
+        names = sorted(r.split("/")[0] for r in runs if r != "~columns")  # <what distinguishes the run>/<start time>
+        assert names[:2] == ["1 (depth) - graph_transformer", "2 (depth) - graph_transformer"], runs
+        assert names[2].startswith("batch_size=8 ") and names[2].endswith(" - graph_transformer")  # the overrides
         tags = _get(port, "/data/plugin/scalars/tags")
         groups = {t.split("/")[0] for run_tags in tags.values() for t in run_tags}
-        assert groups == {"train", "val", "test", "~interpolation"}, groups
+        assert groups == {"train", "val", "test", "test_network", "~interpolation"}, groups
         exp = _get(port, "/data/plugin/hparams/experiment", {"experimentName": "", "includeMetrics": True,
                                                               "hparamsLimit": 1000})
         shown = sorted(h["name"] for h in exp["hparamInfos"] if h.get("differs"))
-        # only the sweep's jobs write an experiment, so TensorBoard serves the sweep's (the swept key, then 4
-        # essentials) whichever run it reads first
-        assert shown == ["model/depth"], shown  # no constant column
+        # one experiment for the folder (~columns): the swept key differs; the single run's keys and calibrate /
+        # the representation are columns too, constant here, so not among those shown first
+        assert shown == ["model/depth"], shown
+        assert {"calibrate", "representation", "data/batch_size"} <= {h["name"] for h in exp["hparamInfos"]}
         first = sorted(exp["hparamInfos"], key=lambda h: not h.get("differs"))[:5]  # the dashboard's default columns
         assert "model/depth" in [h["name"] for h in first]
         metrics = [m["name"]["tag"] for m in exp["metricInfos"]]
@@ -503,16 +520,17 @@ def test_tensorboard_server_shows_groups_hparams_and_figures(tmp_path, cache_dir
         assert {1.0, 2.0} <= set(by_depth)
         assert all("test/l2p_ratio@15" in v for d in (1.0, 2.0) for v in by_depth[d])
         images = _get(port, "/data/plugin/images/tags")
-        run = next(r for r in images if r.startswith("depth=2 - graph_transformer/"))
+        run = next(r for r in images if r.startswith("2 (depth) - graph_transformer/"))
         assert {"val/skeleton", "val/per_joint"} <= set(images[run])
         imgs = _get(port, f"/data/plugin/images/images?run={urllib.request.quote(run)}&tag=val/skeleton")
         png = _get(port, "/data/plugin/images/individualImage?" + imgs[-1]["query"])
         assert png[:4] == b"\x89PNG"
         layout = _get(port, "/data/plugin/custom_scalars/layout")
         titles = [c["title"] for c in layout["category"]]
-        assert titles[0].startswith("1 val: model / interpolation") and len(titles) == 4
+        assert titles[0].startswith("1 val: model / interpolation") and titles[1].startswith("2 test")
+        assert len(titles) == 5
         chart = layout["category"][0]["chart"][0]["multiline"]["tag"]
-        assert chart == [r"^val/l2p_ratio@5$"]
+        assert chart == [r"^val/l2p_ratio@5$", r"^\~interpolation/val/ratio$"]
     finally:
         tb.terminate()
         tb.wait(timeout=30)

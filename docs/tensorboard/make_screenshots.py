@@ -3,10 +3,12 @@
     apt-get install -y chromium          # Debian's package
     python docs/tensorboard/make_screenshots.py [--logs /tmp/tb_demo] [--out docs/img]
 
-Runs a tiny 4-job sweep (``mask=zero,lerp model.norm=layer,batch``, 4 epochs, the skeleton figure every epoch) and
-the same single-run command twice into one log folder (synthetic data, about a minute on 2 CPU cores; ``--reuse``
-keeps an existing ``--logs``), starts TensorBoard on 127.0.0.1 on that folder's ``tensorboard``, and saves PNGs
-of the page as a browser draws it (``tb_*.png``, palette-compressed to well under 300 KB each).
+Runs a tiny 4-job sweep (``mask=zero,lerp model.norm=layer,batch``, 4 epochs, the skeleton figure every epoch), a
+second sweep (``model.heads=1,2``) and the same single-run command twice into one log folder (synthetic data, a few
+minutes on 2 CPU cores; ``--reuse`` keeps an existing ``--logs``), starts TensorBoard on 127.0.0.1 on that folder's
+``tensorboard``, and saves PNGs of the page as a browser draws it (``tb_*.png``, palette-compressed to well under
+300 KB each).  The charts are opened with smoothing 0 (``?smoothing=0``; Custom Scalars ``_smoothingWeight=0``): with a
+few validation points TensorBoard's default 0.6 draws a curve the values never had.
 """
 from __future__ import annotations
 
@@ -30,25 +32,27 @@ ROOT = Path(__file__).resolve().parents[2]
 TINY = ["model.d_model=16", "model.depth=1", "model.heads=2", "data.synthetic.num_clips=10",
         "data.synthetic.min_frames=120", "data.synthetic.max_frames=160", "data.batch_size=8",
         "data.max_eval_windows=8", "data.max_train_windows=64", "trainer.max_epochs=4", "trainer.log_every_n_steps=1",
-        "callbacks.progress_bar=null", "callbacks.skeleton_figure.every_n_epochs=1", "calibrate=false", "threads=1"]
+        "callbacks.progress_bar=null", "callbacks.skeleton_figure.every_n_epochs=1", "calibrate_windows=16", "threads=1"]
 #: Closes Time Series' settings pane (open by default on a wide page), giving the cards its room.
 CLOSE_SETTINGS = "document.querySelector('[aria-label=\"Close side pane\"]')?.click()"
 #: (file, page, window size, what it shows); ``forceSVG``: TensorBoard's charts drawn as SVG (no WebGL in headless)
 SHOTS = [
-    ("tb_scalars.png", "?forceSVG=true&tagFilter=%5Eval%2Fl2p_ratio#timeseries", (1280, 860),
+    ("tb_scalars.png", "?forceSVG=true&smoothing=0&tagFilter=%5Eval%2Fl2p_ratio#timeseries", (1280, 860),
      "Time Series, the validation L2P ratios of the sweep (filter ^val/l2p_ratio)"),
-    ("tb_landing.png", "?forceSVG=true#timeseries", (1280, 860), "Time Series as it opens"),
+    ("tb_landing.png", "?forceSVG=true&smoothing=0#timeseries", (1280, 860), "Time Series as it opens"),
     ("tb_skeleton.png", "?forceSVG=true&tagFilter=%5Eval%2Fskeleton#timeseries", (1280, 1000), "the val/skeleton image cards"),
     ("tb_per_joint.png", "?forceSVG=true&tagFilter=%5Eval%2Fper_joint#timeseries", (1280, 1000), "the val/per_joint image cards"),
-    ("tb_hparams.png", "#hparams", (1280, 560), "the HParams table"),
-    ("tb_custom_scalars.png", "?forceSVG=true#custom_scalars", (1280, 860), "Custom Scalars"),
+    ("tb_hparams.png", "#hparams", (1280, 640), "the HParams table"),
+    ("tb_custom_scalars.png", "?forceSVG=true#custom_scalars&_smoothingWeight=0", (1280, 860), "Custom Scalars"),
 ]
 
 
 def make_logs(logs: Path) -> None:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"}
     common = [*TINY, f"paths.log_dir={logs}"]
-    runs = [["-m", "mask=zero,lerp", "model.norm=layer,batch", *common], common, common]  # the single run twice
+    heads = [o for o in common if not o.startswith("model.heads=")]  # (a key set twice: the last value, no sweep)
+    runs = [["-m", "mask=zero,lerp", "model.norm=layer,batch", *common], ["-m", "model.heads=1,2", *heads],
+            common, common]  # two sweeps, then the single run twice
     for args in runs:
         r = subprocess.run([sys.executable, "train.py", *args], cwd=ROOT, env=env, capture_output=True, text=True)
         if r.returncode:

@@ -59,7 +59,9 @@ def per_joint_figure(names: Sequence[str], model: Mapping[int, Mapping[str, np.n
     ax.set_ylabel(f"{'position' if key == 'pos' else 'rotation'} ({unit if key == 'pos' else 'deg'})", fontsize=FONT)
     ax.grid(alpha=0.3)
     ax.tick_params(labelsize=FONT_SMALL)
-    ax.set_ylim(bottom=0)
+    peak = max([float(np.max(m[key])) for m in model.values()] + [float(np.max(m[key])) for m in (interp or {}).values()]
+               + [0.0])
+    ax.set_ylim(0, 1.12 * peak if peak > 0 else 1.0)  # room above the highest dot: no peak cut by the frame
     ax.yaxis.set_major_locator(MaxNLocator(4))
     ax.set_xticks(x, list(names), rotation=90, fontsize=FONT_SMALL)
     ax.set_xlim(-0.5, len(names) - 0.5)
@@ -105,10 +107,10 @@ def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, pare
     # under it, the contact rows
     W, H = WIDTH_PX / DPI, HEIGHT_PX / DPI
     fig = _figure(W, H)
-    cols = 3 if len(frames) > 4 else 2 if len(frames) > 2 else len(frames)
+    cols = min(len(frames), 3)
     rows = -(-len(frames) // cols)
     top = 0.78 if title else 0.45  # title, legend
-    side_w = 3.3
+    side_w = 4.2 if rows == 1 else 3.3  # one row of views (the default three): wider, the error curve narrower
     panel = min(side_w / cols, (H - top - 0.05) / rows - 0.27)
     height = float(np.ptp(gt[..., up_axis])) or 1.0
     half = 0.62 * height
@@ -155,7 +157,7 @@ def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, pare
     err.set_ylim(bottom=0)
     err.yaxis.set_major_locator(MaxNLocator(4))
     err.xaxis.set_major_locator(MaxNLocator(4, integer=True))
-    err.set_title(f"error ({unit}), mean {model_err.mean():.2f}\ninterpolation {interp_err.mean():.2f}",
+    err.set_title(f"error ({unit}), mean\n{model_err.mean():.2f} / interp. {interp_err.mean():.2f}",
                   fontsize=FONT_SMALL, loc="left", pad=3)
     if contacts:
         _contact_rows(fig.add_axes([ex0 / W, 0.55 / H, ew / W, foot_h / H], sharex=err), contacts, feet, foot_names,
@@ -227,7 +229,7 @@ class SkeletonFigure(L.Callback):
     Drawing goes through ``pl_module.predictor`` in eval mode with the global RNG states forked, so it changes
     neither the training nor its random draws."""
 
-    def __init__(self, every_n_epochs: int = 5, window: int = 0, n: int = 30, frames: int = 6):
+    def __init__(self, every_n_epochs: int = 5, window: int = 0, n: int = 30, frames: int = 3):
         self.every = max(1, int(every_n_epochs))
         self.window, self.n, self.frames = int(window), int(n), int(frames)
         self._val_global_step: int | None = None  # the optimiser step of the last validation of the fit
@@ -274,7 +276,7 @@ class SkeletonFigure(L.Callback):
         feet = list(contact.indices(names)) if contacts is not None and contact.feet else []
         fig = transition_figure(s["ground truth"], s["prediction"], s["interpolation"], pl_module.skeleton.parents,
                                 pl_module.n_past, n, frames_to_draw(pl_module.n_past, n, self.frames),
-                                title=f"epoch {trainer.current_epoch}, step {step}{why}: window {self.window}, "
+                                title=f"epoch {trainer.current_epoch + 1}, step {step}{why}: window {self.window}, "
                                       f"{n}-frame transition", feet=feet, contacts=contacts,
                                 foot_names=[names[j] for j in feet])
         _add_figure(trainer, "val/skeleton", fig, step)
@@ -287,7 +289,7 @@ class SkeletonFigure(L.Callback):
         if errors:
             for key, tag, what in (("pos", "val/per_joint", "position"), ("rot", "val/per_joint_rotation", "rotation")):
                 fig = per_joint_figure(pl_module.skeleton.names, errors["model"], errors.get("interp"), key=key,
-                                       title=f"validation per-joint {what} error, epoch {trainer.current_epoch}")
+                                       title=f"validation per-joint {what} error, epoch {trainer.current_epoch + 1}")
                 _add_figure(trainer, tag, fig, _step(trainer))
         tags = []
         if getattr(pl_module, "val_improved", False):

@@ -215,8 +215,9 @@ class InbetweenModule(L.LightningModule):
                                  foot_speed=pr.contact.speed / pr.fps)
         bs = gt.shape[0]
         self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=bs)
-        for k, v in terms.items():
-            self.log(f"{stage}/loss_{k}", v, batch_size=bs)
+        if len(terms) > 1:  # the loss's terms, where it has several (one term is the loss itself)
+            for k, v in terms.items():
+                self.log(f"{stage}/loss_{k}", v, batch_size=bs)
         return loss
 
     def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:

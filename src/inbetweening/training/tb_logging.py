@@ -49,6 +49,8 @@ def tb_scalars(stage: str, res: Mapping[str, float], interp: Mapping[str, float]
                 name, n = k.split("@")
                 logs[f"{stage}/{name}_ratio@{n}"] = float(res[k]) / float(v)
     logs[f"{stage}/pos_rmse_cm"] = float(pos_rmse)
+    if interp:  # the line at 1 that every ratio chart of Custom Scalars draws: interpolation itself
+        logs[f"{BASELINE}/{stage}/ratio"] = 1.0
     return logs
 
 
@@ -58,7 +60,8 @@ def _column_type(v) -> str:
     return "bool" if isinstance(v, bool) else "float" if isinstance(v, (int, float)) else "string"
 
 
-def update_columns(root: str | Path, hparams: Mapping, shown: Sequence[str], metrics: Sequence[str]) -> bool:
+def update_columns(root: str | Path, hparams: Mapping, shown: Sequence[str], metrics: Sequence[str],
+                   trial: str | None = None) -> bool:
     """Add ``shown`` (hparam names, typed by their values in ``hparams``) and ``metrics`` to the HParams columns of
     the TensorBoard folder ``root``: one experiment in the run :data:`COLUMNS_RUN`, rewritten (its state in
     ``columns.json``, under a file lock: a sweep's jobs update it at once) whenever a column is new.  TensorBoard's
@@ -76,13 +79,15 @@ def update_columns(root: str | Path, hparams: Mapping, shown: Sequence[str], met
         fcntl.flock(lock, fcntl.LOCK_EX)
         state_file = folder / "columns.json"
         state = json.loads(state_file.read_text()) if state_file.exists() else {"hparams": {}, "metrics": []}
-        before = json.dumps(state)
+        runs = state.setdefault("runs", {})  # every run's values (a column added later knows earlier runs' too)
+        before = json.dumps(state, sort_keys=True)
         for k in shown:
             if k in hparams:
                 state["hparams"].setdefault(k, _column_type(hparams[k]))
+        runs[str(trial or len(runs))] = {k: str(v) for k, v in hparams.items()}
         state["metrics"] += [m for m in metrics if m not in state["metrics"]]
         events = sorted(folder.glob("events.out.tfevents.*"))
-        if json.dumps(state) == before and events:
+        if json.dumps(state, sort_keys=True) == before and events:
             return False
         exp = hp_summary.hparams_config_pb([hp_summary.HParam(k) for k in state["hparams"]],
                                            [hp_summary.Metric(m) for m in state["metrics"]])
@@ -90,7 +95,7 @@ def update_columns(root: str | Path, hparams: Mapping, shown: Sequence[str], met
         data = metadata.parse_experiment_plugin_data(config.metadata.plugin_data.content)
         kinds = {"bool": api_pb2.DATA_TYPE_BOOL, "float": api_pb2.DATA_TYPE_FLOAT64, "string": api_pb2.DATA_TYPE_STRING}
         for info in data.hparam_infos:
-            info.differs = True  # the dashboard shows these columns first
+            info.differs = len({r.get(info.name) for r in runs.values()}) > 1  # the dashboard shows these first
             info.type = kinds[state["hparams"][info.name]]  # numbers get an interval axis in the parallel coordinates
         config.metadata.CopyFrom(metadata.create_summary_metadata(metadata.plugin_data_pb2.HParamsPluginData(
             experiment=data, version=metadata.PLUGIN_DATA_VERSION)))
@@ -119,10 +124,16 @@ def hparams_metrics(test_lengths: Sequence[int], val_lengths: Sequence[int]) -> 
 def custom_scalars_layout(val_lengths: Sequence[int], test_lengths: Sequence[int]) -> dict:
     """The Custom Scalars dashboard (TensorBoard colours its lines by run only, so each chart holds one quantity and
     a sweep's runs are its lines): per metric and validation length the ratio to interpolation (below 1: the model
-    beats it; interpolation is the line at 1), then the model's values, the training curves (``train/loss`` and
-    ``val/loss`` in charts of their own) and the interpolation baseline by itself."""
-    ratio = {f"{m.upper()}@{n} / interpolation": ["Multiline", [rf"^val/{m}_ratio@{n}$"]]
+    beats it; interpolation is the line at 1, ``~interpolation/val/ratio``), the test ratios of the blended fill and
+    of the network alone per length (points at the last validation's step; the line at 1 too), then the model's
+    values, the training curves (``train/loss`` and ``val/loss`` in charts of their own) and the interpolation baseline
+    by itself."""
+    one = rf"^{re.escape(BASELINE)}/%s/ratio$"  # interpolation: the constant 1 in every ratio chart
+    ratio = {f"{m.upper()}@{n} / interpolation": ["Multiline", [rf"^val/{m}_ratio@{n}$", one % "val"]]
              for m in METRICS for n in val_lengths}
+    test = {f"L2P@{n} / interpolation: the fill (test/), the network alone (test_network/)":
+            ["Multiline", [rf"^test/l2p_ratio@{n}$", rf"^test_network/l2p_ratio@{n}$", one % "test"]]
+            for n in test_lengths}
     model = {f"L2P@{n}": ["Multiline", [rf"^val/l2p@{n}$"]] for n in val_lengths}
     model["L2P, mean of the lengths"] = ["Multiline", [r"^val/l2p_mean$"]]
     model["position RMSE (cm)"] = ["Multiline", [r"^val/pos_rmse_cm$"]]
@@ -131,8 +142,8 @@ def custom_scalars_layout(val_lengths: Sequence[int], test_lengths: Sequence[int
              "throughput (windows/s)": ["Multiline", [r"^train/windows_per_s$"]],
              "gradient norm (before clipping)": ["Multiline", [r"^train/grad_norm$"]]}
     base = {f"interpolation L2P@{n}": ["Multiline", [rf"^{re.escape(BASELINE)}/val/l2p@{n}$"]] for n in val_lengths}
-    return {"1 val: model / interpolation (< 1: better)": ratio, "2 val: model": model, "3 train": train,
-            "4 interpolation baseline": base}
+    return {"1 val: model / interpolation (< 1: better)": ratio, "2 test: fill and network / interpolation": test,
+            "3 val: model": model, "4 train": train, "5 interpolation baseline": base}
 
 
 class RunLogger(TensorBoardLogger):
@@ -197,7 +208,7 @@ class RunLogger(TensorBoardLogger):
         self._write(hp_summary.hparams_pb(dict(hparams), trial_id=self.trial_id or None))
         if layout:
             self.experiment.add_custom_scalars(layout)
-        update_columns(self.save_dir, hparams, shown, metrics)
+        update_columns(self.save_dir, hparams, shown, metrics, self.trial_id)
         self._session_started = True
 
     def end_session(self, status: str = "success") -> None:

@@ -160,13 +160,39 @@ def _short_keys(overrides: Sequence[str]) -> list[str]:
             for o, k, t in zip(overrides, keys, last)]
 
 
-def run_label(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[str] = ()) -> str:
+def default_choices() -> dict[str, str]:
+    """The primary config's default option per group (``{"data": "synthetic", "mask": "lerp", ...}``: its defaults
+    list), read from the running Hydra job's config file; ``{}`` outside Hydra."""
+    try:
+        import yaml
+        from hydra.core.hydra_config import HydraConfig
+
+        hc = HydraConfig.get()
+        src = next(s for s in hc.runtime.config_sources if s.provider == "main" and s.schema == "file")
+        text = (Path(src.path) / f"{hc.job.config_name}.yaml").read_text()
+    except (ValueError, StopIteration, OSError):
+        return {}
+    out = {}
+    for item in (yaml.safe_load(text) or {}).get("defaults", []):
+        if isinstance(item, dict):
+            for k, v in item.items():
+                if isinstance(v, str) and "/" not in str(k) and not str(k).startswith("override"):
+                    out[str(k)] = v
+    return out
+
+
+def run_label(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[str] = (),
+              defaults: dict[str, str] | None = None) -> str:
     """What distinguishes the run, its TensorBoard name's first part (a path-safe string, at most :data:`LABEL_MAX`
     characters; overrides that do not fit are counted, ``+3 more``):
-    in a multirun the swept keys' values, else the command line's overrides (sorted), each key shortened to its last
-    part (``model.norm=layer`` -> ``norm=layer``), then the model (``mask=zero norm=layer - graph_transformer``;
+    in a multirun the swept keys' values, then the keys in brackets (``zero layer (mask norm)``: TensorBoard's image
+    cards show about 16 characters of a run's name), else the command line's overrides (sorted; a group set to its default option,
+    ``data=synthetic``, is no difference and left out: ``defaults``, default :func:`default_choices`), each key shortened to its last
+    part (``model.norm=layer`` -> ``norm=layer``), then the model (``zero layer (mask norm) - graph_transformer``;
     ``graph_transformer`` alone for a run of the defaults; no model when the model is among them)."""
-    keep = [o for o in overrides if not _NOT_HPARAMS.match(o.lstrip("+~")) and not _LABEL_SKIP.match(o.lstrip("+~"))]
+    defaults = {} if swept else default_choices() if defaults is None else defaults  # a swept value always counts
+    keep = [o for o in overrides if not _NOT_HPARAMS.match(o.lstrip("+~")) and not _LABEL_SKIP.match(o.lstrip("+~"))
+            and defaults.get(o.lstrip("+~").partition("=")[0]) != o.partition("=")[2]]  # a group at its default: no
     keep = [o for o in keep if o.lstrip("+~").partition("=")[0] in swept] if swept else sorted(keep)
     keys = {o.lstrip("+~").partition("=")[0] for o in keep}
     model = "" if "model" in keys else str(cfg.model.name)
@@ -176,19 +202,24 @@ def run_label(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[st
             parts.append(f"+{len(keep) - i} more")  # the whole list: .hydra/overrides.yaml and the HParams columns
             break
         parts.append(part)
-    label = " - ".join(p for p in (" ".join(parts), model) if p)
-    return re.sub(r"[^\w.=,@+\- ]", "_", label.strip())[:LABEL_MAX].strip()
+    head = " ".join(parts)
+    if swept and parts and not parts[-1].startswith("+"):  # a sweep's job: the values first (a card shows ~16
+        head = " ".join(p.partition("=")[2] for p in parts) + " (" + " ".join(p.partition("=")[0] for p in parts) + ")"
+    label = " - ".join(p for p in (head, model) if p)
+    return re.sub(r"[^\w.=,@+\-() ]", "_", label.strip())[:LABEL_MAX].strip()
 
 
 def trial_id(label: str, version: str) -> str:
     """A run's HParams trial id from its folder ``<label>/<version>`` (``version``: its start time,
-    ``2026-11-25_19-21-49[_2]``): the start time of day, then the label's values (``mask=zero norm=layer -
-    graph_transformer`` -> ``zero layer``), then the date (and the same-second suffix), e.g. ``19:21:49 zero layer
+    ``2026-11-25_19-21-49[_2]``): the start time of day, then the label's values (``zero layer (mask norm) -
+    graph_transformer`` or ``depth=2 - graph_transformer`` -> ``zero layer``, ``2``), then the date (and the same-second suffix), e.g. ``19:21:49 zero layer
     (2026-11-25)``.  TensorBoard's table cuts trial ids to about 15 characters: a re-run differs from the first run in
     its first 8, the jobs of a sweep started in the same second in the values that follow.  Unique as the folder is;
     a resumed run keeps it."""
     m = re.match(r"^(\d{4}-\d{2}-\d{2})_(\d{2})-(\d{2})-(\d{2})(_\d+)?$", str(version))
-    values = " ".join(p.split("=", 1)[1] for p in str(label).split(" - ")[0].split(" ") if "=" in p)
+    head = str(label).split(" - ")[0]
+    values = (" ".join(p.split("=", 1)[1] for p in head.split(" ") if "=" in p) if "=" in head
+              else re.sub(r"\s*\([^()]*\)$", "", head))
     if not m:
         return "/".join(p for p in (str(label), str(version)) if p)
     date, hh, mm, ss, k = m.groups()
