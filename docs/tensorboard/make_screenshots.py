@@ -42,7 +42,7 @@ SHOTS = [
     ("tb_landing.png", "?forceSVG=true&smoothing=0#timeseries", (1280, 860), "Time Series as it opens"),
     ("tb_skeleton.png", "?forceSVG=true&tagFilter=%5Eval%2Fskeleton#timeseries", (1280, 1000), "the val/skeleton image cards"),
     ("tb_per_joint.png", "?forceSVG=true&tagFilter=%5Eval%2Fper_joint#timeseries", (1280, 1000), "the val/per_joint image cards"),
-    ("tb_hparams.png", "#hparams", (1280, 640), "the HParams table"),
+    ("tb_hparams.png", "#hparams", (1900, 600), "the HParams table (wide: the metric columns too)"),
     ("tb_custom_scalars.png", "?forceSVG=true#custom_scalars&_smoothingWeight=0", (1280, 860), "Custom Scalars"),
 ]
 

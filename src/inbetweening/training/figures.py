@@ -110,7 +110,7 @@ def transition_figure(gt: np.ndarray, pred: np.ndarray, interp: np.ndarray, pare
     cols = min(len(frames), 3)
     rows = -(-len(frames) // cols)
     top = 0.78 if title else 0.45  # title, legend
-    side_w = 4.2 if rows == 1 else 3.3  # one row of views (the default three): wider, the error curve narrower
+    side_w = 4.0 if rows == 1 else 3.3  # one row of views (the default three): wider, the error curve narrower
     panel = min(side_w / cols, (H - top - 0.05) / rows - 0.27)
     height = float(np.ptp(gt[..., up_axis])) or 1.0
     half = 0.62 * height

@@ -196,7 +196,7 @@ def run_label(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[st
     keep = [o for o in keep if o.lstrip("+~").partition("=")[0] in swept] if swept else sorted(keep)
     keys = {o.lstrip("+~").partition("=")[0] for o in keep}
     model = "" if "model" in keys else str(cfg.model.name)
-    parts, room = [], LABEL_MAX - len(model) - 10
+    parts, room = [], LABEL_MAX - len(model) - 14  # room for " +N more" and " - " + the model
     for i, part in enumerate(_short_keys(keep)):
         if sum(len(p) + 1 for p in parts) + len(part) > room:
             parts.append(f"+{len(keep) - i} more")  # the whole list: .hydra/overrides.yaml and the HParams columns
