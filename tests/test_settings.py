@@ -48,7 +48,7 @@ def test_a_config_sets_the_fill_and_a_bad_value_names_its_key(config, tmp_path):
     ({"planted_reach": float("nan")}, r"fill.planted_reach: must be >= 0.0, got nan"),
     ({"share_power": True}, r"fill.share_power: expected a number, got True"),
     ({"reach": "3"}, r"fill.reach: expected an integer, got '3'"),
-    ({"x_ful": 0.7}, r"fill.x_ful: not a fill setting; known: blend_frames, "),
+    ({"x_ful": 0.7}, r"fill.x_ful: not a fill setting; known: adapt_lr, adapt_steps, blend_frames, "),
 ])
 def test_bad_settings_are_one_clear_error(values, match):
     with pytest.raises(InbetweenError, match=match):
