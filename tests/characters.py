@@ -136,3 +136,16 @@ def model_walk(model: Skeleton, frames: int = 121, seed: int = 0) -> tuple[np.nd
     root = np.stack([40 * np.sin(t[:, 0, 0] / 30), 95 + 2 * np.sin(t[:, 0, 0] / 4), 2.5 * t[:, 0, 0]], -1)
     q[:1] = euler_sign(q[:1])
     return root, remove_discontinuities(q, axis=0)
+
+
+def wiggle(frames: int = 200, joints: int = 21, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A smooth random motion ``(root (F, 3), local_q (F, J, 4))`` of any skeleton with ``joints`` joints: every joint
+    swinging at its own period (``seed``), the root moving forward and turning about +Y (not a plausible body motion:
+    for tests of the machinery, not of the network's quality)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames)
+    root = np.stack([60 * np.sin(t / 40), 90 + 3 * np.sin(t / 7), 2.5 * t], -1)
+    ang = 0.4 * np.sin(t[:, None, None] / rng.uniform(8, 20, (1, joints, 3)) + rng.uniform(0, 6, (1, joints, 3)))
+    q = np.concatenate([np.ones((frames, joints, 1)), ang], -1)
+    q[:, 0] = np.stack([np.cos(t / 60), 0 * t, np.sin(t / 60), 0 * t], -1)
+    return root, q / np.linalg.norm(q, axis=-1, keepdims=True)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import torch
 
+from characters import wiggle
 from inbetweening.runtime import FillRuntime, InbetweenError
 from inbetweening.runtime.adapt import split_checks
 from inbetweening.runtime.settings import FillSettings
@@ -25,13 +26,9 @@ def backend():
     return TorchBackend.from_checkpoint(MODEL)
 
 
-def clip(frames=121, joints=21, seed=0):
-    rng = np.random.default_rng(seed)
-    t = np.arange(frames)
-    root = np.stack([60 * np.sin(t / 40), 90 + 3 * np.sin(t / 7), 2.5 * t], -1)
-    ang = 0.4 * np.sin(t[:, None, None] / rng.uniform(8, 20, (1, joints, 3)) + rng.uniform(0, 6, (1, joints, 3)))
-    q = np.concatenate([np.ones((frames, joints, 1)), ang], -1)
-    return root, q / np.linalg.norm(q, axis=-1, keepdims=True)
+def clip(backend, seed=0):
+    """A smooth random motion of the model's skeleton (tests/characters.py), 121 frames."""
+    return wiggle(121, backend.info.skeleton.num_joints, seed)
 
 
 def test_split_holds_out_every_third_check():
@@ -40,7 +37,7 @@ def test_split_holds_out_every_third_check():
 
 
 def test_off_by_default_and_on_keeps_keys_and_decides_on_held_out_keys(backend):
-    root, q = clip()
+    root, q = clip(backend)
     trusting = {"x_full": 99.0, "x_none": 100.0}  # the self-check trusts every gap: the network's share shows
     plain = FillRuntime(backend, settings=FillSettings(**trusting)).fill(root, q, KEYS)
     assert plain.adaptation is None
@@ -65,7 +62,7 @@ def test_off_by_default_and_on_keeps_keys_and_decides_on_held_out_keys(backend):
 
 
 def test_the_gradient_steps_lower_their_loss(backend):
-    root, q = clip(seed=1)
+    root, q = clip(backend, seed=1)
     rt = FillRuntime(backend)
     n = rt.info.n_past
     wr, wq = rt.windows([root] * 3, [q] * 3, [(10, 30), (30, 50), (50, 70)])

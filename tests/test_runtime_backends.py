@@ -17,6 +17,7 @@ import torch
 
 from conftest import BLOCK_TORCH
 from inbetweening.api.export import export_onnx, export_window_onnx, window_example
+from characters import wiggle
 from inbetweening.runtime import FillRuntime, ModelError
 from inbetweening.runtime.onnx_backend import OnnxBackend
 from inbetweening.runtime.torch_backend import TorchBackend, WindowPath
@@ -34,14 +35,7 @@ def backends(request, tmp_path_factory):
     return torch_backend, OnnxBackend(str(path))
 
 
-def clip(frames=200, joints=21, seed=0):
-    rng = np.random.default_rng(seed)
-    t = np.arange(frames)
-    root = np.stack([60 * np.sin(t / 40), 90 + 3 * np.sin(t / 7), 2.5 * t], -1)
-    ang = 0.4 * np.sin(t[:, None, None] / rng.uniform(8, 20, (1, joints, 3)) + rng.uniform(0, 6, (1, joints, 3)))
-    q = np.concatenate([np.ones((frames, joints, 1)), ang], -1)
-    q[:, 0] = np.stack([np.cos(t / 60), 0 * t, np.sin(t / 60), 0 * t], -1)  # turning about +Y
-    return root, q / np.linalg.norm(q, axis=-1, keepdims=True)
+clip = wiggle  # a smooth random motion of the model's 21 joints (tests/characters.py)
 
 
 def test_both_backends_describe_the_model_alike(backends):

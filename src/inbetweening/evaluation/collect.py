@@ -160,6 +160,15 @@ def folds_markdown(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def write_folds_csv(rows: list[dict], path: Path) -> None:
+    """The folds table's rows (:func:`by_folds`) as CSV, every figure a column."""
+    cols = sorted({c for r in rows for c in r}, key=lambda c: (c not in ("config", "fold", "seeds", "folds"), c))
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=cols)
+        w.writeheader()
+        w.writerows(rows)
+
+
 def ratio_columns(res: dict) -> dict[str, float]:
     """``{"l2p_ratio@<n>": model / interpolation}`` where the file records the interpolation baseline; for a run
     whose figures are a blended fill's and that records the network alone too (``network``), ``net_l2p@<n>`` and
@@ -251,37 +260,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", action="store_true", help="one row per configuration: mean ± std over its seeds")
     ap.add_argument("--folds", action="store_true", help="the generalisation folds: per fold and pooled")
     args = ap.parse_args(argv)
-    if args.folds:
-        try:
-            rows = by_folds(args.sweep_dir)
-        except FileNotFoundError as e:
-            print(f"error: {e}", file=sys.stderr)
-            return 2
-        out = Path(args.out) if args.out else Path(args.sweep_dir) / "folds"
-        md = folds_markdown(rows)
-        out.with_suffix(".md").write_text(md + "\n")
-        cols = sorted({c for r in rows for c in r}, key=lambda c: (c not in ("config", "fold", "seeds", "folds"), c))
-        with open(out.with_suffix(".csv"), "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=cols)
-            w.writeheader()
-            w.writerows(rows)
-        print(md)
-        print(f"\n{len(rows)} rows -> {out.with_suffix('.md')}, {out.with_suffix('.csv')}")
-        return 0
     try:
-        rows = collect(args.sweep_dir, args.sort)
-        if args.seeds:
-            rows = by_seeds(rows)
-            rows.sort(key=lambda r: (r.get(args.sort) is None, r.get(args.sort, 0.0)))
+        if args.folds:
+            rows, name, markdown, table = by_folds(args.sweep_dir), "folds", folds_markdown, write_folds_csv
+        else:
+            rows, name, markdown, table = collect(args.sweep_dir, args.sort), "results", to_markdown, write_csv
+            if args.seeds:
+                rows = by_seeds(rows)
+                rows.sort(key=lambda r: (r.get(args.sort) is None, r.get(args.sort, 0.0)))
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    out = Path(args.out) if args.out else Path(args.sweep_dir) / "results"
-    md = to_markdown(rows)
+    out = Path(args.out) if args.out else Path(args.sweep_dir) / name
+    md = markdown(rows)
     out.with_suffix(".md").write_text(md + "\n")
-    write_csv(rows, out.with_suffix(".csv"))
+    table(rows, out.with_suffix(".csv"))
     print(md)
-    print(f"\n{len(rows)} runs -> {out.with_suffix('.md')}, {out.with_suffix('.csv')}")
+    print(f"\n{len(rows)} rows -> {out.with_suffix('.md')}, {out.with_suffix('.csv')}")
     return 0
 
 
