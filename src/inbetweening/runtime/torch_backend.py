@@ -102,10 +102,8 @@ class TorchBackend:
         (:mod:`.adapt`); this backend is left as it was."""
         pred = copy.deepcopy(self.predictor)
         pred.eval()  # normalisation statistics stay; gradients flow all the same
-        params = [p for p in pred.net.parameters() if p.requires_grad]
-        for p in params:
-            p.requires_grad_(True)
-        opt = torch.optim.Adam(params, lr=float(lr))
+        pred.net.requires_grad_(True)  # whatever the loaded checkpoint's flags: every weight adapts
+        opt = torch.optim.Adam(pred.net.parameters(), lr=float(lr))
         with torch.inference_mode(False), torch.enable_grad():
             batches = []
             for root, local_q, known, hidden in groups:

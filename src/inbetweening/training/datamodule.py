@@ -157,6 +157,7 @@ class InbetweenDataModule(L.LightningDataModule):
         self.joint_gaps = JointGaps.from_config(mask)
         self.data: MotionData | None = None
         self.clip_windows: W.ClipWindows | None = None
+        self.upper = None
 
     # ------------------------------------------------------------------ setup
     def load_data(self) -> MotionData:
@@ -201,6 +202,10 @@ class InbetweenDataModule(L.LightningDataModule):
         if len(cw) == 0:
             raise ValueError(f"data: no training window of {h.train_window} frames in dataset {h.name!r}")
         self.clip_windows = cw
+        self.upper = None  # data.mix_parts: the upper body's joints, found once
+        if h.mix_parts:
+            feet = list(data.contact.indices(sk.names)) or self._feet_guess()
+            self.upper = upper_body(sk.parents, feet)
         vX, vQ = W.prepare_windows(val_clips or train_clips[:1], sk, W.TEST_WINDOW, W.TEST_OFFSET, axis)
         vlim = h.max_val_windows or h.max_eval_windows
         self.val_set = _Windows(vX[:vlim], vQ[:vlim])
@@ -244,9 +249,8 @@ class InbetweenDataModule(L.LightningDataModule):
         else:
             gen, idx = None, list(items)
         root, q = self._train_windows(idx, gen)
-        if h.mix_parts:
-            feet = list(self.data.contact.indices(self.data.skeleton.names)) or self._feet_guess()
-            q = mix_upper_body(gen, q, upper_body(self.data.skeleton.parents, feet))
+        if self.upper is not None:
+            q = mix_upper_body(gen, q, self.upper)
         b, w, j, _ = q.shape
         if self.mask_name == "joints":
             known = self.joint_gaps.known(b, w, j, generator=gen)

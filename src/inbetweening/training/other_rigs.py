@@ -22,6 +22,7 @@ from inbetweening.data.cache import default_cache_dir, hash_source, settings_key
 from inbetweening.data.clips import Clip
 from inbetweening.data.errors import BVHError, DatasetError
 from inbetweening.data.sources import list_bvh_sources, read_bvh_sources
+from inbetweening.geometry.quaternion import qangle
 from inbetweening.geometry.skeleton import Skeleton
 
 __all__ = ["TPOSE_JUMP", "other_rig_clips", "retarget_take"]
@@ -31,12 +32,6 @@ POSES = 200  # frames (evenly spaced) a take's natural pose and hinges are found
 VERSION = 1  # of the cached clips: bump when the retargeting of training takes changes
 
 
-def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Degrees between unit quaternions ``a`` and ``b`` (..., 4), sign-free."""
-    d = np.clip(np.abs(np.sum(a * b, axis=-1)), 0.0, 1.0)
-    return np.degrees(2.0 * np.arccos(d))
-
-
 def retarget_take(bvh, skeleton: Skeleton, fps: float, name: str) -> Clip:
     """One take (a parsed :class:`~inbetweening.data.bvh.BVH` of any humanoid rig) as a :class:`Clip` of ``skeleton``
     at ``fps`` frames per second, in the project's frame (Y up, the model's lengths, its floor)."""
@@ -44,7 +39,7 @@ def retarget_take(bvh, skeleton: Skeleton, fps: float, name: str) -> Clip:
     from inbetweening.runtime.retarget import Retarget
 
     lq, lp = bvh.local_rotations(), bvh.channel_positions()
-    if len(lq) > 2 and _angle(lq[0], lq[1]).max() > TPOSE_JUMP:
+    if len(lq) > 2 and np.degrees(qangle(lq[0], lq[1])).max() > TPOSE_JUMP:
         lq, lp = lq[1:], lp[1:]
     where = f"data.extra: {name}"
     bm = detect_bone_map(bvh.names, bvh.parents, bvh.offsets, where=where)

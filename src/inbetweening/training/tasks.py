@@ -78,9 +78,7 @@ def mix_upper_body(gen: torch.Generator | None, q: torch.Tensor, upper: torch.Te
         return q
     donor = (torch.arange(b) + torch.randint(1, b, (b,), generator=gen)) % b  # never the window itself
     take = torch.rand(b, generator=gen) < prob
-    out = q.clone()
-    sel = take[:, None, None, None] & upper[None, None, :, None]
-    return torch.where(sel, q[donor], out)
+    return torch.where(take[:, None, None, None] & upper[None, None, :, None], q[donor], q)
 
 
 def partial_keys(gen: torch.Generator | None, keyframes: torch.Tensor, parents, prob: float) -> torch.Tensor:
