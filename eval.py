@@ -5,9 +5,9 @@ Writes benchmark.json into the run directory (hydra.run.dir=... to choose it).""
 import hydra
 from omegaconf import DictConfig
 
+from inbetweening.retarget.task import eval_retarget, is_retarget
 from inbetweening.training.evaluate import evaluate
 from inbetweening.training.job import run_cli
-from inbetweening.training.retarget_task import eval_retarget, is_retarget
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="eval")

@@ -2,8 +2,8 @@
 import hydra
 from omegaconf import DictConfig
 
+from inbetweening.retarget.task import is_retarget, train_retarget
 from inbetweening.training.job import run_cli
-from inbetweening.training.retarget_task import is_retarget, train_retarget
 from inbetweening.training.train import train
 
 

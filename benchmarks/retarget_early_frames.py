@@ -8,8 +8,8 @@ import torch
 
 from inbetweening.data.contacts import body_height
 from inbetweening.data.datasets import load_dataset
-from inbetweening.training.learned_retarget import LearnedRetarget
-from inbetweening.training.retarget_data import select, split_clips
+from inbetweening.retarget.data import select, split_clips
+from inbetweening.retarget.learned import LearnedRetarget
 
 torch.set_num_threads(1)
 

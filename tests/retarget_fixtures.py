@@ -62,9 +62,9 @@ def tiny_checkpoint(path: Path, sk: Skeleton, kind: str = "cmu", steps: int = 0)
 
     from inbetweening.data.bvh_writer import format_bvh
     from inbetweening.models.retarget_lstm import RetargetLSTM
-    from inbetweening.runtime.retarget_rig import TargetRig
-    from inbetweening.training.retarget_data import make_pairs, stats
-    from inbetweening.training.retarget_module import RetargetModule
+    from inbetweening.retarget.data import make_pairs, stats
+    from inbetweening.retarget.module import RetargetModule
+    from inbetweening.retarget.rig import TargetRig
 
     torch.manual_seed(0)
     bvh = rig_of(sk, kind)

@@ -1,4 +1,4 @@
-"""The retargeting task's data (src/inbetweening/training/retarget_data.py)."""
+"""The retargeting task's data (src/inbetweening/retarget/data.py)."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,8 +6,8 @@ import pytest
 
 from inbetweening.data.clips import Clip
 from inbetweening.data.errors import DatasetError
-from inbetweening.runtime.retarget_rig import TargetRig
-from inbetweening.training.retarget_data import content_of, make_pairs, select, split_clips, stats, window_loader
+from inbetweening.retarget.data import content_of, make_pairs, select, split_clips, stats, window_loader
+from inbetweening.retarget.rig import TargetRig
 from retarget_fixtures import rig_of, source_clips, source_skeleton
 
 

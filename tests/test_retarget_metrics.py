@@ -1,11 +1,11 @@
-"""Retargeting scores (src/inbetweening/evaluation/retarget_metrics.py) on motions whose figures are known."""
+"""Retargeting scores (src/inbetweening/retarget/metrics.py) on motions whose figures are known."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from inbetweening.data.contacts import FootContact
-from inbetweening.evaluation.retarget_metrics import RetargetScore, jerk
+from inbetweening.retarget.metrics import RetargetScore, jerk
 
 FPS = 30.0
 
@@ -58,7 +58,7 @@ def test_skating_is_the_foot_speed_while_the_source_foot_is_planted():
 
 
 def test_the_source_scores():
-    from inbetweening.evaluation.retarget_metrics import source_scores
+    from inbetweening.retarget.metrics import source_scores
 
     still = _pose(30, foot_speed=0.0)
     sliding = _pose(30, foot_speed=15.0)

@@ -1,11 +1,11 @@
-"""The retargeting task's module and losses (src/inbetweening/training/retarget_module.py)."""
+"""The retargeting task's module and losses (src/inbetweening/retarget/module.py)."""
 from __future__ import annotations
 
 import pytest
 import torch
 
 from inbetweening.predictor.checkpoint import read_checkpoint
-from inbetweening.training.retarget_module import smoothness
+from inbetweening.retarget.module import smoothness
 from retarget_fixtures import source_skeleton, tiny_checkpoint
 
 
@@ -26,8 +26,8 @@ def test_the_bone_term_is_zero_on_the_analytic_target_and_not_on_a_stretched_one
     bone lengths (the term is ~0), the same positions stretched by 10 % do not (the term is ~0.1)."""
     import numpy as np
 
-    from inbetweening.training.retarget_data import make_pairs
-    from inbetweening.training.retarget_module import RetargetModule
+    from inbetweening.retarget.data import make_pairs
+    from inbetweening.retarget.module import RetargetModule
     from retarget_fixtures import source_clips
 
     sk = source_skeleton()
@@ -48,7 +48,7 @@ def test_training_lowers_every_loss(tmp_path):
     sk = source_skeleton()
     before = read_checkpoint(tiny_checkpoint(tmp_path / "a.ckpt", sk))
     after = read_checkpoint(tiny_checkpoint(tmp_path / "b.ckpt", sk, steps=20))
-    from inbetweening.training.learned_retarget import LearnedRetarget
+    from inbetweening.retarget.learned import LearnedRetarget
     from retarget_fixtures import source_clips
 
     c = source_clips(sk, 1)[0]

@@ -1,4 +1,4 @@
-"""The learned retargeter's rig and features (src/inbetweening/runtime/retarget_rig.py)."""
+"""The learned retargeter's rig and features (src/inbetweening/retarget/rig.py)."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,8 +6,8 @@ import pytest
 
 from inbetweening.data.bvh import read_bvh
 from inbetweening.geometry.quaternion import qangle, quat_to_rot6d
+from inbetweening.retarget.rig import TargetRig, heading, rot6d_to_quat
 from inbetweening.runtime.model import InbetweenError
-from inbetweening.runtime.retarget_rig import TargetRig, heading, rot6d_to_quat
 from retarget_fixtures import CMU, rig_of, source_clips, source_skeleton
 
 

@@ -1,4 +1,4 @@
-"""``task=retarget`` end to end (src/inbetweening/training/retarget_task.py): ``train.py`` and ``eval.py`` on a folder
+"""``task=retarget`` end to end (src/inbetweening/retarget/task.py): ``train.py`` and ``eval.py`` on a folder
 of generated source clips (the shipped model's skeleton, Bandai-Namco-style names; no dataset needed) onto a generated
 CMU-like rig, with the default callbacks and TensorBoard, and with ``callbacks=none logger=none``."""
 from __future__ import annotations
@@ -26,8 +26,8 @@ def test_the_task_composes(config, extra, tmp_path):
 
 def test_an_in_betweening_model_or_no_rig_is_one_line(tmp_path):
     from conftest import compose_cfg
+    from inbetweening.retarget.task import train_retarget
     from inbetweening.training.config import ConfigError
-    from inbetweening.training.retarget_task import train_retarget
 
     cfg = compose_cfg("train", ["task=retarget", "model=resnet_lstm"], tmp_path, tmp_path)
     with pytest.raises(ConfigError, match="model.name: 'resnet_lstm' is an in-betweening network"):

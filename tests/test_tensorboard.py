@@ -413,7 +413,7 @@ def test_sweep_runs_are_named_by_their_swept_values(tmp_path, cache_dir, monkeyp
     logs = tmp_path / "logs"
     cfg = compose_cfg("train", TINY, logs / "train/multiruns/2026-01-01_00-00-00/0", cache_dir)
     cfg.paths.log_dir = str(logs)
-    logger = builders._make_logger(cfg, cfg.logger.tensorboard)
+    logger = builders.make_logger(cfg, cfg.logger.tensorboard)
     run = Path(logger.log_dir)
     assert run.relative_to(logs / "tensorboard").parts[0] == "zero layer (mask norm) - graph_transformer"
     assert logger.trial_id == trial_id("zero layer (mask norm) - graph_transformer", run.name)
@@ -421,7 +421,7 @@ def test_sweep_runs_are_named_by_their_swept_values(tmp_path, cache_dir, monkeyp
     assert (Path(cfg.paths.output_dir) / "tensorboard").resolve() == run.resolve()
     # a run given a directory of its own outside the log folder keeps its events in it
     cfg = compose_cfg("train", TINY, tmp_path / "elsewhere", cache_dir)
-    assert Path(builders._make_logger(cfg, cfg.logger.tensorboard).log_dir).parent.parent == tmp_path / "elsewhere/tensorboard"
+    assert Path(builders.make_logger(cfg, cfg.logger.tensorboard).log_dir).parent.parent == tmp_path / "elsewhere/tensorboard"
 
 
 def test_custom_scalars_keep_model_and_baseline_apart():

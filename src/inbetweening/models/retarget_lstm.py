@@ -4,7 +4,7 @@ mapping the source character's motion (one feature vector per frame) to the targ
 Each frame's source vector goes through ``fc_layers`` fully connected layers and ``res_blocks`` residual MLP blocks,
 one more fully connected layer, an LSTM over time (forward only by default: the seed's recurrent retargeter) and a
 linear output layer.  ``(B, T, input_dim) -> (B, T, output_dim)``.  The features and losses live in the retargeting
-task (:mod:`inbetweening.training.retarget_module`), not here.
+task (:mod:`inbetweening.retarget.module`), not here.
 """
 from __future__ import annotations
 

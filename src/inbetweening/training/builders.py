@@ -70,7 +70,7 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule, init: dict | None = No
     return module
 
 
-def _make_logger(cfg: DictConfig, node: DictConfig):
+def make_logger(cfg: DictConfig, node: DictConfig):
     """A logger from its config.  A :class:`RunLogger` without a ``name`` writes under
     :func:`~inbetweening.training.tb_runs.tensorboard_root` (``save_dir: null``) to
     ``<label>/<start time>`` (:func:`~inbetweening.training.tb_runs.run_label`, ``run_version``), or continues
@@ -87,7 +87,7 @@ def _make_logger(cfg: DictConfig, node: DictConfig):
     return instantiate(node, save_dir=str(run.parent.parent), name=run.parent.name, version=run.name)
 
 
-def _enabled(group) -> list:
+def enabled_nodes(group) -> list:
     """The nodes of a ``callbacks`` / ``logger`` group that build something: those with a ``_target_``.  A node
     without one holds an experiment's settings for a callback this run turned off (``experiment=... callbacks=none``:
     the experiment's ``callbacks.skeleton_figure.every_n_epochs`` alone), so there is nothing to build."""
@@ -95,8 +95,8 @@ def _enabled(group) -> list:
 
 
 def make_trainer(cfg: DictConfig, callbacks=True, loggers=True) -> L.Trainer:
-    cbs = [instantiate(c) for c in _enabled(cfg.get("callbacks"))] if callbacks else []
-    lgs = [_make_logger(cfg, c) for c in _enabled(cfg.get("logger"))] if loggers else []
+    cbs = [instantiate(c) for c in enabled_nodes(cfg.get("callbacks"))] if callbacks else []
+    lgs = [make_logger(cfg, c) for c in enabled_nodes(cfg.get("logger"))] if loggers else []
     if not lgs:  # logger=none: callbacks that need a logger are dropped instead of failing
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
     elif callbacks:  # TensorBoard: throughput, epoch time, gradient norm; the HParams session from the fit's start

@@ -1,6 +1,6 @@
 """Scoring of ``task=retarget`` on held-out clips (:func:`score_sets`): the learned retargeter, the analytic one (its
-training target) and copying local rotations by slot, with the figures of :mod:`inbetweening.evaluation.
-retarget_metrics` and the time per frame; the table (:func:`format_table`) and the side-by-side figure
+training target) and copying local rotations by slot, with the figures of :mod:`.metrics` and the time
+per frame; the table (:func:`format_table`) and the side-by-side figure
 (:func:`clip_figure`)."""
 from __future__ import annotations
 
@@ -11,10 +11,11 @@ import numpy as np
 
 from inbetweening.data.clips import Clip
 from inbetweening.data.contacts import body_height
-from inbetweening.evaluation.retarget_metrics import METRICS, RetargetScore, source_scores
-from inbetweening.rendering.retarget_figure import retarget_figure
-from inbetweening.runtime.retarget_rig import TargetRig
-from inbetweening.training.learned_retarget import LearnedRetarget
+
+from .figure import retarget_figure
+from .learned import LearnedRetarget
+from .metrics import METRICS, RetargetScore, source_scores
+from .rig import TargetRig
 
 __all__ = ["METHODS", "clip_figure", "format_table", "score_sets"]
 

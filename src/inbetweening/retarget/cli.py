@@ -41,8 +41,8 @@ def run(opts: dict) -> Path:
     from inbetweening.data.clips import clip_in_skeleton
     from inbetweening.data.errors import DatasetError
     from inbetweening.predictor.checkpoint import CheckpointError
+    from inbetweening.retarget.learned import LearnedRetarget, check_target
     from inbetweening.runtime.model import InbetweenError
-    from inbetweening.training.learned_retarget import LearnedRetarget, check_target
 
     for key in ("input", "output"):
         if not opts.get(key):

@@ -12,7 +12,8 @@ from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.models import build_retargeter
 from inbetweening.predictor.checkpoint import CheckpointError, read_checkpoint
 from inbetweening.runtime.model import InbetweenError
-from inbetweening.runtime.retarget_rig import TargetRig
+
+from .rig import TargetRig
 
 __all__ = ["LearnedRetarget", "check_target"]
 

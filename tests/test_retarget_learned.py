@@ -1,15 +1,15 @@
-"""The learned retargeter at run time (src/inbetweening/runtime/learned_retarget.py) and its command line
-``python -m inbetweening.retarget`` (src/inbetweening/cli/retarget.py): a BVH of the target rig out, one-line errors
+"""The learned retargeter at run time (src/inbetweening/retarget/learned.py) and its command line
+``python -m inbetweening.retarget`` (src/inbetweening/retarget/cli.py): a BVH of the target rig out, one-line errors
 with exit status 2 for a rig the checkpoint was not trained for, a malformed BVH, an output path that is the input."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from inbetweening.cli.retarget import main
 from inbetweening.data.bvh import BVH, read_bvh
 from inbetweening.data.bvh_writer import write_bvh
-from inbetweening.training.learned_retarget import LearnedRetarget
+from inbetweening.retarget.cli import main
+from inbetweening.retarget.learned import LearnedRetarget
 from retarget_fixtures import rig_of, source_clips, source_skeleton, tiny_checkpoint
 
 

@@ -5,7 +5,7 @@ Source clips come from the ``data`` group (its skeleton is the source, e.g. Band
 analytic retarget onto ``target_rig`` (a BVH file whose hierarchy is the target; its first frame is the reference
 pose); ``retarget.contents`` selects the clips (the seed's walking and running), ``retarget.train_fraction`` of them
 train (a stable hash of the name), the rest are held out.  After fitting, the held-out clips of the selection and of
-all contents are scored (:mod:`.retarget_eval`); ``retarget.json`` and ``retarget.png`` go into the run directory, the
+all contents are scored (:mod:`.evaluate`); ``retarget.json`` and ``retarget.png`` go into the run directory, the
 scalars and the figure into TensorBoard.
 """
 from __future__ import annotations
@@ -22,15 +22,16 @@ from inbetweening.data.bvh import BVH, read_bvh
 from inbetweening.data.bvh_writer import format_bvh
 from inbetweening.predictor.checkpoint import CheckpointError
 from inbetweening.runtime.model import InbetweenError
-from inbetweening.runtime.retarget_rig import TargetRig
-from inbetweening.training.builders import _enabled, _make_logger, make_datamodule, output_dir
+from inbetweening.training.builders import enabled_nodes, make_datamodule, make_logger, output_dir
 from inbetweening.training.callbacks import AtomicCheckpointIO, NonFiniteGuard
 from inbetweening.training.config import ConfigError
 from inbetweening.training.job import use_threads
-from inbetweening.training.learned_retarget import LearnedRetarget, check_target
-from inbetweening.training.retarget_data import make_pairs, select, split_clips, stats, window_loader
-from inbetweening.training.retarget_eval import clip_figure, format_table, score_sets
-from inbetweening.training.retarget_module import RetargetModule
+
+from .data import make_pairs, select, split_clips, stats, window_loader
+from .evaluate import clip_figure, format_table, score_sets
+from .learned import LearnedRetarget, check_target
+from .module import RetargetModule
+from .rig import TargetRig
 
 __all__ = ["eval_retarget", "is_retarget", "train_retarget"]
 
@@ -62,12 +63,12 @@ def _trainer(cfg: DictConfig) -> L.Trainer:
     """The ``trainer`` group with the ``callbacks`` and ``logger`` groups (the in-betweening figure callback left
     out, the checkpoint callback keeping the last weights: the task has no validation split)."""
     cbs = []
-    for node in _enabled(cfg.get("callbacks")):
+    for node in enabled_nodes(cfg.get("callbacks")):
         target = str(node["_target_"])
         if target.endswith("SkeletonFigure"):
             continue
         cbs.append(instantiate(node, monitor=None) if target.endswith(".ModelCheckpoint") else instantiate(node))
-    lgs = [_make_logger(cfg, c) for c in _enabled(cfg.get("logger"))]
+    lgs = [make_logger(cfg, c) for c in enabled_nodes(cfg.get("logger"))]
     if not lgs:
         cbs = [c for c in cbs if not isinstance(c, L.pytorch.callbacks.LearningRateMonitor)]
     return instantiate(cfg.trainer, callbacks=[*cbs, NonFiniteGuard()], logger=lgs or False,

@@ -8,7 +8,7 @@ trained on windows of normalised (source, analytic target) features with the see
 - ``bone``: the mean absolute error of the bone lengths of the position head against the rig's, relative to the
   mean bone length.
 
-The checkpoint's hyperparameters hold everything :class:`~inbetweening.training.learned_retarget.LearnedRetarget` needs
+The checkpoint's hyperparameters hold everything :class:`~inbetweening.retarget.learned.LearnedRetarget` needs
 (the source skeleton, the target rig as BVH text, the feature statistics).
 """
 from __future__ import annotations
@@ -19,8 +19,9 @@ import torch
 import torch.nn.functional as F
 
 from inbetweening.models import build_retargeter
-from inbetweening.training.learned_retarget import LearnedRetarget
 from inbetweening.training.schedules import build_optimizers
+
+from .learned import LearnedRetarget
 
 __all__ = ["RetargetModule", "smoothness"]
 

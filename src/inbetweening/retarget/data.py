@@ -1,5 +1,5 @@
 """The retargeting task's data: source clips (a dataset of the source skeleton, e.g. Bandai-Namco-2) paired with their
-analytic retarget onto the target rig (:class:`~inbetweening.runtime.retarget_rig.TargetRig`), the seed's split
+analytic retarget onto the target rig (:class:`~inbetweening.retarget.rig.TargetRig`), the seed's split
 (60 % of the clips for training, 40 % for testing, by a stable hash of the clip's name: deterministic, and the same
 clip falls on the same side whatever contents are selected), the normalisation statistics and training windows.
 """
@@ -15,7 +15,8 @@ from torch.utils.data import DataLoader, TensorDataset
 
 from inbetweening.data.clips import Clip
 from inbetweening.data.errors import DatasetError
-from inbetweening.runtime.retarget_rig import TargetRig
+
+from .rig import TargetRig
 
 __all__ = ["Pair", "content_of", "make_pairs", "select", "split_clips", "stats", "window_loader"]
 

@@ -23,10 +23,9 @@ import numpy as np
 from inbetweening.data.bvh import BVH
 from inbetweening.geometry.quaternion import qframe, qinv, qmul, qrot, quat_to_rot6d, remove_discontinuities
 from inbetweening.geometry.skeleton import Skeleton, fk
-
-from .bone_map import BoneMapError, detect_bone_map
-from .model import InbetweenError
-from .retarget import Retarget
+from inbetweening.runtime.bone_map import BoneMapError, detect_bone_map
+from inbetweening.runtime.errors import InbetweenError
+from inbetweening.runtime.retarget import Retarget
 
 __all__ = ["FEET", "TargetRig", "heading", "rot6d_to_quat"]
 
