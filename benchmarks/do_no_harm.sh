@@ -28,3 +28,5 @@ for split in standard content; do
       hydra.run.dir="$OUT/${split}_${variant}_keyframes" > "$OUT/${split}_${variant}_keyframes.log" 2>&1
   done
 done
+
+${PYTHON:-python} benchmarks/do_no_harm_table.py "$OUT"       # the tables (RESULTS.md)

@@ -15,3 +15,5 @@ extra=()
 ${PYTHON:-python} train.py -m experiment=folds data.split=fold-1,fold-2,fold-3,fold-4,fold-5 hydra/launcher=joblib \
   hydra.launcher.n_jobs=2 threads=1 logger=none "${extra[@]}" "$@" hydra.sweep.dir="$OUT/$NAME" \
   > "$OUT/$NAME.log" 2>&1
+
+${PYTHON:-python} -m inbetweening.collect "$OUT" --folds   # per fold and pooled

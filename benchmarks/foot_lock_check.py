@@ -3,12 +3,12 @@ evenly spaced test clips of a split, K = 5/15/30/45, the ratio to interpolation,
 more than 5 % and the foot skating, for a checkpoint (or an ensemble: checkpoints joined by commas) filled with
 ``foot_lock`` false, then true.
 
-    python benchmarks/foot_lock_check.py <checkpoint>[,<checkpoint>...] <split> [clips, default 60]
+    python benchmarks/foot_lock_check.py <checkpoint>[,<checkpoint>...] <split> [--clips 60]
 """
 from __future__ import annotations
 
+import argparse
 import json
-import sys
 
 import torch
 
@@ -20,9 +20,13 @@ FIGURES = ("ratio", "worse_share", "skate_model", "skate_interp", "skate_gt")
 
 
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("model", help="a checkpoint, or an ensemble: checkpoints joined by commas")
+    ap.add_argument("split", help="the Bandai-Namco-2 split whose test clips are scored (standard, content, fold-1, ...)")
+    ap.add_argument("--clips", type=int, default=60, help="test clips, evenly spaced")
+    args = ap.parse_args()
+    model, split, clips = args.model, args.split, args.clips
     torch.set_num_threads(1)
-    model, split = sys.argv[1], sys.argv[2]
-    clips = int(sys.argv[3]) if len(sys.argv) > 3 else 60
     data = load_dataset("bandai_namco", split=split)
     paths = model.split(",")
     predictor = load_predictor(paths[0], "cpu") if len(paths) == 1 else None

@@ -29,3 +29,5 @@ for c in $CONTENTS; do
       keyframe_clips=$CLIPS threads=1 "${extra[@]}" hydra.run.dir="$run" > "$run.log" 2>&1
   done
 done
+
+${PYTHON:-python} benchmarks/never_worse_table.py "$OUT"      # the tables (RESULTS.md)

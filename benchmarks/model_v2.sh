@@ -39,3 +39,5 @@ for pass in 1 2; do  # pass 1: what the targets need; pass 2: the figures withou
     fi
   done
 done
+
+${PYTHON:-python} benchmarks/model_v2_table.py "$OUT"         # the tables (RESULTS.md)

@@ -30,3 +30,5 @@ for r in "${runs[@]}"; do
   python eval.py "ckpt_path=$ckpt" data=bandai_namco data.split=$split protocol=keyframes "$SCHEDULES" threads=1 \
     "$@" hydra.run.dir="$OUT/$name" > "$OUT/$name.log" 2>&1
 done
+
+${PYTHON:-python} benchmarks/never_worse_table.py "$OUT"      # the tables (RESULTS.md)

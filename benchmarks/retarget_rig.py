@@ -4,6 +4,7 @@ renamed (UE mannequin names), with a second spine bone, twist bones under the ar
 
     python benchmarks/retarget_rig.py results/retarget/generated_rig.bvh
 """
+import argparse
 import sys
 from pathlib import Path
 
@@ -33,4 +34,6 @@ def main(out: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("out", help="the BVH file to write")
+    main(ap.parse_args().out)

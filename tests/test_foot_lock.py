@@ -280,7 +280,7 @@ def _foot_lock_strip():
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "results" / "foot_lock_strip.py"
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "foot_lock_strip.py"
     spec = importlib.util.spec_from_file_location("foot_lock_strip", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -288,7 +288,7 @@ def _foot_lock_strip():
 
 
 def test_foot_lock_strip_draws_locked_unlocked_and_truth(tiny_contact_checkpoint, tiny_checkpoint, tmp_path):
-    """results/foot_lock_strip.py's picture on a synthetic clip: three panels in its order, each titled with its foot
+    """benchmarks/foot_lock_strip.py's picture on a synthetic clip: three panels in its order, each titled with its foot
     skating, the ground truth's by the evaluation's own numbers; a model without contact channels locks on the
     contacts detected on its fill."""
     from inbetweening.api.inbetweener import Inbetweener

@@ -1,7 +1,7 @@
 """The picture of foot locking: one Bandai-Namco-2 test clip filled from keyframes alone, with the feet locked where
 the model predicts them planted, without, and the ground truth, side by side (a PNG strip of frames).
 
-    python results/foot_lock_strip.py <checkpoint> [--clip NAME] [--every 30] [--out results/foot_lock.png]
+    python benchmarks/foot_lock_strip.py <checkpoint> [--clip NAME] [--every 30] [--out results/foot_lock.png]
 
 Any checkpoint whose data names its feet: the contact is the model's prediction where its representation has contact
 channels, else the data's contact rule on the fill (the fill runtime's).  Keys

@@ -2,7 +2,7 @@
 interpolation and the ground truth side by side (a PNG strip of frames and a GIF), the feet's trails on the floor
 thick where a foot is planted (the model's predicted contact if it has contact channels, else the data's rule).
 
-    python results/strip.py <checkpoint trained on the content split> [--clip NAME] [--every 30] [--out results/unseen]
+    python benchmarks/unseen_strip.py <checkpoint trained on the content split> [--clip NAME] [--every 30] [--out results/unseen]
 
 The clip comes from the content split's test clips (contents the checkpoint never saw); keys every ``--every``
 frames, nothing else known, filled through ``Inbetweener.fill_arrays`` as in ``eval.py protocol=keyframes``.
