@@ -46,7 +46,8 @@ from .foot_lock import ClipFeet, clip_feet, gap_contacts, lock_gap
 from .model import Backend, InbetweenError
 from .partial import check_clip, known_values
 from .plan import GapPlan, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
-from .rig_fill import RigFilled, fill_rig
+from . import rig_fill
+from .rig_fill import RigFilled
 from .settings import DEFAULT_SETTINGS, FillSettings
 from .trust import Check, blend, checks_of, gap_share, gap_weights, scored
 
@@ -172,7 +173,11 @@ class FillRuntime:
         return self.fill_many([(root, local_q, keys, only, previous, partial)], file_frame=file_frame, max_gap=max_gap,
                               segment=segment, foot_lock=foot_lock, self_check=self_check, progress=progress)[0]
 
-    fill_rig = fill_rig
+    def fill_rig(self, retarget, local_q, local_p, keys: Sequence[int], **kw) -> RigFilled:
+        """Fill a humanoid rig that is not the model's skeleton through ``retarget`` (a rig <-> model
+        :class:`~inbetweening.runtime.retarget.Retarget`): the keys onto the model's skeleton, :meth:`fill` there, the
+        fill back onto the rig; :func:`.rig_fill.fill_rig` holds the road and its options."""
+        return rig_fill.fill_rig(self, retarget, local_q, local_p, keys, **kw)
 
     def fill_many(self, clips, *, file_frame: bool = False, max_gap: int | None = None, segment: bool | None = None,
                   foot_lock: bool | None = None, self_check: bool | None = None, batch_size: int | None = None,
