@@ -36,7 +36,7 @@ def _seed():
 
 
 # ------------------------------------------------------------------ graph modes, position encodings
-@pytest.mark.parametrize("graph", ["multiply", "multiply_full", "none"])
+@pytest.mark.parametrize("graph", ["multiply", "multiply_full", "learned", "none"])
 def test_shape_known_passthrough_unit_quaternions(graph):
     model = tiny(graph=graph)
     x, known = make_batch()
@@ -224,7 +224,7 @@ def test_trains(norm):
         ({"ffn_dim": 0}, r"ffn_dim: must be an integer >= 1, got 0$"),
         ({"hops": -1}, r"hops: must be an integer >= 0, got -1$"),
         ({"norm": "group"}, r"norm: must be one of \['layer', 'batch'\], got 'group'$"),
-        ({"graph": "add"}, r"graph: must be one of \['multiply', 'multiply_full', 'none'\], got 'add'$"),
+        ({"graph": "add"}, r"graph: must be one of \['multiply', 'multiply_full', 'learned', 'none'\], got 'add'$"),
         ({"pos_encoding": "rope"}, r"pos_encoding: must be one of \['sinusoidal', 'learned'\], got 'rope'$"),
         ({"activation": "swish"}, r"activation: must be one of"),
         ({"adjacency": [[1.0, 0.0], [0.0]]}, r"adjacency: must be a J x J nested list of numbers"),
@@ -233,3 +233,18 @@ def test_trains(norm):
 def test_invalid_args(kw, match):
     with pytest.raises(ValueError, match=rf"^GraphTransformer: {match}"):
         tiny(**kw)
+
+
+def test_learned_relation_starts_at_m_and_is_trained():
+    """graph='learned': M is a parameter that starts as the skeleton's M (so the first forward equals multiply_full's)
+    and moves with training, also where M is 0 (a relation to a joint that is not a neighbour can open)."""
+    torch.manual_seed(0)
+    learned, full = tiny(graph="learned"), tiny(graph="multiply_full")
+    full.load_state_dict({k: v for k, v in learned.state_dict().items() if k != "relation"})
+    assert torch.equal(learned.relation.detach(), learned.adjacency)
+    x, known = make_batch()
+    out = learned(x, known)
+    assert torch.allclose(out, full(x, known), atol=1e-6)
+    out[~known].pow(2).mean().backward()
+    grad = learned.relation.grad
+    assert grad is not None and grad[M == 0].abs().max() > 0

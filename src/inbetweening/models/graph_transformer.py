@@ -29,7 +29,7 @@ from .blocks import (
 # multiply_full : the formula read literally, softmax over ALL joints then ⊙ M, no renormalisation; non-neighbours
 #                 still leak in through the softmax normaliser (kept as an ablation).
 # none          : plain attention over all joints (what M buys).
-GRAPH_MODES = ("multiply", "multiply_full", "none")
+GRAPH_MODES = ("multiply", "multiply_full", "learned", "none")
 POS_ENCODINGS = ("sinusoidal", "learned")
 
 
@@ -71,7 +71,9 @@ class GraphTransformer(InbetweenModel):
         dropout: dropout of attention probabilities, residual branches and the feed-forward hidden layer.
         norm: ``"layer"`` or ``"batch"``.
         graph: ``"multiply"`` (the method: M ⊙ softmax over the M-neighbourhood), ``"multiply_full"`` (softmax over
-            all joints then ⊙ M, the formula read literally) or ``"none"`` (plain attention); see ``GRAPH_MODES``.
+            all joints then ⊙ M, the formula read literally), ``"learned"`` (as ``multiply_full`` with M a trained
+            parameter, initialised at the skeleton's M: the relation may open to joints that are not neighbours, or
+            close) or ``"none"`` (plain attention); see ``GRAPH_MODES``.
         max_frames: longest supported window ``T``.
         hops: documentation only (the adjacency passed in already encodes it).
         pos_encoding: temporal position encoding, ``"sinusoidal"`` or ``"learned"``.
@@ -112,6 +114,8 @@ class GraphTransformer(InbetweenModel):
         self.register_buffer("adjacency", adj)
         if graph == "multiply":  # softmax restricted to the neighbourhood: -inf (finite min) outside it
             self.register_buffer("graph_attn_mask", adj <= 0, persistent=False)
+        if graph == "learned":  # M trained, from the skeleton's
+            self.relation = nn.Parameter(adj.clone())
         self.binary_graph = bool(((adj == 0) | (adj == 1)).all())
         # the masks are fixed: whether the fused attention applies is decided once (not per layer call, which would
         # read the mask's values and split a torch.compile graph at every layer)
@@ -159,6 +163,8 @@ class GraphTransformer(InbetweenModel):
             return (None if self.binary_graph else self.adjacency), self.graph_attn_mask
         if self.graph == "multiply_full":
             return self.adjacency, None
+        if self.graph == "learned":
+            return self.relation, None
         return None, None
 
     def network(self, x: Tensor, known: Tensor, interp: Tensor | None) -> Tensor:
