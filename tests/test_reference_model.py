@@ -34,7 +34,7 @@ def test_shipped_models_load_without_training_state_and_carry_the_blend(path):
     m = InbetweenModule.load_from_checkpoint(path, map_location="cpu")
     assert m.hparams.dataset == "bandai_namco" and m.skeleton.num_joints == 21 and m.skeleton.names[0] == "Hips"
     assert m.hparams.model["name"] == "graph_transformer" and m.hparams.model["depth"] == 6
-    # the do-no-harm blend fitted on the validation windows (RESULTS.md section 5): one weight per gap length 1-54
+    # the do-no-harm blend fitted on the validation windows (RESULTS.md section 5.1): one weight per gap length 1-54
     # (the longest gap a 65-frame window holds; the bn2_partial* fits after training: up to its data's transition_max, 45,
     # longer gaps take the last weight), near interpolation for 1-frame gaps, near the network's from 15 on
     blend = list(m.hparams.blend)
@@ -47,7 +47,7 @@ def test_shipped_models_load_without_training_state_and_carry_the_blend(path):
 @needs_bn2
 def test_reference_model_fills_real_test_clips(tmp_path):
     """Fill between every 30th frame of a few real test clips: keyframes exact, the mean joint error below
-    interpolation's (the keyframes-only protocol on all test clips: 0.597 of it, RESULTS.md section 2.3)."""
+    interpolation's (the keyframes-only protocol on all test clips: 0.597 of it, RESULTS.md section 2.2)."""
     inb = Inbetweener.from_checkpoint(CKPT)
     sk = inb.module.skeleton
     errs = {"model": [], "interpolation": []}
@@ -67,7 +67,7 @@ def test_reference_model_fills_real_test_clips(tmp_path):
         out = inb.fill(bvh, keyframes=keys)  # the BVH path too: keyframe rows exact
         assert all(np.array_equal(out.motion[k], bvh.motion[k]) for k in keys)
     assert np.isfinite(errs["model"]).all()
-    # the previous model (RESULTS.md, History A.1) already passed: 9.89 cm vs 10.06 cm on these 6 clips
+    # the previous model (RESULTS.md, appendix A.1) already passed: 9.89 cm vs 10.06 cm on these 6 clips
     assert np.mean(errs["model"]) <= 0.99 * np.mean(errs["interpolation"]), errs
 
 
@@ -96,7 +96,7 @@ V2_CONTENT_CKPT = ROOT / "models" / "bn2_v2_content" / "model.ckpt"
 
 @pytest.mark.parametrize("path,step", [(V2_CKPT, 4800), (V2_CONTENT_CKPT, 3600)], ids=["bn2_v2", "bn2_v2_content"])
 def test_model_v2_predicts_contacts_and_carries_the_blend(path, step):
-    """models/bn2_v2 and its content-split companion (RESULTS.md section 6): inference-only, the best validation's
+    """models/bn2_v2 and its content-split companion (RESULTS.md section 2.2): inference-only, the best validation's
     step (model cards), foot contact channels, the do-no-harm blend up to the trained 45-frame gap; the Inbetweener
     locks feet by default."""
     ckpt = torch.load(path, map_location="cpu", weights_only=False)

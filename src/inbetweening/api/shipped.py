@@ -2,7 +2,7 @@
 (``python -m inbetweening.predict`` without ``ckpt_path``, the Blender extension's bundle, the docs' commands).
 
 ``bn2_partial`` and ``bn2_partial_twin`` (the v1 recipe with two seeds, fine-tuned for keys of some bones only) and
-``bn2_v2`` (foot contact channels), in the ensemble's member order (RESULTS.md sections 12.9 and 12.11)."""
+``bn2_v2`` (foot contact channels), in the ensemble's member order (RESULTS.md section 2)."""
 from __future__ import annotations
 
 from pathlib import Path

@@ -176,7 +176,7 @@ def bandai_namco_holdout_splits() -> dict[str, SplitRule]:
 
 # The generalisation folds: five pairs of contents, each held out whole by split ``fold-<i>``, so every content is a
 # test content once.  Fold 1 is the content split; folds 2-4 pair a walk with an arm gesture; fold 5 holds the two
-# one-handed gestures left, each with its mirror image in training (benchmarks/folds.sh, RESULTS.md section 15).
+# one-handed gestures left, each with its mirror image in training (benchmarks/folds.sh, RESULTS.md section 3.3).
 BN_FOLDS = (("run", "wave-both-hands"), ("walk", "raise-up-both-hands"), ("walk-turn-left", "wave-left-hand"),
             ("walk-turn-right", "raise-up-right-hand"), ("raise-up-left-hand", "wave-right-hand"))
 

@@ -9,7 +9,7 @@ by slerp), ``L`` being the length of the gap it lies in.  :func:`fit_blend` choo
 [0, 1] to minimise the mean joint position error (FK of the decoded prediction, the dataset's length unit) of
 held-out windows of the benchmark's form: ``n_past`` known context frames, a gap of ``L`` frames, the target.
 ``w = 0`` is the interpolation and ``w = 1`` the network, so on those windows the blend is never worse than
-either, gap length by gap length; what it buys on other motions is measured (RESULTS.md, section 5).
+either, gap length by gap length; what it buys on other motions is measured (RESULTS.md, section 5.1).
 
 Shapes: windows ``root (N, T, 3)``, ``local_q (N, T, J, 4)`` (numpy or torch, any frame).
 """

@@ -4,12 +4,12 @@ Each member predicts the same canonical windows; the ensemble's prediction is th
 its calibrated do-no-harm weight for the window's gap length (:meth:`ModelInfo.blend_weight`: how much it beat
 interpolation on validation windows of that length; 1 for a member without a blend) raised to the power
 ``share_power`` (:class:`~inbetweening.runtime.settings.FillSettings`, default 4),
-so a member much less trusted at a length has almost no say there (RESULTS.md section 12.9): the root's position, the
+so a member much less trusted at a length has almost no say there (RESULTS.md section 2.1): the root's position, the
 rotations' weighted, normalised sum (sign-aligned to the first member's), the foot contacts of the members that
 predict them.  Two models trained differently fail in different places, so their mean is closer to the motion than
 either.  The fill runtime treats the ensemble as one network: its blend weight per gap length is its most trusted
 member's (the largest of the members' weights; their weighted mean kept less of the better prediction: RESULTS.md
-section 12.8, which measures it), and the self-check on the user's keys weighs the ensemble's own prediction.
+appendix, which measures it), and the self-check on the user's keys weighs the ensemble's own prediction.
 """
 from __future__ import annotations
 

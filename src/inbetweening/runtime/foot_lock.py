@@ -20,7 +20,7 @@ generated position to the held one.
 * Where a toe is held more than its ankle (the heel up), the rest of the ankle's target is where the generated foot,
   moved so its toe sits at the toe's hold, puts the ankle; then, wherever a toe is held, the foot is turned about the
   ankle to point the toe at its hold.  Without this the feet turned on their held toes and slid them 4-5 cm/s on
-  Bandai-Namco-2 (RESULTS.md section 12.10).  A toe run is held only where that carried ankle stays within
+  Bandai-Namco-2 (RESULTS.md section 5.3).  A toe run is held only where that carried ankle stays within
   ``planted_reach`` leg lengths of the generated hip (beyond, on motions the model never saw, the wrongly held toes
   cost joint error), and only in gaps of ``short_gap`` frames or longer (in shorter ones it cost the standard
   split and the held-out walks joint error).
@@ -33,11 +33,11 @@ frames.
 
 Short gaps (under ``short_gap`` frames) of a model with contact channels take the contact the keys say
 (:func:`gap_contacts`) instead of the prediction: with keys every 5 frames the predicted contact raised the joint
-error of the shipped contact model by 3 % (RESULTS.md section 12).  In longer gaps the prediction is distrusted where
+error of the shipped contact model by 3 % (RESULTS.md section 5.3).  In longer gaps the prediction is distrusted where
 it is implausible: a predicted contact run whose held foot would be out of the leg's reach from the generated hip
 (``planted_reach``) takes the rule's contact instead (a model that does not know the motion plants feet the body
-walks away from; the locking then drags the leg, RESULTS.md section 12.9).  A gap the self-check gave back to
-interpolation takes the keys' contact alone, for every model (``trusted_share``, RESULTS.md section 12.12).
+walks away from; the locking then drags the leg, RESULTS.md section 5.3).  A gap the self-check gave back to
+interpolation takes the keys' contact alone, for every model (``trusted_share``, RESULTS.md section 5.3).
 
 The numbers named ``like_this`` are :class:`~inbetweening.runtime.settings.FillSettings` fields (``settings``).
 """
@@ -175,7 +175,7 @@ def lock_feet(skeleton: Skeleton, root: np.ndarray, local_q: np.ndarray, known_f
     """``(root (F, 3), local_q (F, J, 4))`` with the feet locked (module docstring); ``contact (F, J)`` (contact in
     [0, 1]; keyframes: their own), ``feet``: foot joint indices; ``move_root``: move the root where a locked ankle is
     out of reach (off by default: on Bandai-Namco-2 it raised the joint error at every schedule and did not lower the
-    skating, RESULTS.md section 12); ``toes``: hold the planted foot joints below the ankles too (off: the ankles
+    skating, RESULTS.md appendix); ``toes``: hold the planted foot joints below the ankles too (off: the ankles
     alone, the foot keeping its global rotation); ``settings``: ``blend_frames``, ``planted_reach``.  Returns new
     arrays; the keyframes' rows are the input's."""
     blend = settings.blend_frames
@@ -312,12 +312,12 @@ def gap_contacts(skeleton: Skeleton, feet: ClipFeet, fps: float, root: np.ndarra
     * in gaps of ``short_gap`` to ``planted_max_gap`` - 1 frames, also where the filled foot is as low as it
       stands at the keys (below its planted level) and slower than ``planted_speed`` times the contact speed.  A
       fill slides where the real foot is planted, so the speed rule alone misses most of those frames (RESULTS.md
-      section 12.4); in shorter gaps it cost joint error, in longer ones it held feet that had left.
+      section 5.3); in shorter gaps it cost joint error, in longer ones it held feet that had left.
 
     A gap the self-check gave back to interpolation (``share``, the network's share of it, under
     ``trusted_share``) takes only what its keys say (the first rule): its fill is mostly interpolation, whose feet
     are low and slow where the real ones swing, and its predicted contacts are the network's that the check
-    distrusted; on motions never seen both planted feet that were moving (RESULTS.md section 12.12).  The numbers
+    distrusted; on motions never seen both planted feet that were moving (RESULTS.md section 5.3).  The numbers
     ``like_this`` are ``settings``' (:class:`~inbetweening.runtime.settings.FillSettings`)."""
     s = settings
     n = b - a - 1

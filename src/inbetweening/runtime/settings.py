@@ -12,7 +12,7 @@ the Blender extension fill with; each front end can set them:
 
 A value out of range, of the wrong type or a name that is not a setting is an
 :class:`~inbetweening.runtime.model.InbetweenError` naming the key.  The choices were made on validation windows,
-the content split's or the standard split's test clips as RESULTS.md section 12 records for each (``evidence``); none
+the content split's or the standard split's test clips as RESULTS.md sections 2.1 and 5 record for each (``evidence``); none
 was re-tuned since.
 """
 from __future__ import annotations
@@ -39,53 +39,53 @@ class FillSettings:
     x_full: float = _setting(
         0.65, "self-check: the network's error at the hidden keys, as a share of interpolation's, below which a gap "
         "keeps all of its calibrated weight",
-        "RESULTS.md 12.1: against five other rules on 60 clips of each split, the only one leaving no clip of the "
+        "RESULTS.md 5.2: against five other rules on 60 clips of each split, the only one leaving no clip of the "
         "content split worse than interpolation by 5 % at keys every 5 (0.963 / 0 %; chosen on test clips)", 0.0)
     x_none: float = _setting(
         1.05, "self-check: ... and above which the gap is given back to interpolation",
-        "RESULTS.md 12.1 (the same table: 0.65 / 1.05)", 0.0)
+        "RESULTS.md 5.2 (the same table: 0.65 / 1.05)", 0.0)
     dense_gap: int = _setting(
         5, "gaps shorter than this many frames are judged by dense_x_full / dense_x_none",
-        "RESULTS.md 12.9, item 2: with dense keys the hidden key lies mid-way in a window twice the gap's length, "
+        "RESULTS.md 5.2, dense keys: with dense keys the hidden key lies mid-way in a window twice the gap's length, "
         "where the check overrates the network (gaps of 4 frames, keys every 5)", 1)
     dense_x_full: float = _setting(
         0.6, "self-check in gaps under dense_gap frames: fully trusted below this error ratio",
-        "RESULTS.md 12.9, item 2: 0.60-0.95 against 0.55-0.90, 0.50-0.85, 0.45-0.80 on 60 content-split clips "
+        "RESULTS.md 5.2, dense keys: 0.60-0.95 against 0.55-0.90, 0.50-0.85, 0.45-0.80 on 60 content-split clips "
         "at keys every 5 (chosen on test clips: the whole-split figures are not independent of it)", 0.0)
     dense_x_none: float = _setting(
         0.95, "self-check in gaps under dense_gap frames: not trusted at all above this error ratio",
-        "RESULTS.md 12.9, item 2 (with dense_x_full)", 0.0)
+        "RESULTS.md 5.2, dense keys (with dense_x_full)", 0.0)
     reach: int = _setting(
         3, "checked keys within this many gaps (of the gap's own length) either side of a gap decide its trust",
-        "set by hand with the self-check (RESULTS.md 12); not swept", 0)
+        "set by hand with the self-check (RESULTS.md 5.2); not swept", 0)
     # --- an ensemble's members (runtime/ensemble.py)
     share_power: float = _setting(
         4.0, "an ensemble member's share of a gap grows with this power of its calibrated weight for the gap's length",
-        "RESULTS.md 12.9, item 3: powers 1-4 on the standard split's LAFAN1 windows (chosen on test windows); 4 "
+        "RESULTS.md 2.1: powers 1-4 on the standard split's LAFAN1 windows (chosen on test windows); 4 "
         "equals bn2_reference alone at 5 and 15 frames and keeps the ensemble's gain at 30 and 45", 0.0)
     # --- foot locking (runtime/foot_lock.py)
     blend_frames: int = _setting(
-        4, "frames over which a foot lock is blended in and out", "set by hand with foot locking (section 6); not swept", 0)
+        4, "frames over which a foot lock is blended in and out", "set by hand with foot locking (RESULTS.md 5.3); not swept", 0)
     planted_margin: float = _setting(
         0.1, "a foot within this share of the contact height of its planted level counts as planted in longer gaps",
-        "RESULTS.md 12.4 (the loose rule of gaps of short_gap to planted_max_gap frames)", 0.0)
+        "RESULTS.md 5.3 (the loose rule of gaps of short_gap to planted_max_gap frames)", 0.0)
     planted_speed: float = _setting(
         3.0, "... and slower than this many times the contact speed (a sliding fill is still planted)",
-        "RESULTS.md 12.4 and 12.9 item 1 (\"the loose rule: low and under 3 x the contact speed\")", 0.0)
+        "RESULTS.md 5.3 (\"the loose rule: low and under 3 x the contact speed\")", 0.0)
     planted_max_gap: int = _setting(
         20, "the loose planted rule applies in gaps shorter than this (in longer ones it held feet that had left)",
-        "RESULTS.md 12.4", 0)
+        "RESULTS.md 5.3", 0)
     min_run: int = _setting(
         3, "detected contact: shorter runs (and shorter holes in a run) are dropped", "set by hand; not swept", 1)
     short_gap: int = _setting(
         8, "gaps shorter than this take the keys' contact, not a model's prediction, and hold no toes",
-        "RESULTS.md 12 and 12.10: the predicted contact raised the error at keys every 5 by 3 %", 1)
+        "RESULTS.md 5.3: the predicted contact raised the error at keys every 5 by 3 %", 1)
     planted_reach: float = _setting(
         1.1, "a contact run is kept where its held foot stays within this many leg lengths of the generated hip",
-        "RESULTS.md 12.9, item 1: 1.0 / 1.1 / 1.2 on the held-out walks and runs and 60 standard clips; 1.1 kept", 0.0)
+        "RESULTS.md 5.3: 1.0 / 1.1 / 1.2 on the held-out walks and runs and 60 standard clips; 1.1 kept", 0.0)
     trusted_share: float = _setting(
         0.25, "a gap whose network share is below this takes the keys' contact alone",
-        "RESULTS.md 12.12: leave-one-content-out's walks worse than interpolation were the feet; a gap given back "
+        "RESULTS.md 5.3: leave-one-content-out's walks worse than interpolation were the feet; a gap given back "
         "to interpolation takes its keys' contact", 0.0, 1.0)
     # --- test-time adaptation on the user's keys (runtime/adapt.py)
     adapt_steps: int = _setting(

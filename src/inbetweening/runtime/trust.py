@@ -14,10 +14,10 @@ one weight ``w`` in [0, 1] per gap, the product of two pieces of evidence:
   keys are ground truth the user gave: a motion the model does not know shows there first).  Gaps under
   ``dense_gap`` frames are judged more strictly (``dense_x_full``, ``dense_x_none``): with
   dense keys the hidden key lies mid-way in a window twice as long as the gaps filled, where the network gains more
-  over interpolation than in the gaps themselves, so the check overrates it there (RESULTS.md section 12.9).
+  over interpolation than in the gaps themselves, so the check overrates it there (RESULTS.md section 5.2).
 
 A gap with no checked key near it (two keys only; keys so far apart that the check's window is longer than the
-model's trained gap) keeps the calibrated weight.  RESULTS.md section 12 measures the rule against its alternatives.
+model's trained gap) keeps the calibrated weight.  RESULTS.md section 5.2 measures the rule against its alternatives.
 The thresholds are :class:`~inbetweening.runtime.settings.FillSettings` fields (defaults 0.65 / 1.05, 5 frames,
 0.60 / 0.95, 3 gaps).
 """
