@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# The 2-hour reference model (RESULTS.md section 2): the shipped model (standard split), then the same recipe on the
-# content split, each alone on the 2-core CPU (about 1 h 30 min each), then the shipped model's inference-only export
-# and the check that eval.py reproduces the run's own benchmark.
+# The 2-hour reference model (RESULTS.md sections 2.2 and 3.1): the shipped model (standard split), then the same
+# recipe on the content split, each alone on the 2-core CPU (about 1 h 30 min each), then the shipped model's
+# inference-only export and the check that eval.py reproduces the run's own benchmark.
 #   bash benchmarks/bn2_best.sh <out dir>
 set -euo pipefail
 OUT=${1:?out dir}

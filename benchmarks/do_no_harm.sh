@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The "do no harm" measurement (RESULTS.md section 5): what the do-no-harm blend (src/inbetweening/predictor/
+# The "do no harm" measurement (RESULTS.md section 5.1): what the do-no-harm blend (src/inbetweening/predictor/
 # calibration.py) does to a trained model, with and without it, on both Bandai-Namco-2 splits.
 # For each (checkpoint, split): calibrate.py fits the blend on that split's validation windows (never its test clips),
 # then eval.py scores the checkpoint and the calibrated one with the LAFAN protocol and the keyframes-only protocol

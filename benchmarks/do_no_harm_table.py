@@ -1,4 +1,4 @@
-"""The tables of the do-no-harm measurement (RESULTS.md section 5) from the runs of ``benchmarks/do_no_harm.sh``.
+"""The tables of the do-no-harm measurement (RESULTS.md section 5.1) from the runs of ``benchmarks/do_no_harm.sh``.
 
     python benchmarks/do_no_harm_table.py <out dir of do_no_harm.sh> [--copy results/do_no_harm]
 

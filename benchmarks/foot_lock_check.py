@@ -1,4 +1,4 @@
-"""Foot locking on or off with the fill's defaults (RESULTS.md section 12.4): the keyframes-only protocol on ``clips``
+"""Foot locking on or off with the fill's defaults (RESULTS.md section 5.3): the keyframes-only protocol on ``clips``
 evenly spaced test clips of a split, K = 5/15/30/45, the ratio to interpolation, the share of clips worse than it by
 more than 5 % and the foot skating, for a checkpoint (or an ensemble: checkpoints joined by commas) filled with
 ``foot_lock`` false, then true.

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Leave-one-content-out, scored (RESULTS.md section 12): each model of benchmarks/loco_train.sh on the content it never
+# Leave-one-content-out, scored (RESULTS.md section 3.2): each model of benchmarks/loco_train.sh on the content it never
 # saw, the keyframes-only protocol per clip (K = 5/15/30/45, random, extremes; CLIPS clips of the content, evenly
 # spaced), with the fill's defaults (the self-check, feet locked) and as before (self_check=false foot_lock=false).
 # About 1.5 min per run on the 2-core CPU at 60 clips.  Table: python benchmarks/never_worse_table.py <out dir>
 # SECOND=<train dir of EXPERIMENT=bn2_v2 loco_train.sh> scores instead each content's two models as one ensemble
-# (ckpt_path=[first,second], the fill's defaults; RESULTS.md section 12.8), as <content>_ensemble.
+# (ckpt_path=[first,second], the fill's defaults; RESULTS.md section 3.2), as <content>_ensemble.
 #   [SECOND=<train dir>] bash benchmarks/loco_eval.sh <train dir> <out dir> [clips]
 set -euo pipefail
 TRAIN=${1:?train dir}

@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# Does the relation matrix M help the patent's graph transformer?  (RESULTS.md section 8.2)
+# Does the relation matrix M help the patent's graph transformer?  (RESULTS.md section 10.4)
 # The shipped recipe (`+recipe=base`: 10 context frames, windows every 20 frames, centre=known, lr 1e-3, batch 32,
 # 65-frame windows, transitions 5-45) with `model.graph=multiply` (M) against `model.graph=none` (plain attention
 # over all joints), 3 seeds each, the same 308 optimiser steps: what the graph transformer reaches in 10 minutes with
-# one thread and a second job beside it (1.95 s/step, measured in the bn2_best run, RESULTS.md section 2.1).
+# one thread and a second job beside it (1.95 s/step, measured in the bn2_best run, RESULTS.md section 2.2).
 # Two 1-thread jobs side by side (xargs -P 2); scored on the BN-2 standard test split (LAFAN protocol) and keyframes
 # every 15 / 30 frames; then `python -m inbetweening.collect --seeds` (mean ± std over the 3 seeds).
 #   bash benchmarks/m_vs_none.sh <out dir>

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Model v2's figures (RESULTS.md section 6) from its training runs:
+# Model v2's figures (RESULTS.md section 2.2) from its training runs:
 #   python train.py experiment=bn2_v2 model.checkpoint_layers=false [data.split=content] hydra.run.dir=<run>
 # The run itself tests checkpoints/calibrated.ckpt (the best validation checkpoint + the do-no-harm blend fitted on the
 # validation windows) with the LAFAN protocol and the keyframes protocol (K = 5/15/30/45, random, extremes; feet

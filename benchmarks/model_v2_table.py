@@ -1,4 +1,4 @@
-"""The tables of model v2 (RESULTS.md section 6) from the files of ``benchmarks/model_v2.sh``, next to the
+"""The tables of model v2 (RESULTS.md section 2.2) from the files of ``benchmarks/model_v2.sh``, next to the
 shipped v1 models with and without the do-no-harm blend (``results/do_no_harm/``), and issue 25's targets.
 
     python benchmarks/model_v2_table.py <out dir of model_v2.sh> [--copy results/model_v2]

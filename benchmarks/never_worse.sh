@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Never worse than interpolation, planted feet (RESULTS.md section 12): the keyframes-only protocol, per clip, on both
+# Never worse than interpolation, planted feet (RESULTS.md section 5): the keyframes-only protocol, per clip, on both
 # Bandai-Namco-2 splits, K = 5/15/30/45, random, extremes, for the shipped models with the fill's defaults (the
 # self-check of the do-no-harm blend, feet locked) and, for the v1 models, as before (self_check=false
 # foot_lock=false: the calibrated weight per gap length alone, no locking), the shipped ensemble (predict's default,
-# section 12.11: the v1 + v1 twin fine-tuned for partial keys + v2), the v1 + v1 twin + v2 ensembles (section 12.9)
-# and the v1 + v2 pairs (12.8).  One job at a time, 5-20 min per run
+# section 2.1: the v1 + v1 twin fine-tuned for partial keys + v2), the v1 + v1 twin + v2 ensembles and the v1 + v2
+# pairs (section 2.1; their whole-set figures: RESULTS.md, appendix).  One job at a time, 5-20 min per run
 # on the 2-core CPU.  Table: python benchmarks/never_worse_table.py <out dir>
 #   bash benchmarks/never_worse.sh <out dir>
 set -euo pipefail

@@ -1,4 +1,4 @@
-"""The tables of "never worse than interpolation, planted feet" (RESULTS.md section 12) from the runs of
+"""The tables of "never worse than interpolation, planted feet" (RESULTS.md section 5) from the runs of
 ``benchmarks/never_worse.sh`` and ``benchmarks/loco_eval.sh``.
 
     python benchmarks/never_worse_table.py <out dir> [--copy results/never_worse]

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Partial keys (issue 37, RESULTS.md section 13): the keyframes-only protocol's partial<K> schedules (whole keys every
+# Partial keys (issue 37, RESULTS.md section 8): the keyframes-only protocol's partial<K> schedules (whole keys every
 # K frames, a key of one body part halfway between) on the Bandai-Namco-2 standard test clips, for each checkpoint
 # given (e.g. the model fine-tuned for partial keys, experiment=bn2_partial, and the one it started from), with the
 # fill's defaults (self-check, feet locked).  One job at a time, about 5-15 min each on the 2-core CPU with one thread;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The recipe ablation of RESULTS.md section 9, as it was run: two 1-thread jobs side by side (xargs -P 2), each a
+# The recipe ablation of RESULTS.md section 10.5, as it was run: two 1-thread jobs side by side (xargs -P 2), each a
 # `python train.py ablation=recipe +recipe=<lever> model=<model>` run for the optimiser steps that this lever and model
 # reach in 10 minutes on this CPU with a second job beside it (benchmarks/recipe_budget.py), validated 4 times, then
 # `python -m inbetweening.collect --seeds`.
@@ -26,7 +26,7 @@ jobs=(
   "gt_none_s1       last   1 451  $GT model.graph=none"
   # round 2 (issue 12): single levers on top of base, then the second seeds. rot6d / velocity / keyframe get base's
   # step budget: the extra input channels and the extra L1 term cost under 1 % of a step (the runs' own s/step,
-  # RESULTS.md 9.2)
+  # RESULTS.md 10.5)
   "ft_rot6d_s1      rot6d    1 1091 $FT"
   "ft_velocity_s1   velocity 1 1091 $FT"
   "ft_keyframe_s1   keyframe 1 1091 $FT"

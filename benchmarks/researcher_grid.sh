@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# The researcher's grid on Bandai-Namco-2, as it was run (results/researcher_grid/, RESULTS.md): the graph transformer
-# over mask / depth / heads / norm, one factor at a time around the default (lerp mask, depth 6, 4 heads, layer norm),
-# 2 seeds each, at an equal budget of 200 optimiser steps (the budget of section 2's one-seed table), then
-# `python -m inbetweening.collect --seeds` (mean ± std over the seeds; per-seed rows too).
+# The researcher's grid on Bandai-Namco-2, as it was run (results/researcher_grid/, RESULTS.md section 10.3): the
+# graph transformer over mask / depth / heads / norm, one factor at a time around the default (lerp mask, depth 6,
+# 4 heads, layer norm), 2 seeds each, at an equal budget of 200 optimiser steps (the budget of the one-seed table,
+# RESULTS.md appendix A.2), then `python -m inbetweening.collect --seeds` (mean ± std over the seeds; per-seed rows
+# too).
 #   bash benchmarks/researcher_grid.sh [sweep dir]          (default logs/researcher_grid; needs BANDAI_NAMCO_PATH
 #                                                           or the dataset at ../shared/datasets/bandai-namco-2.zip)
 #
@@ -20,7 +21,7 @@
 # Why not the full factorial (mask x depth 6,12 x heads 4,8 x norm x 2 seeds = 32 jobs): 30-step probes on the quiet
 # machine trained depth 6 / 4 heads / layer norm at 1.27 s/step and depth 12 / 8 heads / batch norm at 3.7 s/step;
 # 32 jobs at 150 steps would take over 3 hours, against the 80 minutes this run had.  One factor at a time, at the
-# 200 steps of section 2's one-seed table, fits.
+# 200 steps of the one-seed table (RESULTS.md appendix A.2), fits.
 set -euo pipefail
 OUT=${1:-logs/researcher_grid}
 export OMP_NUM_THREADS=1

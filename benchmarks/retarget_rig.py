@@ -1,4 +1,4 @@
-"""Write the generated target character of RESULTS.md section 13: the shipped model's 21-joint skeleton re-proportioned,
+"""Write the generated target character of RESULTS.md section 9: the shipped model's 21-joint skeleton re-proportioned,
 renamed (UE mannequin names), with a second spine bone, twist bones under the arms, two fingers per hand and a static
 ``root`` bone above the hips, in metres and Z up (tests/characters.py), standing in its T-pose rest.
 

@@ -1,4 +1,4 @@
-"""Test-time adaptation on the user's keys (``fill.adapt_steps``, RESULTS.md section 15): the content-split ensemble
+"""Test-time adaptation on the user's keys (``fill.adapt_steps``, RESULTS.md section 3.4): the content-split ensemble
 (motions it never saw: Bandai-Namco-2's ``run`` and ``wave-both-hands``) fills every ``--every``-th test clip of the
 content split from keys every ``--keys`` frames, without adaptation and with each ``--steps`` setting; per clip the
 joint error over interpolation's (every frame), whether the adapted network was kept and its held-out keys' error

@@ -1,4 +1,4 @@
-"""The picture of RESULTS.md section 3: one clip of a held-out content filled from keyframes alone, the model,
+"""The picture of RESULTS.md section 3.1: one clip of a held-out content filled from keyframes alone, the model,
 interpolation and the ground truth side by side (a PNG strip of frames and a GIF), the feet's trails on the floor
 thick where a foot is planted (the model's predicted contact if it has contact channels, else the data's rule).
 

@@ -24,7 +24,7 @@
 # (/tmp/cache), PROBE_STEPS (150), RESUME=1 (part2 on the same warm machine: continue $RUN from its last.ckpt instead of
 # starting afresh, reusing $ZIP; then only .gpu/whl need be carried), RECIPE_ARGS (another recipe than v3's, as hydra
 # overrides in one string: RECIPE_ARGS="experiment=bn2_best model.checkpoint_layers=false seed=7" trains the v1
-# recipe with another seed, RESULTS.md section 12.9).
+# recipe with another seed, RESULTS.md sections 2.1 and 2.2).
 # As run (device time is short): `part2 4800 calibrate=false`, the do-no-harm blend fitted afterwards on the CPU machine
 # (`python calibrate.py ckpt_path=<best.ckpt> data=bandai_namco`, about 3 min; on the device it would run on its CPU).
 set -euo pipefail
