@@ -78,6 +78,9 @@ def test_the_runtime_wheel_holds_the_runtime_and_what_it_imports(tmp_path):
 
     mods = runtime_modules()
     assert "inbetweening.runtime.fill" in mods and "inbetweening.runtime.onnx_backend" in mods
+    dcc = REPO / "src" / "inbetweening" / "dcc"  # the DCC core the extension fills through, every module of it
+    assert {m for m in mods if m.startswith("inbetweening.dcc")} == {"inbetweening.dcc"} | {
+        f"inbetweening.dcc.{f.stem}" for f in dcc.glob("*.py") if f.stem != "__init__"}
     assert "inbetweening.geometry.ik" in mods and "inbetweening.data.contacts" in mods
     assert "inbetweening.runtime.torch_backend" not in mods and not any(m.startswith("inbetweening.tools") for m in mods)
     whl = runtime_wheel(tmp_path, "9.9")
@@ -86,6 +89,7 @@ def test_the_runtime_wheel_holds_the_runtime_and_what_it_imports(tmp_path):
         record = z.read("inbetweening_runtime-9.9.dist-info/RECORD").decode()
         src = z.read("inbetweening/runtime/fill.py")
     assert "inbetweening/runtime/fill.py" in names and "inbetweening/__init__.py" in names
+    assert "inbetweening/dcc/fill.py" in names and "inbetweening/dcc/host.py" in names
     assert src == (REPO / "src" / "inbetweening" / "runtime" / "fill.py").read_bytes()  # the file itself, no copy
     assert all(n in record for n in names if not n.endswith("RECORD"))
 
@@ -96,6 +100,20 @@ def test_a_runtime_module_that_imports_torch_fails_the_build(monkeypatch):
     monkeypatch.setattr(build, "RUNTIME_LEFT_OUT", ())  # torch_backend imports torch at the top
     with pytest.raises(build.BuildError, match=r"inbetweening.runtime.torch_backend imports torch"):
         build.runtime_modules()
+
+
+def test_a_dcc_core_module_that_imports_bpy_or_torch_fails_the_build(monkeypatch, tmp_path):
+    """The DCC core is bundled under the runtime's rule: a module of it importing a host's module (``bpy``) or
+    PyTorch fails the build, naming it."""
+    from inbetweening.blender import build
+
+    real = build._module_file
+    bad = tmp_path / "bad.py"
+    for module in ("bpy", "torch"):
+        bad.write_text(f"import numpy\nimport {module}\n")
+        monkeypatch.setattr(build, "_module_file", lambda name: bad if name == "inbetweening.dcc.keys" else real(name))
+        with pytest.raises(build.BuildError, match=rf"inbetweening.dcc.keys imports {module}: the bundled runtime"):
+            build.runtime_modules()
 
 
 def test_extension_sources_need_no_torch():

@@ -19,6 +19,7 @@ LAYERS = [
     ["api"],
     ["training"],
     ["rendering"],
+    ["dcc"],                     # the host-independent part of a DCC front end (Blender's, a Maya one's)
     ["runtime"],
     ["predictor"],
     ["evaluation"],

@@ -1,7 +1,8 @@
 """Build the Blender extension: per-platform zips with the add-on, the models as ONNX + JSON metadata (by default the
 ensemble of :data:`DEFAULT_CKPTS`, what the extension fills with: :func:`bundle_models`), the fill runtime as a wheel
-of its own (:func:`runtime_wheel`: the project's own ``inbetweening.runtime`` and the modules it imports,
-not a copy) and the ``onnxruntime`` wheels (with their dependencies, except numpy: Blender's own is used)."""
+of its own (:func:`runtime_wheel`: the project's own ``inbetweening.runtime``, the DCC core ``inbetweening.dcc`` and
+the modules they import, not a copy) and the ``onnxruntime`` wheels (with their dependencies, except numpy: Blender's
+own is used)."""
 from __future__ import annotations
 
 import ast
@@ -20,9 +21,11 @@ from pathlib import Path
 
 from inbetweening.api.shipped import SHIPPED_CKPTS
 
-EXTENSION_FILES = ("__init__.py", "operators.py", "model.py", "rig.py", "humanoid.py", "rigify.py",
+EXTENSION_FILES = ("__init__.py", "operators.py", "model.py", "curves.py", "rig.py", "humanoid.py", "rigify.py",
                    "rigify_solve.py", "bone_map_panel.py", "record.py", "loop.py")
 RUNTIME = "inbetweening.runtime"  # bundled with every module of the package it imports
+DCC = "inbetweening.dcc"  # the DCC core the extension fills through (numpy and the runtime only), bundled the same
+BUNDLED = (RUNTIME, DCC)
 RUNTIME_LEFT_OUT = ("inbetweening.runtime.torch_backend",)  # the torch backend stays behind (the one torch module)
 RUNTIME_THIRD_PARTY = ("numpy", "onnxruntime")  # what the bundled modules may import besides the standard library
 # Blender platform name -> pip platform tag of the wheels (Blender 4.2 and 5.0 run Python 3.11)
@@ -179,14 +182,16 @@ def _optional(node, parents: dict) -> bool:
 
 
 def runtime_modules() -> dict[str, Path]:
-    """``{module name: file}`` of the fill runtime and every module of this package it imports, transitively (with the
-    packages' ``__init__``), read from the source; :class:`BuildError` when one of them imports anything but the
-    standard library, :data:`RUNTIME_THIRD_PARTY` and the package itself at import time (imports inside functions and
-    those guarded by ``except ImportError`` are not followed)."""
+    """``{module name: file}`` of the fill runtime and the DCC core (:data:`BUNDLED`) and every module of this package
+    they import, transitively (with the packages' ``__init__``), read from the source; :class:`BuildError` when one of
+    them imports anything but the standard library, :data:`RUNTIME_THIRD_PARTY` and the package itself at import time
+    (imports inside functions and those guarded by ``except ImportError`` are not followed)."""
     found: dict[str, Path] = {}
-    package = _module_file(RUNTIME).parent
-    todo = [RUNTIME, *(f"{RUNTIME}.{f.stem}" for f in sorted(package.glob("*.py")) if f.stem != "__init__"),
-            *(f"{RUNTIME}.{f.parent.name}" for f in sorted(package.glob("*/__init__.py")))]  # and its subpackages
+    todo = []
+    for top in BUNDLED:
+        package = _module_file(top).parent
+        todo += [top, *(f"{top}.{f.stem}" for f in sorted(package.glob("*.py")) if f.stem != "__init__"),
+                 *(f"{top}.{f.parent.name}" for f in sorted(package.glob("*/__init__.py")))]  # and its subpackages
     while todo:
         name = todo.pop()
         if name in found or name in RUNTIME_LEFT_OUT:
@@ -229,7 +234,7 @@ def runtime_wheel(out_dir: Path, version: str) -> Path:
     files = {name.replace(".", "/") + ("/__init__.py" if f.name == "__init__.py" else ".py"): f.read_bytes()
              for name, f in runtime_modules().items()}
     files[f"{dist}.dist-info/METADATA"] = (f"Metadata-Version: 2.1\nName: inbetweening-runtime\nVersion: {version}\n"
-                                           "Summary: The in-betweening fill runtime (numpy; no PyTorch)\n"
+                                           "Summary: The in-betweening fill runtime and DCC core (numpy; no PyTorch)\n"
                                            "Requires-Dist: numpy\n").encode()
     files[f"{dist}.dist-info/WHEEL"] = (b"Wheel-Version: 1.0\nGenerator: inbetweening.blender.build\n"
                                         b"Root-Is-Purelib: true\nTag: py3-none-any\n")

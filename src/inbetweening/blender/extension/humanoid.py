@@ -1,19 +1,18 @@
 """Blender glue for any humanoid armature (not the model's own skeleton): the armature's rest pose as a skeleton in the
-BVH convention (every rest rotation the identity), its pose channels to and from local rotations and translations, and
-the bone-map override saved on the armature.  The fill is the runtime's (``FillRuntime.fill_rig``): this module only
-reads and writes the armature.
+BVH convention (every rest rotation the identity), its pose channels read and written, and the bone-map override
+saved on the armature.  The bone map, the retargeting and the fill are the DCC core's
+(:class:`inbetweening.dcc.MappedRig`): this module only reads and writes the armature.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from inbetweening.geometry.quaternion import qinv, qmul, qnormalize
+from inbetweening import dcc
 from inbetweening.runtime import ModelInfo
 
-from .rig import RigError, _to_np, bone_path, channelbag, curve_values, rot_path, rotation_channels, rotation_quats
+from .curves import ArmatureCurves, OnArmature, bone_path, curve_values
+from .rig import RigError, _to_np, rot_path, rotation_channels, rotation_quats
 
-# ---------------------------------------------------------------------------------------------- any humanoid
-ROT_LOC = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle")
 VIRTUAL_ROOT = "(armature)"  # the joint above an armature's several root bones (the armature's origin)
 
 
@@ -26,13 +25,9 @@ def stored_override(obj) -> dict | None:
 
 
 def is_model_skeleton(obj, model: ModelInfo) -> bool:
-    """Whether the armature has every bone of the model's skeleton (by name) and the model fills only its own skeleton
-    (its joints are not the humanoid slots): :class:`Rig`.  A model of the humanoid slots fills every armature, its own
-    skeleton too, through :class:`HumanoidRig` (the identity case of the retargeting)."""
-    from inbetweening.runtime.bone_map import SLOTS
-
-    bones = obj.data.bones
-    return set(model.skeleton.names) != set(SLOTS) and all(bones.get(n) is not None for n in model.skeleton.names)
+    """Whether the armature is filled as the model's own skeleton (:class:`~.rig.Rig`;
+    :func:`inbetweening.dcc.is_model_skeleton` of its bones' names)."""
+    return dcc.is_model_skeleton([b.name for b in obj.data.bones], model)
 
 
 def armature_skeleton(obj):
@@ -63,10 +58,9 @@ def armature_skeleton(obj):
     return names, parents, np.array(offsets, dtype=np.float64), bones
 
 
-class HumanoidRig:
-    """Any humanoid armature (not the model's skeleton): its bones mapped to the model's slots
-    (:func:`inbetweening.runtime.bone_map.detect_bone_map`, with the override saved on the armature), its motion read
-    and written in the BVH convention the runtime's :class:`~inbetweening.runtime.retarget.Retarget` takes.
+class HumanoidRig(OnArmature, dcc.MappedRig):
+    """Any humanoid armature (not the model's skeleton): its bones mapped to the model's slots (with the override saved
+    on the armature), its channels read and written in the BVH convention of :class:`inbetweening.dcc.MappedRig`.
 
     With ``R_b`` a bone's rest rotation (``bone.matrix_local``) and ``B_b`` its channels (``matrix_basis``), its
     armature-space pose is ``M_b = M_parent R_parent^-1 R_b B_b``; the BVH convention's global rotation
@@ -76,59 +70,31 @@ class HumanoidRig:
     """
 
     def __init__(self, obj, model: ModelInfo, override: dict | None = None):
-        from inbetweening.geometry.skeleton import Skeleton
-        from inbetweening.runtime.bone_map import detect_bone_map
-
         if obj is None or obj.type != "ARMATURE":
             raise RigError("select an armature (the active object is not one)")
-        self.obj, self.model = obj, model
+        self.obj = obj
         names, parents, offsets, bones = armature_skeleton(obj)
-        self.names, self.parents, self.offsets, self.bones = names, parents, offsets, bones
-        self.skeleton = Skeleton(names, parents, offsets)
-        self.map = detect_bone_map(names, parents, offsets, override, where=f"armature '{obj.name}'")
+        super().__init__(ArmatureCurves(obj), model, f"armature '{obj.name}'", names, parents, offsets, override)
+        self.bones = bones
         self.pbones = [obj.pose.bones[b.name] if b is not None else None for b in bones]
         self.r = np.array([_to_np(b.matrix_local.to_quaternion()) if b is not None else [1.0, 0, 0, 0]
                            for b in bones])
-        self.connected = [b is not None and b.use_connect for b in bones]
-        self.fcurves = channelbag(obj)
-        self.retarget = None
-        self.rot_bones: list[int] = []
-        self.movers: list[int] = []
 
-    def fcurve(self, path: str, index: int):
-        return self.fcurves.fcurves.find(path, index=index) if self.fcurves is not None else None
-
-    def key_curves(self) -> list:
+    def key_channels(self) -> list:
         """The rotation and location curves of the mapped bones: their keys are the fill's."""
-        heads = {bone_path(b, "")[:-1] for b in self.map.slots.values()}
-        return [fc for fc in (self.fcurves.fcurves if self.fcurves is not None else ())
-                if fc.data_path.rsplit(".", 1)[0] in heads and fc.data_path.rsplit(".", 1)[-1] in ROT_LOC]
+        return self.curves.bone_channels(self.map.slots.values())
 
-    def _has_location_curve(self, j: int) -> bool:
+    def is_bone(self, j: int) -> bool:
+        return self.pbones[j] is not None
+
+    def connected(self, j: int) -> bool:
+        return self.bones[j] is not None and self.bones[j].use_connect
+
+    def has_location(self, j: int) -> bool:
         pb = self.pbones[j]
         return pb is not None and any(self.fcurve(bone_path(pb.name, "location"), i) is not None for i in range(3))
 
-    def plan(self, reference: np.ndarray, poses: np.ndarray | None = None, translations: np.ndarray | None = None):
-        """The :class:`Retarget` (``reference``: the local rotations at the first key; ``poses``, ``translations``: the
-        local rotations and translations at every key, where the armature's up, natural pose and floor are read), the
-        bones whose rotation the fill writes (a slot or between slots in a chain) and ``movers``: the bone that carries
-        the hips' translation (the nearest unconnected bone at or above the hips with location curves, else the hips
-        when unconnected)."""
-        from inbetweening.runtime.retarget import Retarget
-
-        self.retarget = Retarget(self.skeleton, self.model.skeleton, self.map, reference=reference, poses=poses,
-                                 translations=translations, ends=self.tips())
-        self.rot_bones = [j for j, p in enumerate(self.retarget.rig_plan) if p[0] != "free" and self.pbones[j]]
-        hips = self.names.index(self.map.slots["Hips"])
-        chain = [hips]
-        while self.parents[chain[-1]] >= 0:
-            chain.append(self.parents[chain[-1]])
-        free = [j for j in chain if self.pbones[j] is not None and not self.connected[j]]
-        keyed = [j for j in free if self._has_location_curve(j)]
-        self.movers = keyed[:1] or ([hips] if hips in free else [])
-        return self.retarget
-
-    def tips(self) -> dict[int, np.ndarray]:
+    def ends(self) -> dict[int, np.ndarray]:
         """Per leaf bone, head to tail in armature space (a BVH end site: a forearm without a hand points by it)."""
         return {j: np.array(b.tail_local - b.head_local, dtype=np.float64) for j, b in enumerate(self.bones)
                 if b is not None and not b.children}
@@ -144,7 +110,7 @@ class HumanoidRig:
             out += [(j, bone_path(self.pbones[j].name, "location"), i) for i in range(3)]
         return out
 
-    def read_channels(self, frames, reading=None):
+    def read_channels(self, frames):
         """The raw rotation values ``[F][J]`` and locations ``(F, J, 3)`` of the bones at ``frames`` (F-curves
         evaluated; the current value where a channel has no curve)."""
         f, j = len(frames), len(self.pbones)
@@ -158,7 +124,7 @@ class HumanoidRig:
                 cur = list(getattr(pb, path))
                 raw_k = np.stack([curve_values(self.fcurve(bone_path(pb.name, path), i), cur[i], frames)
                                   for i in range(n)], -1)
-                if not self.connected[k]:
+                if not self.bones[k].use_connect:
                     lcur = list(pb.location)
                     loc[:, k] = np.stack([curve_values(self.fcurve(bone_path(pb.name, "location"), i), lcur[i], frames)
                                           for i in range(3)], -1)
@@ -175,22 +141,14 @@ class HumanoidRig:
         for k, pb in enumerate(self.pbones):
             if pb is not None:
                 qb[:, k] = rotation_quats(pb.rotation_mode, np.array([raw[t][k] for t in range(f)]))
-        from inbetweening.geometry.quaternion import qrot
-
-        r = self.r[None]
-        lq = qnormalize(qmul(qmul(r, qb), qinv(r)), 0.0)
-        lp = self.offsets[None] + qrot(np.broadcast_to(r, loc.shape[:-1] + (4,)), loc)
+        lq, lp = self.to_local(qb, loc)
         return lq, lp, raw
 
     def basis_values(self, frames, local_q, local_p, raw_prev):
         """Channel values ``{(joint, path, index): array over frames}`` of :meth:`channels` posing the armature as the
         BVH-convention ``local_q``, ``local_p`` at ``frames`` (Euler and quaternion values continuous with
-        ``raw_prev``, as :meth:`Rig.basis_values`)."""
-        from inbetweening.geometry.quaternion import qrot
-
-        r = self.r[None]
-        qb = qmul(qmul(qinv(r), local_q), r)
-        loc = qrot(np.broadcast_to(qinv(r), local_p.shape[:-1] + (4,)), local_p - self.offsets[None])
+        ``raw_prev``, as :meth:`Rig.basis_values <.rig.Rig.basis_values>`)."""
+        qb, loc = self.to_basis(local_q, local_p)
         out = rotation_channels(self.pbones, qb, frames, raw_prev, self.rot_bones)
         for k in self.movers:
             for i in range(3):

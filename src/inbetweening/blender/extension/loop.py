@@ -1,10 +1,6 @@
-"""The animator's loop around the fill: what the model did per gap (the *Last Fill* sub-panel), the *Discard Edits*
-and *Auto Re-fill* settings, and the handlers behind Auto Re-fill.
-
-**What the model did.**  Per gap the fill re-filled: the network's share of each window (the do-no-harm blend
-weight, 100 % where the model has no blend) and the frames where each foot is planted (the model's predicted contact
-above one half, or the contact rule on the fill for a model without contact channels); kept in the record
-(:mod:`.record`), so gaps kept from an earlier fill show what was done then.
+"""The animator's loop around the fill in Blender: the *Last Fill* sub-panel (what the model did per gap, from the
+record: :func:`inbetweening.dcc.report.summary_lines`), the *Discard Edits* and *Auto Re-fill* settings, and the
+handlers behind Auto Re-fill.  Hand edits and the re-fill plan are the DCC core's (:mod:`inbetweening.dcc`).
 
 **Auto Re-fill.**  A ``depsgraph_update_post`` handler notices that the active armature's action changed (an update
 of an Action ID) and compares a fingerprint of its keys (frames, values, key types) with the one it last saw; a
@@ -24,11 +20,11 @@ import numpy as np
 from bpy.app.handlers import persistent
 from bpy.props import BoolProperty
 
-from inbetweening.data.contacts import CONTACT_THRESHOLD
-from inbetweening.data.mirror import side_of
-from inbetweening.runtime.foot_lock import legs
+from inbetweening.dcc.record import digest
+from inbetweening.dcc.report import summary_lines
 
 from . import record
+from .curves import channelbag
 
 SETTLE = 0.3  # seconds the keys must stay unchanged before Auto Re-fill runs
 BUSY_MODAL = ("TRANSFORM_OT", "GRAPH_OT", "ACTION_OT", "ANIM_OT", "POSE_OT")  # modal tools that move keys
@@ -48,71 +44,6 @@ def auto_refill_property():
         name="Auto Re-fill",
         description="Re-fill the gaps next to a key you change, as soon as you let go of it (an undo step of its own)",
         default=False, update=lambda self, context: forget())
-
-
-# ---------------------------------------------------------------------------------------------- what the model did
-def _runs(frames: np.ndarray, flags: np.ndarray) -> list[list[int]]:
-    """``[[start, end], ...]`` (inclusive frames) of the runs of True in ``flags`` over consecutive ``frames``."""
-    out: list[list[int]] = []
-    for f, on in zip(frames.tolist(), flags.tolist()):
-        if on and out and out[-1][1] == f - 1:
-            out[-1][1] = f
-        elif on:
-            out.append([f, f])
-    return out
-
-
-def gap_info(frames: np.ndarray, gaps, filled, model_info) -> dict:
-    """``{(a, b): {"windows": [[a, b, share]], "planted": {"L": [[s, e]], "R": ...} or None}}`` for the gaps filled
-    now, from the runtime's :class:`~inbetweening.runtime.fill.Filled` over ``frames`` (its rows); the shares exact
-    (the next re-fill compares them with its own)."""
-    out = {}
-    contact = filled.contact
-    sides = []
-    if contact is not None and filled.feet:  # the model's feet, or those found by name (a model without them)
-        sk = model_info.skeleton
-        for _, _, ankle in legs(sk, filled.feet):  # a foot is planted where its ankle or toe is
-            side = side_of(sk.names[ankle])
-            joints = [j for j in filled.feet if j == ankle or (side and side_of(sk.names[j]) == side)]
-            sides.append(({"left": "L", "right": "R"}.get(side, sk.names[ankle]), joints))
-    pos = {int(f): i for i, f in enumerate(frames)}
-    for a, b in gaps:
-        windows = [[int(frames[i]), int(frames[j]), float(w)] for i, j, w in filled.segments
-                   if a <= frames[i] and frames[j] <= b]
-        planted = None
-        if sides:
-            rows = np.array([pos[f] for f in range(a + 1, b)])
-            gen = np.arange(a + 1, b)
-            planted = {name: _runs(gen, (np.nan_to_num(contact[rows][:, js]) > CONTACT_THRESHOLD).any(-1))
-                       for name, js in sides}
-        out[(a, b)] = {"windows": windows, "planted": planted}
-    return out
-
-
-def _spans(runs) -> str:
-    return ", ".join(f"{s}" if s == e else f"{s}–{e}" for s, e in runs) or "none"
-
-
-def summary_lines(meta: dict | None) -> list[tuple[str, str]]:
-    """The Last Fill panel's lines ``(text, icon)`` for a record's meta (:func:`record.load`)."""
-    if meta is None:
-        return [("Not filled yet", "INFO")]
-    last = meta.get("last", {})
-    lines = [(f"Last fill: {last.get('gaps', 0)} gap(s) filled, {last.get('kept', 0)} kept", "IPO_BEZIER")]
-    if last.get("edits"):
-        lines.append((f"{last['edits']} hand edit(s) kept as keys", "KEYFRAME_HLT"))
-    if last.get("partial_keys"):
-        lines.append((f"{last['partial_keys']} partial key(s): some bones keyed", "KEYFRAME"))
-    refilled = {tuple(g) for g in last.get("refilled", [])}
-    for (a, b), gi in zip(meta["gaps"], meta["info"]):
-        shares = " / ".join(f"{100 * w:.0f} %" for _, _, w in gi.get("windows", [])) or "?"
-        mark = "" if (a, b) in refilled else "  (kept)"
-        lines.append((f"{a}–{b}: network {shares}{mark}", "IPO_EASE_IN_OUT"))
-        planted = gi.get("planted")
-        if planted is not None:
-            feet = " · ".join(f"{side} {_spans(runs)}" for side, runs in planted.items())
-            lines.append((f"feet planted: {feet}", "BLANK1"))
-    return lines
 
 
 class _LastFillPanel:
@@ -159,8 +90,6 @@ _busy = False
 
 def fingerprint(obj) -> str | None:
     """A digest of every key of the armature's animation (frame, value, key type per F-curve)."""
-    from .rig import channelbag
-
     cb = channelbag(obj) if obj is not None and obj.type == "ARMATURE" else None
     if cb is None:
         return None
@@ -172,7 +101,7 @@ def fingerprint(obj) -> str | None:
         fc.keyframe_points.foreach_get("co", co)
         fc.keyframe_points.foreach_get("type", typ)
         parts += [f"{fc.data_path}[{fc.array_index}]".encode(), co, typ]
-    return record.digest(*parts)
+    return digest(*parts)
 
 
 def _key(obj):

@@ -1,4 +1,5 @@
-"""Blender glue: the armature's animation <-> the model's (root, local quaternion) arrays, and writing keys.
+"""Blender glue: pose channels in each rotation mode, and the rig of an armature of the model's own skeleton
+(:class:`Rig`: the armature's animation <-> the model's root and local quaternions).
 
 A pose bone's armature-space rotation is ``M_j = C G_j C^-1 R_j`` when the armature's rest pose is the model's zero
 pose (what Blender's BVH importer builds): ``G_j`` the joint's global rotation in the model's world, ``C`` the
@@ -10,59 +11,21 @@ evaluated pose (a static ``joint_Root`` above ``Hips`` in Bandai-Namco files).
 """
 from __future__ import annotations
 
-import bpy
 import numpy as np
 from mathutils import Euler, Matrix, Quaternion, Vector
 
+from inbetweening import dcc
+from inbetweening.dcc import RigError
 from inbetweening.geometry.quaternion import euler_to_quat_np, qinv, qmul, qnormalize
 from inbetweening.runtime import ModelInfo
 
+from .curves import ArmatureCurves, OnArmature, bone_path, channelbag, curve_values  # noqa: F401  (channelbag: benchmarks')
+
 ROT_PATH = {"QUATERNION": ("rotation_quaternion", 4), "AXIS_ANGLE": ("rotation_axis_angle", 4)}
-GENERATED = "GENERATED" if "GENERATED" in bpy.types.Keyframe.bl_rna.properties["type"].enum_items.keys() else "BREAKDOWN"
-POINT_FLOATS = ("co", "handle_left", "handle_right")
-POINT_SCALARS = (("interpolation", np.int32), ("handle_left_type", np.int32), ("handle_right_type", np.int32),
-                 ("type", np.int32), ("easing", np.int32), ("back", np.float32), ("amplitude", np.float32),
-                 ("period", np.float32), ("select_control_point", np.int32), ("select_left_handle", np.int32),
-                 ("select_right_handle", np.int32))
-
-
-class RigError(ValueError):
-    """The armature cannot be filled with this model; the message says why."""
-
-
-def _enum_index(prop: str, name: str) -> int:
-    return bpy.types.Keyframe.bl_rna.properties[prop].enum_items.keys().index(name)
 
 
 def rot_path(pb) -> tuple[str, int]:
     return ROT_PATH.get(pb.rotation_mode, ("rotation_euler", 3))
-
-
-def channelbag(obj, create: bool = False):
-    """The F-curve container of the object's action (the slot's channelbag in Blender 4.4+, the action before)."""
-    ad = obj.animation_data
-    if ad is None or ad.action is None:
-        return None
-    slot = getattr(ad, "action_slot", None)
-    if slot is not None:
-        from bpy_extras import anim_utils
-
-        if create:
-            return anim_utils.action_ensure_channelbag_for_slot(ad.action, slot)
-        return anim_utils.action_get_channelbag_for_slot(ad.action, slot)
-    return ad.action
-
-
-def bone_path(name: str, prop: str) -> str:
-    return f'pose.bones["{bpy.utils.escape_identifier(name)}"].{prop}'
-
-
-def bone_of(data_path: str) -> str:
-    """The bone name of a pose bone's curve path (:func:`bone_path`'s inverse); the path's head for other curves."""
-    head = data_path.rsplit(".", 1)[0]
-    if head.startswith('pose.bones["') and head.endswith('"]'):
-        return head[len('pose.bones["'):-2].replace('\\"', '"').replace("\\\\", "\\")
-    return head
 
 
 def rotation_quats(mode: str, values: np.ndarray) -> np.ndarray:
@@ -78,28 +41,6 @@ def rotation_quats(mode: str, values: np.ndarray) -> np.ndarray:
         return np.where(n > 0, q, np.array([1.0, 0.0, 0.0, 0.0]))
     order = mode[::-1].lower()  # applied X then Y then Z ("XYZ") is q_z q_y q_x
     return euler_to_quat_np(v[:, ["xyz".index(a) for a in order]], order, degrees=False)
-
-
-def curve_values(fc, default: float, frames) -> np.ndarray:
-    """``(F,)``: an F-curve's values at ``frames``: a key's own value where the curve has a key at the frame (what
-    Blender evaluates there), else the curve evaluated; ``default`` (the property's value) without a curve or with a
-    muted one."""
-    frames = np.asarray(frames, dtype=np.float64)
-    if fc is None or fc.mute:
-        return np.full(len(frames), float(default))
-    out = np.full(len(frames), np.nan)
-    n = len(fc.keyframe_points)
-    if n and not len(fc.modifiers):
-        co = np.zeros(2 * n, np.float32)
-        fc.keyframe_points.foreach_get("co", co)
-        order = np.argsort(co[0::2], kind="stable")
-        x, y = co[0::2][order].astype(np.float64), co[1::2][order].astype(np.float64)
-        i = np.clip(np.searchsorted(x, frames), 0, n - 1)
-        hit = x[i] == frames
-        out[hit] = y[i[hit]]
-    miss = np.flatnonzero(np.isnan(out))
-    out[miss] = [fc.evaluate(float(frames[t])) for t in miss]
-    return out
 
 
 def rotation_values(pb, q: np.ndarray, frames, raw_prev: dict, k: int) -> np.ndarray:
@@ -155,8 +96,10 @@ def _fit_rotation(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
     return c, s
 
 
-class Rig:
-    """The model's joints on an armature object: bone mapping, the model-to-armature frame, channel reading."""
+class Rig(OnArmature, dcc.Rig):
+    """An armature of the model's own skeleton (every joint a bone of the model's name; a model whose joints are not
+    the humanoid slots): the DCC core's :class:`~inbetweening.dcc.Rig`, its poses the model's ``root (F, 3)`` and
+    ``local_q (F, J, 4)`` (the model-to-armature frame fitted on the rest pose)."""
 
     def __init__(self, obj, model: ModelInfo):
         sk = model.skeleton
@@ -197,9 +140,28 @@ class Rig:
         while b is not None:
             self.ancestors.insert(0, obj.pose.bones[b.name])
             b = b.parent
-        self.fcurves = channelbag(obj)
+        self.curves, self.where = ArmatureCurves(obj), f"armature '{obj.name}'"
 
     # ------------------------------------------------------------------ channels
+    @property
+    def joint_names(self) -> list[str]:
+        return [pb.name for pb in self.pbones]
+
+    def key_channels(self) -> list:
+        """The channels the fill writes that have a curve: their keys are the animator's."""
+        return [(p, i) for _, p, i in self.channels() if self.fcurve(p, i) is not None]
+
+    def settings_parts(self) -> list:
+        """The key points of the curves of the bones above the model's root (they place it on every frame)."""
+        parts = []
+        for pb in self.ancestors:
+            for fc in self.curves.bag.fcurves:
+                if fc.data_path.startswith(f'pose.bones["{pb.name}"]'):
+                    co = np.zeros(2 * len(fc.keyframe_points), np.float32)
+                    fc.keyframe_points.foreach_get("co", co)
+                    parts += [fc.data_path.encode(), co]
+        return parts
+
     def channels(self):
         """``[(joint, data_path, index)]`` of every channel the fill writes."""
         out = []
@@ -209,9 +171,6 @@ class Rig:
             if j == 0:
                 out += [(0, bone_path(pb.name, "location"), i) for i in range(3)]
         return out
-
-    def fcurve(self, path: str, index: int):
-        return self.fcurves.fcurves.find(path, index=index) if self.fcurves is not None else None
 
     def _values(self, pb, prop: str, n: int, frames) -> np.ndarray:
         """``(F, n)``: a pose bone property's channel values at ``frames`` (:func:`curve_values`)."""
@@ -277,87 +236,3 @@ class Rig:
         for i in range(3):
             out[(0, bone_path(self.pbones[0].name, "location"), i)] = locs[:, i]
         return out
-
-
-# ---------------------------------------------------------------------------------------------- keys
-def _points(fc) -> dict:
-    kp = fc.keyframe_points
-    n = len(kp)
-    arr = {}
-    for name in POINT_FLOATS:
-        a = np.zeros(2 * n, dtype=np.float32)
-        kp.foreach_get(name, a)
-        arr[name] = a.reshape(n, 2)
-    for name, dt in POINT_SCALARS:
-        a = np.zeros(n, dtype=dt)
-        kp.foreach_get(name, a)
-        arr[name] = a
-    return arr
-
-
-def write_curve(fc, frames: np.ndarray, values: np.ndarray, spans, interp: str, handle: str) -> None:
-    """Key ``values`` at ``frames`` on ``fc``; generated keys already inside the filled ``spans`` ``[(lo, hi)]`` are
-    replaced, every other key is kept with all its properties; the keys at the span ends get frozen (``FREE``)
-    handles and the keys outside keep theirs (Blender's recalculation is not bit-stable), so the curve outside the
-    spans keeps its shape exactly."""
-    old = _points(fc)
-    x = old["co"][:, 0]
-    gen = _enum_index("type", GENERATED)
-    inside = np.zeros(len(x), dtype=bool)
-    for lo, hi in spans:
-        inside |= (x > lo + 1e-4) & (x < hi - 1e-4)
-    drop = inside & (old["type"] == gen)
-    keep = {k: v[~drop] for k, v in old.items()}
-    free = _enum_index("handle_left_type", "FREE")
-    for lo, hi in spans:
-        for edge, outer in ((lo, "handle_left"), (hi, "handle_right")):
-            at = np.nonzero(np.abs(keep["co"][:, 0] - edge) < 1e-4)[0]
-            for i in at:
-                keep["handle_left_type"][i] = keep["handle_right_type"][i] = free
-                inner = "handle_right" if outer == "handle_left" else "handle_left"
-                co, h = keep["co"][i], keep[inner][i]
-                dx = h[0] - co[0]
-                if abs(dx) > 1e-6:  # the inner handle: same slope, a third of a frame long
-                    third = np.float32(1.0 / 3.0) * np.sign(dx)
-                    keep[inner][i] = (co[0] + third, co[1] + (h[1] - co[1]) * third / dx)
-    n_new = len(frames)
-    new = {
-        "co": np.stack([frames.astype(np.float32), values.astype(np.float32)], -1),
-        "interpolation": np.full(n_new, _enum_index("interpolation", interp), np.int32),
-        "handle_left_type": np.full(n_new, _enum_index("handle_left_type", handle), np.int32),
-        "handle_right_type": np.full(n_new, _enum_index("handle_right_type", handle), np.int32),
-        "type": np.full(n_new, gen, np.int32),
-        "easing": np.zeros(n_new, np.int32),
-        "back": np.full(n_new, 1.70158, np.float32), "amplitude": np.full(n_new, 0.8, np.float32),
-        "period": np.full(n_new, 4.1, np.float32),
-        "select_control_point": np.zeros(n_new, np.int32), "select_left_handle": np.zeros(n_new, np.int32),
-        "select_right_handle": np.zeros(n_new, np.int32),
-    }
-    new["handle_left"] = new["co"] - np.array([1.0 / 3.0, 0.0], np.float32)
-    new["handle_right"] = new["co"] + np.array([1.0 / 3.0, 0.0], np.float32)
-    allp = {k: np.concatenate([keep[k], new[k]]) for k in keep}
-    order = np.argsort(allp["co"][:, 0], kind="stable")
-    allp = {k: v[order] for k, v in allp.items()}
-    kp = fc.keyframe_points
-    total = len(order)
-    same = total == len(kp)  # then a property whose values are the curve's already is left as it is (a re-fill)
-    if total > len(kp):
-        kp.add(total - len(kp))
-    elif total < len(kp):
-        for _ in range(len(kp) - total):
-            kp.remove(kp[len(kp) - 1], fast=True)
-    for name in POINT_FLOATS + tuple(n for n, _ in POINT_SCALARS):
-        if not (same and np.array_equal(allp[name], old[name])):
-            kp.foreach_set(name, np.ascontiguousarray(allp[name]).reshape(-1))
-    fc.update()
-    x = allp["co"][:, 0]
-    outside = np.ones(total, dtype=bool)
-    for lo, hi in spans:
-        outside &= (x <= lo + 1e-4) | (x >= hi - 1e-4)
-    if len(kp) == total and outside.any():  # the keys outside the spans keep their handles bit for bit
-        for name in ("handle_left", "handle_right"):
-            h = np.zeros(2 * total, dtype=np.float32)
-            kp.foreach_get(name, h)
-            h = h.reshape(total, 2)
-            h[outside] = allp[name][outside]
-            kp.foreach_set(name, h.reshape(-1))
