@@ -131,3 +131,17 @@ def test_imports_are_read_as_python_resolves_them(tmp_path, source, expected):
     f = tmp_path / "task.py"
     f.write_text(source)
     assert imports("inbetweening.retarget.task", f, top_level_only=True) == expected
+
+
+def test_the_layout_doc_names_every_package_and_module():
+    """docs/development.md's Layout lists every package and every module (by file name) of src/inbetweening."""
+    doc = (SRC.parent / "docs" / "development.md").read_text()
+    layout = doc[doc.index("## Layout"):doc.index("## Extending")]
+    missing = []
+    for name, file in modules().items():
+        if file.name == "__init__.py":
+            if f"{file.parent.name}/" not in layout:
+                missing.append(f"package {file.parent.name}/")
+        elif file.name not in layout:
+            missing.append(str(file.relative_to(SRC)))
+    assert not missing, f"docs/development.md's Layout does not name: {missing}"
