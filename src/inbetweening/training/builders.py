@@ -49,8 +49,8 @@ def make_datamodule(cfg: DictConfig) -> InbetweenDataModule:
 
 
 def make_module(cfg: DictConfig, dm: InbetweenDataModule, init: dict | None = None) -> InbetweenModule:
-    """The LightningModule from the ``model``, ``mask``, ``loss`` and ``optim`` groups, ``centre``, ``representation``,
-    and what the (set up) data module knows: skeleton, statistics, benchmark lengths.
+    """The LightningModule from the ``model``, ``mask``, ``loss``, ``optim`` and ``teacher`` groups, ``centre``,
+    ``representation``, and what the (set up) data module knows: skeleton, statistics, benchmark lengths.
 
     ``init``: a checkpoint (:func:`~inbetweening.predictor.checkpoint.read_checkpoint`) to start from
     (``init_from``): its network (``model``, ``representation``, ``centre``, ``mask``: the settings its weights belong
@@ -58,14 +58,16 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule, init: dict | None = No
     for a new run, unless ``init_stats: checkpoint`` keeps the checkpoint's; the loss, optimiser and data come from
     the config."""
     kw = dm.model_kwargs()
+    teacher = _plain(cfg.teacher) if cfg.get("teacher") else None  # distillation (conf/teacher/)
     if init is None:
         return InbetweenModule(model=_plain(cfg.model), loss=_plain(cfg.loss), optim=_plain(cfg.optim),
-                               centre=cfg.centre, representation=cfg.representation, mask=_plain(cfg.mask), **kw)
+                               centre=cfg.centre, representation=cfg.representation, mask=_plain(cfg.mask),
+                               teacher=teacher, **kw)
     hp = upgrade_hparams(init["hyper_parameters"])
     network = {k: hp[k] for k in ("model", "representation", "centre", "mask", "joint_mask") if hp.get(k) is not None}
     if cfg.get("init_stats", "data") == "checkpoint":
         kw.update(pos_mean=list(hp["pos_mean"]), pos_std=list(hp["pos_std"]))
-    module = InbetweenModule(loss=_plain(cfg.loss), optim=_plain(cfg.optim), **network, **kw)
+    module = InbetweenModule(loss=_plain(cfg.loss), optim=_plain(cfg.optim), teacher=teacher, **network, **kw)
     module.predictor.load_state_dict(predictor_state(init["state_dict"]))
     return module
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import types
+from pathlib import Path
 
 from omegaconf import DictConfig
 
@@ -241,6 +242,25 @@ def _check_train_extras(cfg) -> None:
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
         raise ConfigError(f"threads: must be an integer >= 1 or null, got {threads!r}")
     check_schedules("test_keyframes", list(_get(cfg, "test_keyframes") or []), allow_empty=True)
+    _check_teacher(cfg)
+
+
+def _check_teacher(cfg) -> None:
+    """``teacher`` (distillation): existing checkpoint files and a positive weight; the skeleton is checked against
+    the data's when fitting starts."""
+    node = _get(cfg, "teacher")
+    if not node:
+        return
+    paths = _get(cfg, "teacher.checkpoints")
+    paths = [paths] if isinstance(paths, str) else list(paths or [])
+    if not paths:
+        raise ConfigError("teacher.checkpoints: give at least one checkpoint")
+    for p in paths:
+        if not Path(str(p)).is_file():
+            raise ConfigError(f"teacher.checkpoints: no checkpoint file {p}")
+    w = _get(cfg, "teacher.weight", 1.0)
+    if isinstance(w, bool) or not isinstance(w, (int, float)) or not w > 0:
+        raise ConfigError(f"teacher.weight: must be a positive number, got {w!r}")
 
 
 def fill_settings(cfg: DictConfig):

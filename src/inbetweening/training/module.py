@@ -26,6 +26,7 @@ from inbetweening.predictor.checkpoint import (
 from inbetweening.predictor.masks import JointGaps
 from inbetweening.predictor.predictor import LEGACY_CENTRE, Predictor
 from inbetweening.predictor.settings import PredictorSettings
+from inbetweening.training.distil import Teacher
 from inbetweening.training.losses import total_loss
 from inbetweening.training.schedules import build_optimizers, upgrade_optim
 from inbetweening.training.tb_logging import tb_scalars
@@ -62,6 +63,9 @@ class InbetweenModule(L.LightningModule):
             :func:`inbetweening.predictor.calibration.fit_blend`); ``None``: the network as it is.
         score_stats: ``{"mean": [...], "std": [...]}``, the statistics the benchmark metrics z-score L2P with
             (``eval.py``: the scored dataset's own training statistics, the protocol's); ``None``: the model's.
+        teacher: distillation (the ``teacher`` group): ``{"checkpoints": [...], "weight": w}``, the networks whose
+            prediction of each training task the loss also follows (:class:`~inbetweening.training.distil.Teacher`,
+            loaded when fitting starts); ``None``: the data alone.
     """
 
     def __init__(
@@ -88,6 +92,7 @@ class InbetweenModule(L.LightningModule):
         contact: dict | None = None,
         convention: dict | None = None,
         blend: Sequence[float] | None = None,
+        teacher: dict | None = None,
     ):
         super().__init__()
         if isinstance(mask, Mapping):  # the ``mask`` config group: its name, and the gap settings of mask=joints
@@ -120,6 +125,7 @@ class InbetweenModule(L.LightningModule):
         self.val_recovery = PerJointError(j)
         self.test_recovery = PerJointError(j)
         self._train_forward = None  # compile_network(): the network's compiled forward, for training steps only
+        self.teacher_cfg, self.teacher = (dict(teacher) if teacher else None), None
 
     def compile_network(self, on: bool = True) -> None:
         """Training steps run the network's forward through ``torch.compile`` (``on``) or eagerly.  The compiled
@@ -145,6 +151,9 @@ class InbetweenModule(L.LightningModule):
 
     def on_fit_start(self) -> None:
         self.val_interp_cache = None  # the validation windows may differ from a previous fit's
+        if self.teacher_cfg and self.teacher is None:
+            self.teacher = Teacher(**self.teacher_cfg, device=self.device)
+            self.teacher.check(self.skeleton, self.predictor.fps)
 
     # ------------------------------------------------------------------ the predictor's settings
     @property
@@ -213,6 +222,14 @@ class InbetweenModule(L.LightningModule):
         loss, terms = total_loss(pred, gt, batch["loss_mask"], self.loss_weights, pr.representation, raw=raw,
                                  known=batch["known"], feet=pr.contact.indices(pr.skeleton.names, "contact.feet"),
                                  foot_speed=pr.contact.speed / pr.fps)
+        if stage == "train" and self.teacher is not None:  # distillation: the teacher's prediction of the same task
+            t_root, t_q = self.teacher.targets(batch["root"], batch["q"], batch["known"], batch["n_trans"])
+            with torch.no_grad():
+                target, _ = pr.canonical_features(t_root, t_q, batch["known"])
+            reduce = self.loss_weights.get("reduce", "frames")
+            distil = total_loss(pred, target, batch["loss_mask"], {"l1": 1.0, "reduce": reduce}, pr.representation)[0]
+            terms = {**terms, "data": loss, "distil": distil}
+            loss = loss + self.teacher.weight * distil
         bs = gt.shape[0]
         self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=bs)
         if len(terms) > 1:  # the loss's terms, where it has several (one term is the loss itself)
