@@ -46,6 +46,8 @@ BENCHMARKS: tuple[Benchmark, ...] = (
               "about 5 min", "prints", "RESULTS.md 10.5, recipe levers (the step budgets)"),
     Benchmark("inference_latency", "inference_latency.py", "one transition through the API; the batch API",
               "about 3 min", "BENCHMARKS.md section", "BENCHMARKS.md, Inference latency"),
+    Benchmark("fill_profile", "fill_profile.py", "the shipped fill's 30-frame transition split into its stages",
+              "about 1 min", "BENCHMARKS.md section (--write)", "BENCHMARKS.md, Where the fill's time goes"),
     Benchmark("predict_startup", "predict_startup.py", "wall time of `python -m inbetweening.predict`, start-up included",
               "about 1 min", "BENCHMARKS.md section", "BENCHMARKS.md, predict start-up", needs=BN2),
     Benchmark("memory", "memory.py", "peak resident memory of train, eval and the shipped model's eval",
