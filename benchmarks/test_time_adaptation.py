@@ -25,6 +25,8 @@ def main(argv=None) -> int:
     ap.add_argument("--lr", type=float, default=1e-4)
     ap.add_argument("--every", type=int, default=90, help="every k-th clip of the content split's test clips")
     ap.add_argument("--clips", type=int, default=6)
+    ap.add_argument("--ckpt", nargs="+", default=[str(c) for c in CKPTS],
+                    help="checkpoints (several: their ensemble) trained without the content split's test contents")
     args = ap.parse_args(argv)
     from inbetweening import Inbetweener
     from inbetweening.data.datasets import load_dataset
@@ -34,7 +36,7 @@ def main(argv=None) -> int:
     data = load_dataset("bandai_namco", path=ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip", split="content")
     clips, sk = data.test[:: args.every][: args.clips], data.skeleton
     for steps in (int(s) for s in args.steps.split(",")):
-        runtime = Inbetweener.from_checkpoint([str(c) for c in CKPTS],
+        runtime = Inbetweener.from_checkpoint(args.ckpt if len(args.ckpt) > 1 else args.ckpt[0],
                                               settings=FillSettings(adapt_steps=steps, adapt_lr=args.lr)).runtime
         model = interp = 0.0
         t0 = time.perf_counter()
