@@ -13,7 +13,6 @@ speed where the ground truth's feet are planted, as ``eval.py protocol=keyframes
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 import numpy as np
@@ -80,14 +79,9 @@ def draw(ib, root: np.ndarray, q: np.ndarray, every: int, title: str, fps: float
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("ckpt")
-    ap.add_argument("--clip", default="dataset-2_walk_normal_010", help="test clip name (without .bvh)")
-    ap.add_argument("--every", type=int, default=30, help="a keyframe every N frames")
-    ap.add_argument("--frames", type=int, default=91, help="frames used (from the clip's start)")
-    ap.add_argument("--out", default="results/foot_lock.png", help="output PNG")
-    ap.add_argument("--data", default=os.environ.get("BANDAI_NAMCO_PATH", str(ROOT.parent / "shared" / "datasets" /
-                                                                             "bandai-namco-2.zip")),
-                    help="Bandai-Namco-2 zip or folder (default: $BANDAI_NAMCO_PATH, else ../shared/datasets)")
+    from _report import strip_arguments  # benchmarks/ helper (this script may be imported from elsewhere)
+
+    strip_arguments(ap, "dataset-2_walk_normal_010", "results/foot_lock.png", "test clip name (without .bvh)")
     a = ap.parse_args(argv)
 
     from inbetweening.api.inbetweener import Inbetweener

@@ -10,7 +10,6 @@ Prints the clip's mean joint error (cm) of the model and of interpolation over t
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 import numpy as np
@@ -20,14 +19,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("ckpt")
-    ap.add_argument("--clip", default="dataset-2_run_active_010", help="test clip name (content split)")
-    ap.add_argument("--every", type=int, default=30, help="a keyframe every N frames")
-    ap.add_argument("--frames", type=int, default=91, help="frames used (from the clip's start)")
-    ap.add_argument("--out", default="results/unseen", help="output path without extension")
-    ap.add_argument("--data", default=os.environ.get("BANDAI_NAMCO_PATH", str(ROOT.parent / "shared" / "datasets" /
-                                                                             "bandai-namco-2.zip")),
-                    help="Bandai-Namco-2 zip or folder (default: $BANDAI_NAMCO_PATH, else ../shared/datasets)")
+    from _report import strip_arguments  # benchmarks/ helper (this script may be imported from elsewhere)
+
+    strip_arguments(ap, "dataset-2_run_active_010", "results/unseen", "test clip name (content split)")
     a = ap.parse_args(argv)
 
     from inbetweening.api.inbetweener import Inbetweener
