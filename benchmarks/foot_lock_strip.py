@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
 LABELS = ("foot lock", "no foot lock", "ground truth")
 
 
