@@ -4,7 +4,6 @@ from __future__ import annotations
 import importlib
 import inspect
 import types
-from pathlib import Path
 
 from omegaconf import DictConfig
 
@@ -251,16 +250,9 @@ def _check_teacher(cfg) -> None:
     node = _get(cfg, "teacher")
     if not node:
         return
-    paths = _get(cfg, "teacher.checkpoints")
-    paths = [paths] if isinstance(paths, str) else list(paths or [])
-    if not paths:
-        raise ConfigError("teacher.checkpoints: give at least one checkpoint")
-    for p in paths:
-        if not Path(str(p)).is_file():
-            raise ConfigError(f"teacher.checkpoints: no checkpoint file {p}")
-    w = _get(cfg, "teacher.weight", 1.0)
-    if isinstance(w, bool) or not isinstance(w, (int, float)) or not w > 0:
-        raise ConfigError(f"teacher.weight: must be a positive number, got {w!r}")
+    from inbetweening.training.distil import check_settings  # (distil imports this module's ConfigError)
+
+    check_settings(_get(cfg, "teacher.checkpoints"), _get(cfg, "teacher.weight", 1.0))
 
 
 def fill_settings(cfg: DictConfig):
