@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import BLOCK_TORCH
 from inbetweening import Inbetweener
 from inbetweening.api.inbetweener import InbetweenError
 from inbetweening.cli import predict
@@ -366,19 +367,54 @@ def test_cli_errors_exit_2_with_one_line(tiny_checkpoint, tmp_path, monkeypatch,
 
 
 def test_cli_defaults_to_the_shipped_model(tiny_checkpoint, tmp_path, monkeypatch, capsys):
-    """Without ckpt_path the shipped ensemble (models/bn2_partial, bn2_partial_twin and bn2_v2) fills the clip; where a model
-    of it is absent (an installed package without the repository) ckpt_path is required."""
+    """Without ckpt_path the shipped ensemble (models/bn2_partial, bn2_partial_twin and bn2_v2) fills the clip: their
+    window graphs (.onnx), or their checkpoints where the fill needs PyTorch (test-time adaptation, another device);
+    where a model of it is absent (an installed package without the repository) ckpt_path is required."""
     assert predict.default_checkpoint() == [str(p) for p in predict.SHIPPED_MODELS]
-    assert [p.parent.name for p in predict.SHIPPED_MODELS] == ["bn2_partial", "bn2_partial_twin", "bn2_v2"]
+    assert predict.default_checkpoint(torch=True) == [str(p) for p in predict.SHIPPED_CHECKPOINTS]
+    for paths, suffix in ((predict.SHIPPED_MODELS, ".onnx"), (predict.SHIPPED_CHECKPOINTS, ".ckpt")):
+        assert [p.parent.name for p in paths] == ["bn2_partial", "bn2_partial_twin", "bn2_v2"]
+        assert all(p.suffix == suffix for p in paths)
     write_bvh(_clip(60), tmp_path / "clip.bvh")
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(predict, "SHIPPED_MODELS", (Path(tiny_checkpoint), Path(tiny_checkpoint)))
-    assert predict.run(["input=clip.bvh", "keyframes=0,30,59", "output=o.bvh"]) == 0
+    monkeypatch.setattr(predict, "SHIPPED_CHECKPOINTS", (Path(tiny_checkpoint), Path(tiny_checkpoint)))
+    assert predict.run(["input=clip.bvh", "keyframes=0,30,59", "output=o.bvh", "fill.adapt_steps=1"]) == 0
     assert (tmp_path / "o.bvh").is_file() and str(tiny_checkpoint) in capsys.readouterr().out
-    monkeypatch.setattr(predict, "SHIPPED_MODELS", (Path(tiny_checkpoint), tmp_path / "absent.ckpt"))
+    monkeypatch.setattr(predict, "SHIPPED_MODELS", (tmp_path / "absent.onnx",) * 3)  # the graphs absent: checkpoints
+    assert predict.run(["input=clip.bvh", "keyframes=0,30,59", "output=o1.bvh"]) == 0
+    assert str(tiny_checkpoint) in capsys.readouterr().out
+    monkeypatch.setattr(predict, "SHIPPED_CHECKPOINTS", (Path(tiny_checkpoint), tmp_path / "absent.ckpt"))
     with pytest.raises(SystemExit) as exc:
         predict.run(["input=clip.bvh", "keyframes=0,30,59", "output=o2.bvh"])
     assert exc.value.code == 2 and "missing ckpt_path=..." in capsys.readouterr().err
+
+
+PREDICT_WITHOUT_TORCH = BLOCK_TORCH + """
+from inbetweening.cli.predict import run
+code = run(sys.argv[1:])
+print("torch" in sys.modules)
+sys.exit(code)
+"""
+
+
+def test_the_shipped_fill_runs_without_torch(tmp_path):
+    """``predict`` with the shipped default fills on ONNX Runtime with PyTorch blocked (its start-up: BENCHMARKS.md),
+    keys bit for bit, and the result is the checkpoints' fill within float32 rounding (1e-3 of a channel's unit)."""
+    clip = _clip(91)
+    write_bvh(clip, tmp_path / "clip.bvh")
+    (tmp_path / "run.py").write_text(PREDICT_WITHOUT_TORCH)
+    args = ["input=clip.bvh", "keyframes=[0,30,60,90]"]
+    proc = subprocess.run([sys.executable, "run.py", *args, "output=onnx.bvh"], capture_output=True, text=True,
+                          cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.split()[-1] == "False" and "model.onnx" in proc.stdout
+    got = read_bvh(tmp_path / "onnx.bvh")
+    assert np.array_equal(got.motion[[0, 30, 60, 90]], clip.motion[[0, 30, 60, 90]])
+    ckpts = "[" + ",".join(str(p) for p in predict.SHIPPED_CHECKPOINTS) + "]"
+    assert predict.run([f"input={tmp_path / 'clip.bvh'}", "keyframes=[0,30,60,90]", f"output={tmp_path / 'ckpt.bvh'}",
+                        f"ckpt_path={ckpts}"]) == 0
+    ref = read_bvh(tmp_path / "ckpt.bvh")
+    assert got.motion.shape == ref.motion.shape and np.abs(got.motion - ref.motion).max() < 1e-3
 
 
 def test_partial_keys_through_the_api_and_the_cli(tiny_checkpoint, tmp_path, monkeypatch, capsys):

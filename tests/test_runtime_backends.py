@@ -1,7 +1,9 @@
 """The runtime's two backends agree: the exported window graph on ONNX Runtime (what Blender fills with) against the
 trained module in PyTorch (what the CLI, the API and ``eval.py`` fill with), window by window and on whole fills of
-the shipped models (``bn2_reference``; ``bn2_v2``: contact channels, feet locked); the ONNX backend's errors; the
-runtime fills without PyTorch, from the very wheel the Blender extension bundles."""
+the models (``bn2_reference`` exported here; the shipped ensemble's committed graphs ``models/<name>/model.onnx``
+against their checkpoints, so a checkpoint and its graph cannot drift apart; ``bn2_v2``: contact channels, feet
+locked); the ONNX backend's errors; the runtime fills without PyTorch, from the very wheel the Blender extension
+bundles."""
 from __future__ import annotations
 
 import json
@@ -17,21 +19,26 @@ import torch
 
 from conftest import BLOCK_TORCH
 from inbetweening.api.export import export_onnx, export_window_onnx, window_example
+from inbetweening.api.shipped import SHIPPED, SHIPPED_CKPTS, SHIPPED_ONNX
 from characters import wiggle
 from inbetweening.runtime import FillRuntime, ModelError
 from inbetweening.runtime.onnx_backend import OnnxBackend
 from inbetweening.runtime.torch_backend import TorchBackend, WindowPath
 
 REPO = Path(__file__).resolve().parents[1]
-MODELS = {name: REPO / "models" / name / "model.ckpt" for name in ("bn2_reference", "bn2_v2")}
+MODELS = {"bn2_reference": REPO / "models" / "bn2_reference" / "model.ckpt",
+          **{name: REPO / ckpt for name, ckpt in zip(SHIPPED, SHIPPED_CKPTS)}}
+GRAPHS = {name: REPO / graph for name, graph in zip(SHIPPED, SHIPPED_ONNX)}  # committed: predict's default
 
 
 @pytest.fixture(scope="module", params=list(MODELS))
 def backends(request, tmp_path_factory):
     torch_backend = TorchBackend.from_checkpoint(MODELS[request.param])
-    path = tmp_path_factory.mktemp("onnx") / "model.onnx"
-    info = export_window_onnx(torch_backend.predictor, path, trained_gap=torch_backend.info.trained_gap)
-    assert info["max_abs_diff"] < 1e-4
+    path = GRAPHS.get(request.param)
+    if path is None:
+        path = tmp_path_factory.mktemp("onnx") / "model.onnx"
+        info = export_window_onnx(torch_backend.predictor, path, trained_gap=torch_backend.info.trained_gap)
+        assert info["max_abs_diff"] < 1e-4
     return torch_backend, OnnxBackend(str(path))
 
 

@@ -51,6 +51,15 @@ def test_predict_without_render_imports_no_heavy_stack(tiny_checkpoint, tmp_path
     assert [m for m in HEAVY if m in mods] == []
 
 
+def test_the_shipped_default_imports_no_torch(tmp_path):
+    """Without ckpt_path the shipped ensemble's window graphs run on ONNX Runtime: not even PyTorch is imported."""
+    (tmp_path / "clip.bvh").write_text(format_bvh(make_bvh(*generate_clip(np.random.default_rng(0), 61))))
+    code, mods, out = _probe(["input=clip.bvh", "keyframes=[0,30,60]", "output=out.bvh"], tmp_path)
+    assert code == 0, out
+    assert "model.onnx" in out and "onnxruntime" in mods and "inbetweening.runtime.onnx_backend" in mods
+    assert "torch" not in mods and [m for m in HEAVY if m in mods] == ["onnxruntime"]
+
+
 def test_help_and_bad_input_import_not_even_torch(tmp_path):
     code, mods, out = _probe(["--help"], tmp_path)
     assert code == 0 and "usage: python -m inbetweening.predict" in out

@@ -4,11 +4,14 @@
 
     ib = Inbetweener.from_checkpoint("run/checkpoints/best.ckpt")
     ib = Inbetweener.from_checkpoint(["a.ckpt", "b.ckpt"])  # an ensemble: the models' mean (runtime.ensemble)
+    ib = Inbetweener.from_checkpoint(["a.onnx", "b.onnx"])  # their exported window graphs: no PyTorch needed
     out = ib.fill("clip.bvh", keyframes=[0, 30, 75])    # keep frames 0, 30, 75; generate the rest
     out = ib.fill("keys.bvh", gap=30)                  # every input frame is a key; 30 new frames between each pair
     write_bvh(out, "filled.bvh")
 
-This is the Python API over the fill runtime (:class:`inbetweening.runtime.FillRuntime`, with the torch backend):
+This is the Python API over the fill runtime (:class:`inbetweening.runtime.FillRuntime`): a training checkpoint runs
+on the torch backend, its exported window graph (``.onnx``, :func:`~inbetweening.api.export.export_window_onnx`) on
+ONNX Runtime without importing PyTorch (what ``predict`` starts with by default).
 how a gap is generated (context, canonical frame, long gaps split at interpolated pseudo-keyframes, the do-no-harm
 blend, foot locking, keys kept exactly) is described there, and the CLI, ``eval.py`` and the Blender extension fill
 through the same runtime.  This module adds the clip level: a BVH file's joints and frames into the model's
@@ -33,7 +36,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from inbetweening.data.bvh import BVH, read_bvh
 from inbetweening.data.clips import clip_in_skeleton, motion_in_file
@@ -45,7 +47,6 @@ from inbetweening.runtime.ensemble import EnsembleBackend
 from inbetweening.runtime.partial import check_partial
 from inbetweening.runtime.plan import check_keys
 from inbetweening.runtime.settings import FillSettings
-from inbetweening.runtime.torch_backend import TorchBackend
 
 __all__ = ["FillResult", "InbetweenError", "Inbetweener"]
 
@@ -110,14 +111,27 @@ class FillResult:
         return interpolate_keyframes(self.root, self.local_q, self.known_frames)
 
 
+def _is_backend(model) -> bool:
+    """Whether ``model`` is already a runtime backend (``info`` and ``predict``), not a torch model to wrap."""
+    return hasattr(model, "info") and callable(getattr(model, "predict", None)) and not hasattr(model, "parameters")
+
+
+def _torch_backend(model, trained_gap):
+    from inbetweening.runtime.torch_backend import TorchBackend
+
+    return TorchBackend(model, trained_gap)
+
+
 class Inbetweener:
     """A trained in-betweening model wrapped for keyframe filling (see the module docstring).
 
     Args:
-        model: a :class:`~inbetweening.predictor.predictor.Predictor` (what :meth:`from_checkpoint` loads) or a
-            trained :class:`~inbetweening.training.module.InbetweenModule` (its predictor is used); moved to
-            ``eval`` mode.  A list of them (models of one skeleton): their ensemble
-            (:class:`~inbetweening.runtime.ensemble.EnsembleBackend`); ``module``/``predictor`` are the first's.
+        model: a :class:`~inbetweening.predictor.predictor.Predictor` (what :meth:`from_checkpoint` loads from a
+            ``.ckpt``), a trained :class:`~inbetweening.training.module.InbetweenModule` (its predictor is used; moved
+            to ``eval`` mode) or a runtime backend (:class:`~inbetweening.runtime.model.Backend`, e.g. the
+            :class:`~inbetweening.runtime.onnx_backend.OnnxBackend` of an ``.onnx`` file).  A list of them (models of
+            one skeleton): their ensemble (:class:`~inbetweening.runtime.ensemble.EnsembleBackend`);
+            ``module``/``predictor`` are the first's (``None`` for a backend without PyTorch).
         max_gap: longest transition generated in one window; default ``trained_gap``.  May be raised up to
             ``max_frames - n_past - 1`` of the network (beyond what it was trained on: quality not guaranteed).
         segment: split longer gaps (``True``, default) or raise :class:`InbetweenError`.
@@ -139,40 +153,54 @@ class Inbetweener:
         gaps = list(trained_gap) if isinstance(trained_gap, (list, tuple)) else [trained_gap] * len(models)
         if not models or len(gaps) != len(models):
             raise InbetweenError(f"Inbetweener: {len(models)} models and {len(gaps)} trained gaps")
-        members = [TorchBackend(m, g) for m, g in zip(models, gaps)]
+        members = [m if _is_backend(m) else _torch_backend(m, g) for m, g in zip(models, gaps)]
         self.backend = members[0] if len(members) == 1 else EnsembleBackend(members, names)
         if not isinstance(settings, FillSettings):
             settings = FillSettings.from_mapping(settings)
         self.runtime = FillRuntime(self.backend, max_gap=max_gap, segment=segment, foot_lock=foot_lock,
                                    self_check=self_check, settings=settings)
         self.settings: FillSettings = settings
-        self.module, self.predictor = members[0].module, members[0].predictor
+        self.module = getattr(members[0], "module", None)
+        self.predictor = getattr(members[0], "predictor", None)
         info = self.runtime.info
         self.skeleton: Skeleton = info.skeleton
         self.n_past, self.fps = info.n_past, info.fps
         self.trained_gap, self.hard_max_gap = info.trained_gap, info.hard_max_gap
 
     @classmethod
-    def from_checkpoint(cls, path: str | Path | list, device: str | torch.device = "cpu", **kw) -> Inbetweener:
-        """Load a training checkpoint's predictor (``CheckpointError`` for missing or wrong files); a list of paths:
-        their ensemble (``ModelError`` naming the checkpoint that does not fit the first one).
+    def from_checkpoint(cls, path: str | Path | list, device="cpu", threads: int = 1, **kw) -> Inbetweener:
+        """Load a training checkpoint's predictor (``CheckpointError`` for missing or wrong files) or, for a path
+        ending in ``.onnx``, an exported window graph on ONNX Runtime (``threads``: its intra-op threads; PyTorch is
+        not imported; ``ModelError`` for a file that is not one); a list of paths: their ensemble (``ModelError``
+        naming the file that does not fit the first one).
 
         ``kw`` go to the constructor (``max_gap``, ``segment``, ``foot_lock``, ``self_check``, ``settings``);
-        ``trained_gap`` defaults to the data
-        module's ``transition_max`` recorded in the checkpoint.
+        ``trained_gap`` defaults to the data module's ``transition_max`` recorded in the checkpoint (in the graph's
+        metadata for ``.onnx``).
         """
-        from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint, trained_gap
         paths = [str(p) for p in path] if isinstance(path, (list, tuple)) else [str(path)]
-        ckpts = [read_checkpoint(p) for p in paths]
-        models = [load_predictor(p, device, ckpt=c) for p, c in zip(paths, ckpts)]
-        gaps = kw.pop("trained_gap", [trained_gap(c) or None for c in ckpts])
+        models, gaps = [], []
+        for p in paths:
+            if p.lower().endswith(".onnx"):
+                from inbetweening.runtime.onnx_backend import OnnxBackend
+
+                models.append(OnnxBackend(p, threads))
+                gaps.append(None)
+            else:
+                from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint, trained_gap
+
+                ckpt = read_checkpoint(p)
+                models.append(load_predictor(p, device, ckpt=ckpt))
+                gaps.append(trained_gap(ckpt) or None)
+        gaps = kw.pop("trained_gap", gaps)
         if len(models) == 1:
             return cls(models[0], trained_gap=gaps[0] if isinstance(gaps, list) else gaps, **kw)
         return cls(models, trained_gap=gaps, names=paths, **kw)
 
     @property
-    def device(self) -> torch.device:
-        return self.predictor.device
+    def device(self):
+        """The first model's ``torch.device`` (``"cpu"`` for a model on ONNX Runtime)."""
+        return self.predictor.device if self.predictor is not None else "cpu"
 
     @property
     def retargets(self) -> bool:

@@ -170,10 +170,13 @@ def _module_file(name: str) -> Path | None:
 
 def _optional(node, parents: dict) -> bool:
     """Whether an import node is not needed to import its module: inside a function (run when that function is
-    called: the torch-only helpers of the geometry) or a ``try`` that catches ImportError (an optional dependency)."""
+    called: the torch-only helpers of the geometry), a ``try`` that catches ImportError (an optional dependency) or
+    an ``if TYPE_CHECKING:`` block (annotations only)."""
     while node in parents:
         node = parents[node]
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            return True
+        if isinstance(node, ast.If) and ast.unparse(node.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING"):
             return True
         if isinstance(node, ast.Try) and any(
                 h.type is None or "ImportError" in ast.unparse(h.type) for h in node.handlers):
@@ -185,7 +188,7 @@ def runtime_modules() -> dict[str, Path]:
     """``{module name: file}`` of the fill runtime and the DCC core (:data:`BUNDLED`) and every module of this package
     they import, transitively (with the packages' ``__init__``), read from the source; :class:`BuildError` when one of
     them imports anything but the standard library, :data:`RUNTIME_THIRD_PARTY` and the package itself at import time
-    (imports inside functions and those guarded by ``except ImportError`` are not followed)."""
+    (imports inside functions, those guarded by ``except ImportError`` and ``if TYPE_CHECKING:`` are not followed)."""
     found: dict[str, Path] = {}
     todo = []
     for top in BUNDLED:

@@ -11,13 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from inbetweening.api.shipped import REPO, SHIPPED_CKPTS
+from inbetweening.api.shipped import REPO, SHIPPED_CKPTS, SHIPPED_ONNX
 from inbetweening.cli.args import UsageError, fail, parse_args, parse_bool, parse_int_list, parse_partial_keys, parse_paths
 from inbetweening.runtime.errors import InbetweenError
 from inbetweening.runtime.settings import FillSettings
 
 USAGE = """\
-usage: python -m inbetweening.predict [ckpt_path=<model.ckpt>|[a.ckpt,b.ckpt]] input=<clip.bvh> output=<out.bvh>
+usage: python -m inbetweening.predict [ckpt_path=<model.ckpt|.onnx>|[a,b]] input=<clip.bvh> output=<out.bvh>
                                       (keyframes=<list> | gap=<n>) [options]
 
 Fill the frames between keyframes with a trained in-betweening model and write a BVH file with the input's
@@ -51,9 +51,11 @@ joint rotations by slerp), then the segments are generated left to right, each o
 previous one as its 10 context frames.  Your keyframes are never changed.  segment=false refuses such gaps.
 
 options:
-  ckpt_path=PATH        checkpoint (.ckpt) of an in-betweening model, or a list [a.ckpt,b.ckpt] of models of one
-                        skeleton filling as an ensemble (their mean); default: the shipped Bandai-Namco-2
-                        ensemble of this repository, SHIPPED_LIST
+  ckpt_path=PATH        checkpoint (.ckpt) of an in-betweening model or its exported window graph (.onnx: runs
+                        on ONNX Runtime without loading PyTorch; `python -m inbetweening.blender export`), or a
+                        list [a.ckpt,b.ckpt] of models of one skeleton filling as an ensemble (their mean);
+                        default: the shipped Bandai-Namco-2 ensemble of this repository, SHIPPED_LIST
+                        (their checkpoints instead for device=cuda, fill.adapt_steps > 0 or without onnxruntime)
   input=PATH            BVH clip of any humanoid character, the model's own skeleton included (its bones are
                         matched to the model's joints and the keys retargeted, its own skeleton exactly; the
                         map used is printed and saved next to the output as <output>.bone_map.yaml) (required)
@@ -154,15 +156,24 @@ def render_comparison(result, path: str | Path, fps: float, dpi: int = 80, conta
                       dpi=dpi, title=title, **kw)
 
 
-SHIPPED_MODELS = tuple(REPO / c for c in SHIPPED_CKPTS)
-USAGE = USAGE.replace("SHIPPED_LIST", f"[{','.join(SHIPPED_CKPTS)}]")  # one list: api/shipped.py
+SHIPPED_MODELS = tuple(REPO / c for c in SHIPPED_ONNX)  # the shipped ensemble's window graphs (no PyTorch)
+SHIPPED_CHECKPOINTS = tuple(REPO / c for c in SHIPPED_CKPTS)  # the same models as trained
+USAGE = USAGE.replace("SHIPPED_LIST", f"[{','.join(SHIPPED_ONNX)}]")  # one list: api/shipped.py
 USAGE = USAGE.replace("FILL_SETTINGS", FillSettings.describe())
 
 
-def default_checkpoint() -> list[str] | None:
+def default_checkpoint(torch: bool = False) -> list[str] | None:
     """The shipped ensemble (:mod:`inbetweening.api.shipped`: ``models/bn2_partial``, ``models/bn2_partial_twin`` and
-    ``models/bn2_v2`` of a source checkout), ``None`` when absent (an installed package without the repository)."""
-    return [str(p) for p in SHIPPED_MODELS] if all(p.is_file() for p in SHIPPED_MODELS) else None
+    ``models/bn2_v2`` of a source checkout): their window graphs (``model.onnx``, filled on ONNX Runtime), or their
+    checkpoints where ``torch`` (the fill needs PyTorch: another device, test-time adaptation) or ONNX Runtime is not
+    installed; ``None`` when absent (an installed package without the repository)."""
+    import importlib.util
+
+    graphs = not torch and importlib.util.find_spec("onnxruntime") is not None
+    for paths in ((SHIPPED_MODELS, SHIPPED_CHECKPOINTS) if graphs else (SHIPPED_CHECKPOINTS,)):
+        if all(p.is_file() for p in paths):
+            return [str(p) for p in paths]
+    return None
 
 
 def run(argv: Sequence[str]) -> int:
@@ -173,9 +184,11 @@ def run(argv: Sequence[str]) -> int:
     if args is None:
         print(USAGE)
         return 0
-    shipped = "ckpt_path" not in args and default_checkpoint() is not None
+    device = args.get("device", "cpu")
+    needs_torch = device != "cpu" or args.get("fill.adapt_steps", 0) > 0
+    shipped = "ckpt_path" not in args and default_checkpoint(needs_torch) is not None
     if shipped:
-        args["ckpt_path"] = default_checkpoint()
+        args["ckpt_path"] = default_checkpoint(needs_torch)
     missing = [k for k in ("ckpt_path", "input", "output") if k not in args]
     if missing:
         fail(f"missing {', '.join(f'{k}=...' for k in missing)} (see --help)")
@@ -201,24 +214,29 @@ def run(argv: Sequence[str]) -> int:
         settings = FillSettings.from_mapping({k[5:]: v for k, v in args.items() if k.startswith("fill.")})
     except InbetweenError as e:
         fail(e)
-    device = args.get("device", "cpu")
-    import torch
-
     from inbetweening.api.inbetweener import Inbetweener
     from inbetweening.data.bvh import BVHError, read_bvh
     from inbetweening.data.bvh_writer import write_bvh
-    from inbetweening.predictor.checkpoint import CheckpointError
     from inbetweening.runtime.model import ModelError
 
-    if str(device).startswith("cuda") and not torch.cuda.is_available():
-        fail(f"device: {device} requested but CUDA is not available (use device=cpu)")
-    torch.set_num_threads(args.get("threads", 1))
+    errors = (InbetweenError, ModelError, BVHError, OSError)
+    if any(not str(m).lower().endswith(".onnx") for m in models):  # a checkpoint: PyTorch runs it
+        import torch
+
+        from inbetweening.predictor.checkpoint import CheckpointError
+
+        errors += (CheckpointError,)
+        if str(device).startswith("cuda") and not torch.cuda.is_available():
+            fail(f"device: {device} requested but CUDA is not available (use device=cpu)")
+        torch.set_num_threads(args.get("threads", 1))
+    elif device != "cpu":
+        fail(f"device: {device} runs checkpoints (.ckpt); an exported .onnx model runs on the CPU (use device=cpu)")
     t0 = time.perf_counter()
     try:
         clip = read_bvh(args["input"])
         kw = {k: args[k] for k in ("max_gap", "segment", "foot_lock", "self_check") if k in args}
         kw["settings"] = settings
-        ib = Inbetweener.from_checkpoint(args["ckpt_path"], device=device, **kw)
+        ib = Inbetweener.from_checkpoint(args["ckpt_path"], device=device, threads=args.get("threads", 1), **kw)
         out = Path(args["output"])
         try:
             res = ib.fill_detailed(clip, keyframes=args.get("keyframes"), gap=args.get("gap"),
@@ -238,7 +256,7 @@ def run(argv: Sequence[str]) -> int:
             saved.write_text(res.bone_map.to_yaml())
             print(f"{clip.source}: another skeleton than the model's; bone map (saved to {saved}):")
             print(res.bone_map.summary())
-    except (CheckpointError, InbetweenError, ModelError, BVHError, OSError) as e:
+    except errors as e:
         fail(e)
     n_gen = res.num_frames - len(res.known_frames)
     msg = (f"wrote {out}: {res.num_frames} frames ({len(res.known_frames)} keyframes, {n_gen} generated; "
@@ -253,7 +271,7 @@ def run(argv: Sequence[str]) -> int:
         try:
             fps = 1.0 / res.bvh.frame_time if res.bvh.frame_time > 0 else ib.fps
             picture = render_comparison(res, args["render"], fps, dpi=args.get("render_dpi", 80),
-                                        contact=ib.predictor.contact)
+                                        contact=ib.runtime.info.contact)
         except (OSError, ValueError) as e:
             fail(f"render: {e}")
         print(f"wrote {picture}")

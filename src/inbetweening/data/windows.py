@@ -20,9 +20,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import torch
 
 from inbetweening.data.mirror import fit_mirror_frames, mirror_motion, mirror_permutation
+from inbetweening.geometry.arrays import is_tensor
 from inbetweening.geometry.canonical import facing_rotation, masked_mean
 from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.kinematics_np import canonical_positions_np, canonicalise_windows_np, column_mean_std, fk_np
@@ -132,7 +132,7 @@ def canonicalise_windows(X: Array, Q: Array, parents: Sequence[int], forward_axi
     Numpy windows take :func:`inbetweening.geometry.kinematics_np.canonicalise_windows_np` (the same arithmetic,
     bit-identical, in cache-sized chunks); torch tensors the generic path below.
     """
-    if not isinstance(X, torch.Tensor) and not isinstance(Q, torch.Tensor):
+    if not is_tensor(X) and not is_tensor(Q):
         return canonicalise_windows_np(X, Q, parents, forward_axis, frame)
     return _canonicalise_windows_generic(X, Q, parents, forward_axis, frame)
 
@@ -140,7 +140,7 @@ def canonicalise_windows(X: Array, Q: Array, parents: Sequence[int], forward_axi
 def _canonicalise_windows_generic(X: Array, Q: Array, parents: Sequence[int], forward_axis: Sequence[float],
                                   frame: int) -> tuple[Array, Array]:
     """:func:`canonicalise_windows` written once for numpy and torch (the definition the fast path is tested against)."""
-    X = X.clone() if isinstance(X, torch.Tensor) else np.array(X, copy=True)
+    X = X.clone() if is_tensor(X) else np.array(X, copy=True)
     xz = masked_mean(X[:, :, 0, 0::2])  # (B, 1, 2)
     X[:, :, 0, 0] = X[:, :, 0, 0] - xz[..., 0]
     X[:, :, 0, 2] = X[:, :, 0, 2] - xz[..., 1]

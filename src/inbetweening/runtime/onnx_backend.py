@@ -13,7 +13,11 @@ __all__ = ["OnnxBackend"]
 
 
 class OnnxBackend:
-    """An exported window model (``.onnx``, its metadata in ``metadata_props``) on ONNX Runtime's CPU provider."""
+    """An exported window model (``.onnx``, its metadata in ``metadata_props``) on ONNX Runtime's CPU provider.
+
+    The graph runs as exported, without ONNX Runtime's graph optimisations: they take about two thirds of a session's
+    start (0.52 s against 0.17 s CPU for a shipped model, three of them in ``predict``) and won nothing per window
+    (21.1 against 21.2 ms median; BENCHMARKS.md "predict start-up")."""
 
     def __init__(self, path: str, threads: int = 1):
         if not path or not os.path.isfile(path):
@@ -26,6 +30,7 @@ class OnnxBackend:
         opts.intra_op_num_threads = int(threads)
         opts.inter_op_num_threads = 1
         opts.log_severity_level = 3
+        opts.graph_optimization_level = ort.GraphOptimizationLevel.ORT_DISABLE_ALL
         name = os.path.basename(path)
         try:
             self.session = ort.InferenceSession(path, opts, providers=["CPUExecutionProvider"])
