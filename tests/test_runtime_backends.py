@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 import torch
 
+from characters import wiggle
 from conftest import BLOCK_TORCH
 from inbetweening.api.export import export_onnx, export_window_onnx, window_example
 from inbetweening.api.shipped import SHIPPED, SHIPPED_CKPTS, SHIPPED_ONNX
-from characters import wiggle
 from inbetweening.runtime import FillRuntime, ModelError
 from inbetweening.runtime.onnx_backend import OnnxBackend
 from inbetweening.runtime.torch_backend import TorchBackend, WindowPath
