@@ -41,7 +41,7 @@ def test_the_teacher_predicts_the_task_as_the_fill_does(tiny_checkpoint):
     known[1, 15 : 15 + n] = False
     roots, qs = np.stack([root, np.roll(root, 3, axis=0)]), np.stack([q, np.roll(q, 3, axis=0)])
     t_root, t_q = teacher.targets(torch.from_numpy(roots), torch.from_numpy(qs), torch.from_numpy(known),
-                                  torch.tensor([n, n]))
+                                  torch.tensor([n, n]), torch.tensor([p, 15]))
     backend = TorchBackend.from_checkpoint(tiny_checkpoint)
     backend.info = replace(backend.info, blend=None)  # the network alone, as the teacher gives it
     fill = FillRuntime(backend, self_check=False, foot_lock=False)
@@ -53,6 +53,27 @@ def test_the_teacher_predicts_the_task_as_the_fill_does(tiny_checkpoint):
         assert dots.min() > 1 - 1e-6
         outside = np.r_[0:start, start + n : 40]
         np.testing.assert_array_equal(t_root[i, outside].numpy(), roots[i, outside])
+
+
+def test_keys_inside_the_transition_are_the_teachers_too(tiny_checkpoint):
+    """An intermediate key on the transition's first frame and a partial key later (``data.keyframes_max``,
+    ``data.partial_prob``): the transition still starts after the context, the teacher sees those keys as the fill
+    would (the same prediction as the fill given them), and nothing outside the transition changes."""
+    teacher = Teacher([str(tiny_checkpoint)])
+    sk, p = teacher.info.skeleton, teacher.info.n_past
+    n, frames = 10, p + 10 + 1
+    root, q = _motion(sk, frames, seed=5)
+    known = np.zeros((1, frames, sk.num_joints), dtype=bool)
+    known[:, :p] = known[:, p + n] = True
+    known[:, p] = True  # a whole key on the transition's first frame
+    known[:, p + 4, :3] = True  # a partial key: three joints
+    r, qq = torch.from_numpy(root[None]), torch.from_numpy(q[None])
+    t_root, t_q = teacher.targets(r, qq, torch.from_numpy(known), torch.tensor([n]), torch.tensor([p]))
+    pr, pq, _ = teacher.runtime.predict_windows(root[None], q[None], known)
+    np.testing.assert_allclose(t_root[0, p : p + n].numpy(), pr[0], atol=1e-9)
+    outside = np.r_[0:p, p + n : frames]
+    np.testing.assert_array_equal(t_root[0, outside].numpy(), root[outside])
+    np.testing.assert_array_equal(t_q[0, outside].numpy(), q[outside])
 
 
 def test_a_student_that_is_its_teacher_has_nothing_to_learn(tiny_checkpoint):
@@ -72,7 +93,7 @@ def test_a_student_that_is_its_teacher_has_nothing_to_learn(tiny_checkpoint):
     r, qq = torch.from_numpy(root[None]), torch.from_numpy(q[None])
     with torch.no_grad():
         pred, _, gt = student(r, qq, known_t)
-        t_root, t_q = teacher.targets(r, qq, known_t, torch.tensor([n]))
+        t_root, t_q = teacher.targets(r, qq, known_t, torch.tensor([n]), torch.tensor([p]))
         target, _ = student.canonical_features(t_root, t_q, known_t)
     mask = ~known_t
     rep = student.representation

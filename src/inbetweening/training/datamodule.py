@@ -260,7 +260,7 @@ class InbetweenDataModule(L.LightningDataModule):
         if keys is not None and float(h.partial_prob) > 0:
             keys = partial_keys(gen, keys, self.data.skeleton.parents, float(h.partial_prob))
         root, q, known = task_window(root, q, c, n, keys)
-        return {"root": root, "q": q, "known": known, "loss_mask": ~known, "n_trans": n}
+        return {"root": root, "q": q, "known": known, "loss_mask": ~known, "n_trans": n, "n_context": c}
 
     def _train_windows(self, idx: list[int], gen: torch.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:
         """Training windows ``root (B, W, 3), q (B, W, J, 4)`` (float64, the clips' frame) of window numbers ``idx``,

@@ -66,16 +66,17 @@ class Teacher:
             raise ConfigError(f"teacher.checkpoints: {self.paths[0]} was trained at {self.info.fps} fps, the data is "
                               f"at {fps} fps")
 
-    def targets(self, root: torch.Tensor, local_q: torch.Tensor, known: torch.Tensor,
-                n_trans: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Training windows ``root (B, T, 3)``, ``local_q (B, T, J, 4)`` (the clip's frame), their ``known (B, T, J)``
-        and transition lengths ``n_trans (B,)`` -> copies whose transition frames hold the teacher's prediction (the
-        transition starts at each window's first frame not wholly known)."""
+    def targets(self, root: torch.Tensor, local_q: torch.Tensor, known: torch.Tensor, n_trans: torch.Tensor,
+                n_context: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Training windows ``root (B, T, 3)``, ``local_q (B, T, J, 4)`` (the clip's frame), their ``known (B, T, J)``,
+        transition lengths ``n_trans (B,)`` and context lengths ``n_context (B,)`` (the transition starts there; its
+        own intermediate and partial keys are known to the teacher) -> copies whose transition frames hold the
+        teacher's prediction."""
         r = root.detach().cpu().numpy().astype(np.float64)
         q = local_q.detach().cpu().numpy().astype(np.float64)
         k = known.detach().cpu().numpy()
         n = n_trans.detach().cpu().numpy().astype(int)
-        start = np.argmax(~k.all(-1), axis=1)  # the transition's first frame
+        start = n_context.detach().cpu().numpy().astype(int)  # the transition's first frame
         p = self.info.n_past
         for gap in np.unique(n):
             rows = np.flatnonzero(n == gap)

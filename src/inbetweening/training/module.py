@@ -223,7 +223,8 @@ class InbetweenModule(L.LightningModule):
                                  known=batch["known"], feet=pr.contact.indices(pr.skeleton.names, "contact.feet"),
                                  foot_speed=pr.contact.speed / pr.fps)
         if stage == "train" and self.teacher is not None:  # distillation: the teacher's prediction of the same task
-            t_root, t_q = self.teacher.targets(batch["root"], batch["q"], batch["known"], batch["n_trans"])
+            t_root, t_q = self.teacher.targets(batch["root"], batch["q"], batch["known"], batch["n_trans"],
+                                                batch["n_context"])
             with torch.no_grad():
                 target, _ = pr.canonical_features(t_root, t_q, batch["known"])
             reduce = self.loss_weights.get("reduce", "frames")
