@@ -48,6 +48,8 @@ BENCHMARKS: tuple[Benchmark, ...] = (
               "about 3 min", "BENCHMARKS.md section", "BENCHMARKS.md, Inference latency"),
     Benchmark("fill_profile", "fill_profile.py", "the shipped fill's 30-frame transition split into its stages",
               "about 1 min", "BENCHMARKS.md section (--write)", "BENCHMARKS.md, Where the fill's time goes"),
+    Benchmark("network_sizes", "network_sizes.py", "one window's CPU time and GFLOP per graph-transformer size",
+              "about 1 min", "BENCHMARKS.md section (--write)", "BENCHMARKS.md, Network size and window time"),
     Benchmark("predict_startup", "predict_startup.py", "`python -m inbetweening.predict` start-up included: ONNX vs checkpoints",
               "about 1 min", "BENCHMARKS.md section", "BENCHMARKS.md, predict start-up", needs=BN2),
     Benchmark("memory", "memory.py", "peak resident memory of train, eval and the shipped model's eval",
