@@ -24,6 +24,9 @@ from inbetweening.predictor.checkpoint import CheckpointError
 from inbetweening.training.module import InbetweenModule
 
 
+REPO_MODELS = Path(__file__).resolve().parents[1] / "models"
+
+
 def _clip(frames: int = 120, seed: int = 0) -> BVH:
     """A synthetic LAFAN-layout clip, passed through the writer/reader like a real file."""
     return parse_bvh(format_bvh(make_bvh(*generate_clip(np.random.default_rng(seed), frames))), source="clip.bvh")
@@ -349,6 +352,7 @@ def test_cli_errors_exit_2_with_one_line(tiny_checkpoint, tmp_path, monkeypatch,
         "error: keyframes: frame 90 is out of range for a clip of 60 frames (valid: 0..59)"]
     assert not (tmp_path / "o.bvh").exists()
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "junk.onnx").write_bytes(b"\x00junk")
     cases = [
         (["ckpt_path=missing.ckpt", "input=clip.bvh", "gap=3", "output=o.bvh"],
          "ckpt_path: missing.ckpt does not exist"),
@@ -357,6 +361,12 @@ def test_cli_errors_exit_2_with_one_line(tiny_checkpoint, tmp_path, monkeypatch,
         (["ckpt_path=x", "input=clip.bvh", "output=o", "keyframes=0,a"], "keyframes: 'a' is not an integer"),
         (["ckpt_path=x", "input=clip.bvh", "output=o", "gap=3", "colour=red"], "unknown option 'colour'"),
         (["ckpt_path=x", "input=clip.bvh", "output=o"], "give exactly one of keyframes"),
+        (["ckpt_path=missing.onnx", "input=clip.bvh", "gap=3", "output=o.bvh"],
+         "ckpt_path: missing.onnx does not exist"),
+        (["ckpt_path=junk.onnx", "input=clip.bvh", "gap=3", "output=o.bvh"],
+         "ckpt_path: junk.onnx is not a readable ONNX model"),
+        ([f"ckpt_path={REPO_MODELS / 'bn2_v2' / 'model.onnx'}", "input=clip.bvh", "gap=3", "output=o.bvh",
+          "device=cuda"], "device: cuda runs checkpoints (.ckpt)"),
     ]
     for argv, msg in cases:
         with pytest.raises(SystemExit) as exc:

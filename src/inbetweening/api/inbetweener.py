@@ -182,9 +182,15 @@ class Inbetweener:
         models, gaps = [], []
         for p in paths:
             if p.lower().endswith(".onnx"):
+                from inbetweening.runtime.model import ModelError
                 from inbetweening.runtime.onnx_backend import OnnxBackend
 
-                models.append(OnnxBackend(p, threads))
+                if not Path(p).is_file():
+                    raise ModelError(f"ckpt_path: {p} does not exist")
+                try:
+                    models.append(OnnxBackend(p, threads))
+                except ModelError as e:
+                    raise ModelError(f"ckpt_path: {e}") from None
                 gaps.append(None)
             else:
                 from inbetweening.predictor.checkpoint import load_predictor, read_checkpoint, trained_gap
