@@ -99,7 +99,6 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
         src_p = interpolate_keyframes(lp.reshape(n, -1), lq, keys)[0].reshape(lp.shape)
         for t, mask in part.items():
             src_p[t, mask] = lp[t, mask]
-    root[at], q[at] = retarget.to_model(src_q[rows], src_p[rows])
     model_at = dict(zip(rows, (int(a) for a in at)))
     model_keys = [model_at[k] for k in keys]
     hips = retarget.rig_slot["Hips"]
@@ -107,12 +106,18 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
                                          for j in range(info.skeleton.num_joints)]) for t, mask in part.items()}
     to_model = dict(zip(zip(keys, keys[1:]), zip(model_keys, model_keys[1:])))
     to_rig = {v: k for k, v in to_model.items()}
+    kept_gaps = [] if only is None else [  # the gaps the fill may keep: the rig's frames carried to the model's
+        ((ka, kb), (ma, mb)) for (ka, kb), (ma, mb) in to_model.items()
+        if (ka, kb) not in only and mb - ma >= 2 and finite[ka : kb + 1].all()]
+    # one retargeting of every frame it needs (frame by frame, so the same numbers as one call per span)
+    spans = [(src_q[rows], src_p[rows])] + [(lq[ka : kb + 1], lp[ka : kb + 1]) for (ka, kb), _ in kept_gaps]
+    all_root, all_q = retarget.to_model(np.concatenate([a for a, _ in spans]), np.concatenate([b for _, b in spans]))
+    ends = np.cumsum([len(a) for a, _ in spans])[:-1]
+    parts = list(zip(np.split(all_root, ends), np.split(all_q, ends)))
+    root[at], q[at] = parts[0]
     model_only = None
-    if only is not None:  # the gaps the fill may keep: the rig's frames carried to the model's at their time
-        for (ka, kb), (ma, mb) in to_model.items():
-            if (ka, kb) in only or mb - ma < 2 or not finite[ka : kb + 1].all():
-                continue
-            g_root, g_q = retarget.to_model(lq[ka : kb + 1], lp[ka : kb + 1])
+    if only is not None:
+        for ((ka, kb), (ma, mb)), (g_root, g_q) in zip(kept_gaps, parts[1:]):  # at the model's frames, by their time
             g_q = remove_discontinuities(g_q, axis=0)  # continuous from the key, as the runtime makes a gap it fills
             root[ma + 1 : mb], q[ma + 1 : mb] = _resample(g_root, g_q, (np.arange(ma + 1, mb) - ma) * (kb - ka) / (mb - ma))
         model_only = {to_model[g] for g in only}
