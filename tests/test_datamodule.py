@@ -130,8 +130,9 @@ def test_transition_per_sample(tmp_path, cache_dir):
     n_past, lo, hi = W.N_PAST, 5, 30
     idx = list(range(len(dm.clip_windows)))
     batch = dm.collate_train([(0, 0, i) for i in idx])
-    assert set(batch) == {"root", "q", "known", "loss_mask", "n_trans"}
+    assert set(batch) == {"root", "q", "known", "loss_mask", "n_trans", "n_context"}
     root, q, known, loss_mask, n = batch["root"], batch["q"], batch["known"], batch["loss_mask"], batch["n_trans"]
+    assert torch.equal(batch["n_context"], torch.full((len(idx),), n_past))  # every sample's context: 10 frames
     b, t, j, _ = q.shape
     assert root.shape == (b, t, 3) and root.dtype == q.dtype == torch.float64
     assert b == len(idx) and n.shape == (b,)

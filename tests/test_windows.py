@@ -94,7 +94,7 @@ def test_clip_sampling_data_module_mirrors_about_half_the_windows(tmp_path, cach
     loader = dm.train_dataloader()
     batch = next(iter(loader))
     again = next(iter(dm.train_dataloader()))
-    assert set(batch) == {"root", "q", "known", "loss_mask", "n_trans"}
+    assert set(batch) == {"root", "q", "known", "loss_mask", "n_trans", "n_context"}
     assert all(torch.equal(batch[k], again[k]) for k in batch)  # a pure function of seed, epoch, batch
     assert batch["q"].shape[:3] == batch["known"].shape and batch["root"].shape == batch["q"].shape[:2] + (3,)
     assert torch.equal(batch["loss_mask"], ~batch["known"])
