@@ -11,8 +11,8 @@ package is changed): ``checks`` the self-check (:meth:`FillRuntime._weigh`: its 
 weights), ``windows`` generating the gaps (:meth:`FillRuntime._generate`), ``feet`` foot locking
 (:meth:`FillRuntime._feet`), ``other`` the rest (input checks, plan, the keys copied back); ``network`` is the time
 inside the backends' ``predict`` (every member's forward pass, canonical windows in and out), counted in whichever
-stage called it, and ``calls`` the members' forward passes per fill.  Medians over ``--repeats`` rounds after three warm-ups; the machine should be quiet.  ``--write``
-puts the table into BENCHMARKS.md's "## Where the fill's time goes".
+stage called it, and ``calls`` the members' forward passes per fill.  Medians over ``--repeats`` rounds after three
+warm-ups; the machine should be quiet.  ``--write`` puts the table into BENCHMARKS.md's "## Where the fill's time goes".
 """
 from __future__ import annotations
 

@@ -11,11 +11,10 @@
 
 This is the Python API over the fill runtime (:class:`inbetweening.runtime.FillRuntime`): a training checkpoint runs
 on the torch backend, its exported window graph (``.onnx``, :func:`~inbetweening.api.export.export_window_onnx`) on
-ONNX Runtime without importing PyTorch (what ``predict`` starts with by default).
-how a gap is generated (context, canonical frame, long gaps split at interpolated pseudo-keyframes, the do-no-harm
-blend, foot locking, keys kept exactly) is described there, and the CLI, ``eval.py`` and the Blender extension fill
-through the same runtime.  This module adds the clip level: a BVH file's joints and frames into the model's
-skeleton and back.
+ONNX Runtime without importing PyTorch (what ``predict`` starts with by default).  How a gap is generated (context,
+canonical frame, long gaps split at interpolated pseudo-keyframes, the do-no-harm blend, foot locking, keys kept
+exactly) is described there, and the CLI, ``eval.py`` and the Blender extension fill through the same runtime.  This
+module adds the clip level: a BVH file's joints and frames into the model's skeleton and back.
 
 A clip of the model's skeleton is filled as it is: same joint names in the same order, or one extra top joint
 above the model's root (Bandai-Namco's ``joint_Root`` above ``Hips``, still or carrying the locomotion), which is
