@@ -4,6 +4,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import types
+from pathlib import Path
 
 from omegaconf import DictConfig
 
@@ -250,9 +251,21 @@ def _check_teacher(cfg) -> None:
     node = _get(cfg, "teacher")
     if not node:
         return
-    from inbetweening.training.distil import check_settings  # (distil imports this module's ConfigError)
+    check_teacher_settings(_get(cfg, "teacher.checkpoints"), _get(cfg, "teacher.weight", 1.0))
 
-    check_settings(_get(cfg, "teacher.checkpoints"), _get(cfg, "teacher.weight", 1.0))
+
+def check_teacher_settings(checkpoints, weight) -> list[str]:
+    """The ``teacher`` group's values checked before any work (:class:`ConfigError` naming the key): existing
+    checkpoint files (one path or a list; returned as a list) and a positive weight."""
+    paths = [checkpoints] if isinstance(checkpoints, str) else [str(p) for p in (checkpoints or [])]
+    if not paths:
+        raise ConfigError("teacher.checkpoints: give at least one checkpoint")
+    for p in paths:
+        if not Path(p).is_file():
+            raise ConfigError(f"teacher.checkpoints: no checkpoint file {p}")
+    if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not weight > 0:
+        raise ConfigError(f"teacher.weight: must be a positive number, got {weight!r}")
+    return paths
 
 
 def fill_settings(cfg: DictConfig):

@@ -15,7 +15,6 @@ The do-no-harm blend, the self-check and foot locking stay the fill's: they appl
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 import torch
@@ -24,23 +23,9 @@ from inbetweening.geometry.quaternion import remove_discontinuities
 from inbetweening.runtime.ensemble import EnsembleBackend
 from inbetweening.runtime.fill import FillRuntime
 from inbetweening.runtime.torch_backend import TorchBackend
-from inbetweening.training.config import ConfigError
+from inbetweening.training.config import ConfigError, check_teacher_settings
 
-__all__ = ["Teacher", "check_settings"]
-
-
-def check_settings(checkpoints, weight) -> list[str]:
-    """The ``teacher`` group's values checked before any work (:class:`ConfigError` naming the key): existing
-    checkpoint files (one path or a list; returned as a list) and a positive weight."""
-    paths = [checkpoints] if isinstance(checkpoints, str) else [str(p) for p in (checkpoints or [])]
-    if not paths:
-        raise ConfigError("teacher.checkpoints: give at least one checkpoint")
-    for p in paths:
-        if not Path(p).is_file():
-            raise ConfigError(f"teacher.checkpoints: no checkpoint file {p}")
-    if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not weight > 0:
-        raise ConfigError(f"teacher.weight: must be a positive number, got {weight!r}")
-    return paths
+__all__ = ["Teacher"]
 
 
 class Teacher:
@@ -48,7 +33,7 @@ class Teacher:
     distillation term's weight in the student's loss."""
 
     def __init__(self, checkpoints: Sequence[str] | str, weight: float = 1.0, device: str | torch.device = "cpu"):
-        paths = check_settings(checkpoints, weight)
+        paths = check_teacher_settings(checkpoints, weight)
         members = [TorchBackend.from_checkpoint(p, device) for p in paths]
         backend = members[0] if len(members) == 1 else EnsembleBackend(members, paths)
         self.paths, self.weight = paths, float(weight)
