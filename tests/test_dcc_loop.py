@@ -126,6 +126,30 @@ def test_the_animators_loop_on_a_humanoid(backend, human):
         {k: v for k, v in mine.items() if k != (EDIT, 80.0)}
 
 
+def test_a_refill_with_nothing_changed_builds_no_retargeting(backend, human, monkeypatch):
+    """The bones a fill writes come from the skeletons and the map alone, so "nothing changed" is known without the
+    retargeting (its construction is a sixth of a Blender re-fill); a changed key builds it again."""
+    import inbetweening.dcc.mapped as mapped
+
+    curves, rig = humanoid(backend, human, list(range(0, 91, 30)))
+    fill_action(rig, backend, 0, 90, self_check=False)
+    built = []
+
+    class Counted(mapped.Retarget):
+        def __init__(self, *a, **kw):
+            built.append(1)
+            super().__init__(*a, **kw)
+
+    monkeypatch.setattr(mapped, "Retarget", Counted)
+    filled = curves.copy()
+    again = fill_action(rig, backend, 0, 90, self_check=False)
+    assert (again["gaps"], again["kept"], built) == (0, 3, []) and equal(curves.curves, filled)
+    hips = rotation(human[0][human[5]], 1)
+    curves.key(hips, 30, float(np.float32(curves.at(hips, 30)[0] + 0.02)))  # the animator turns the hips at 30
+    changed = fill_action(rig, backend, 0, 90, self_check=False)
+    assert changed["refilled"][:2] == [[0, 30], [30, 60]] and built == [1]
+
+
 def test_partial_keys_on_a_humanoid(backend, human):
     """Keys every 30 frames and the left arm alone keyed at 75: a partial key (no gap boundary), the arm's keys kept,
     the frame's other bones generated; changing the arm's key re-fills its gap only."""

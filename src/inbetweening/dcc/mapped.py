@@ -21,7 +21,7 @@ import numpy as np
 from inbetweening.geometry.quaternion import qinv, qmul, qnormalize, qrot
 from inbetweening.geometry.skeleton import Skeleton
 from inbetweening.runtime.bone_map import SLOTS, detect_bone_map
-from inbetweening.runtime.retarget import Retarget
+from inbetweening.runtime.retarget import Retarget, rig_plan
 
 from .host import Rig
 
@@ -55,7 +55,8 @@ class MappedRig(Rig):
         self.skeleton = Skeleton(names, parents, offsets)
         self.map = detect_bone_map(names, parents, offsets, override, where=where)
         self.r = np.tile([1.0, 0.0, 0.0, 0.0], (len(names), 1)) if rest is None else np.asarray(rest, np.float64)
-        self.retarget: Retarget | None = None
+        self._retarget: Retarget | None = None
+        self._retarget_inputs: tuple | None = None
         self.rot_bones: list[int] = []
         self.movers: list[int] = []
 
@@ -81,20 +82,32 @@ class MappedRig(Rig):
         return None
 
     # ------------------------------------------------------------------ the mapping
-    def retarget_at(self, reference: np.ndarray, poses=None, translations=None, ends=None) -> Retarget:
-        """The :class:`Retarget` from the rig to the model (``reference``: the rig's local rotations at the first key;
-        ``poses``, ``translations``: its local rotations and translations at every key, where its up, natural pose and
-        floor are read)."""
-        self.retarget = Retarget(self.skeleton, self.model.skeleton, self.map, reference=reference, poses=poses,
-                                 translations=translations, ends=ends)
-        return self.retarget
+    def retarget_at(self, reference: np.ndarray, poses=None, translations=None, ends=None) -> None:
+        """Set the pose the :class:`Retarget` from the rig to the model (:attr:`retarget`) is built from
+        (``reference``: the rig's local rotations at the first key; ``poses``, ``translations``: its local rotations
+        and translations at every key, where its up, natural pose and floor are read).  It is built when the fill first
+        needs it: a re-fill with nothing changed never does."""
+        self._retarget, self._retarget_inputs = None, (reference, poses, translations, ends)
 
-    def plan(self, reference: np.ndarray, poses=None, translations=None) -> Retarget:
-        """:meth:`retarget_at` (with :meth:`ends`), and the bones the fill writes: the rotation of every bone with a
-        slot or between slots in a chain, and ``movers``: the bone that carries the hips' translation (the nearest
-        unconnected bone at or above the hips with an animated location, else the hips when unconnected)."""
+    @property
+    def retarget(self) -> Retarget:
+        """The :class:`Retarget` from the rig to the model at the pose :meth:`retarget_at` set (built on first use)."""
+        if self._retarget is None:
+            if self._retarget_inputs is None:
+                raise RuntimeError(f"{self.where}: plan() before the retargeting")
+            reference, poses, translations, ends = self._retarget_inputs
+            self._retarget = Retarget(self.skeleton, self.model.skeleton, self.map, reference=reference, poses=poses,
+                                      translations=translations, ends=ends)
+        return self._retarget
+
+    def plan(self, reference: np.ndarray, poses=None, translations=None) -> None:
+        """:meth:`retarget_at` (with :meth:`ends`), and the bones the fill writes (from the skeletons and the map alone,
+        :func:`~inbetweening.runtime.retarget.rig_plan`): the rotation of every bone with a slot or between slots in a
+        chain, and ``movers``: the bone that carries the hips' translation (the nearest unconnected bone at or above
+        the hips with an animated location, else the hips when unconnected)."""
         self.retarget_at(reference, poses, translations, self.ends())
-        self.rot_bones = [j for j, p in enumerate(self.retarget.rig_plan) if p[0] != "free" and self.is_bone(j)]
+        self.rot_bones = [j for j, p in enumerate(rig_plan(self.skeleton, self.model.skeleton, self.map))
+                          if p[0] != "free" and self.is_bone(j)]
         hips = self.names.index(self.map.slots["Hips"])
         chain = [hips]
         while self.parents[chain[-1]] >= 0:
@@ -102,7 +115,6 @@ class MappedRig(Rig):
         free = [j for j in chain if self.is_bone(j) and not self.connected(j)]
         keyed = [j for j in free if self.has_location(j)]
         self.movers = keyed[:1] or ([hips] if hips in free else [])
-        return self.retarget
 
     def fill(self, runtime, a: np.ndarray, b: np.ndarray, keys: list[int], **kw):
         """:meth:`FillRuntime.fill_rig <inbetweening.runtime.fill.FillRuntime.fill_rig>` of the rig's ``local_q``

@@ -45,7 +45,7 @@ from .tpose import (
 if TYPE_CHECKING:
     from .bone_map import BoneMap
 
-__all__ = ["EULER_ORDER", "MODEL_ANKLE", "Retarget", "euler_sign"]
+__all__ = ["EULER_ORDER", "MODEL_ANKLE", "Retarget", "euler_sign", "rig_plan"]
 
 EULER_ORDER = "zxy"  # the rotation channels of the shipped models' training files (Bandai-Namco-2)
 
@@ -67,6 +67,35 @@ def _shape(skeleton: Skeleton, joints: list[int], start: np.ndarray | None = Non
     pos = rest_pose(skeleton, {"Hips": 0}, None, start)[1][joints]
     d = np.linalg.norm(pos[:, None] - pos[None], axis=-1)
     return d / max(float(d.max()), 1e-12)
+
+
+def rig_plan(rig: Skeleton, model: Skeleton, bone_map: BoneMap) -> list[tuple]:
+    """Per bone of ``rig`` (mapped to the slots, ``model``'s joint names, by ``bone_map``), where the retargeting takes
+    its rotation from: ``("slot", model joint)`` (a mapped bone); inside a chain between mapped bones
+    ``("body" | "limb", model joint, rig bone)``: rigid with the mapped bone below it (the model's segment there is one
+    bone); or ``("free",)`` (keeps its local values).  It depends on the skeletons and the map only: a front end knows
+    the bones a fill writes before it reads a pose."""
+    rig_slot = {s: rig.names.index(b) for s, b in bone_map.slots.items()}
+    mapped = {b: model.names.index(s) for s, b in rig_slot.items()}
+    plan: list[tuple] = [("free",)] * rig.num_joints
+    for b, j in mapped.items():
+        plan[b] = ("slot", j)
+    ch = chains(rig.parents, rig_slot)
+    body = ch.paths["body"]
+    for i, b in enumerate(body):
+        if b not in mapped:
+            lo = max(k for k in range(i) if body[k] in mapped)
+            plan[b] = ("body", mapped[body[lo]], body[lo])
+    for key, path in ch.paths.items():
+        if key == "body":
+            continue
+        last = None
+        for b in path:
+            if b in mapped:
+                last = b
+            elif last is not None:
+                plan[b] = ("limb", mapped[last], last)
+    return plan
 
 
 class Retarget:
@@ -188,30 +217,8 @@ class Retarget:
         self.model_source = [src[j] for j in range(m.num_joints)]
 
     def _plan_rig(self) -> None:
-        """Per rig bone: ``("slot", model joint)``; inside a chain between mapped bones ``("body" | "limb", model joint,
-        rig bone)``: rigid with the mapped bone below it (the model's segment there is one bone); or ``("free",)``
-        (keeps its local values)."""
-        r = self.rig
-        mapped = {b: self.model_slot[s] for s, b in self.rig_slot.items()}
-        plan: list[tuple] = [("free",)] * r.num_joints
-        for b, j in mapped.items():
-            plan[b] = ("slot", j)
-        ch = chains(r.parents, self.rig_slot)
-        body = ch.paths["body"]
-        for i, b in enumerate(body):
-            if b not in mapped:
-                lo = max(k for k in range(i) if body[k] in mapped)
-                plan[b] = ("body", mapped[body[lo]], body[lo])
-        for key, path in ch.paths.items():
-            if key == "body":
-                continue
-            last = None
-            for b in path:
-                if b in mapped:
-                    last = b
-                elif last is not None:
-                    plan[b] = ("limb", mapped[last], last)
-        self.rig_plan = plan
+        """Per rig bone, where its rotation comes from (:func:`rig_plan`)."""
+        self.rig_plan = rig_plan(self.rig, self.model, self.map)
 
     def _plan_aims(self, reference) -> None:
         """The bones whose direction is matched: per mapped model joint with a chain child mapped too, the pair of rig

@@ -200,10 +200,11 @@ class RigifyRig(OnArmature, dcc.MappedRig):
         return qnormalize(lq, 0.0), lp, self._raw(frames)
 
     def plan(self, reference: np.ndarray, poses: np.ndarray | None = None, translations: np.ndarray | None = None):
-        """The :class:`Retarget` from the deform skeleton (``reference``: its local rotations at the first key;
-        ``poses``, ``translations``: at every key, where its up, natural pose and floor are read); the written
-        controls are fixed."""
-        return self.retarget_at(reference, poses, translations)
+        """The pose the :class:`Retarget` from the deform skeleton is built from when the fill needs it
+        (:meth:`~inbetweening.dcc.MappedRig.retarget_at`; ``reference``: its local rotations at the first key; ``poses``,
+        ``translations``: at every key, where its up, natural pose and floor are read); the written controls are
+        fixed."""
+        self.retarget_at(reference, poses, translations)
 
     def channels(self):
         """``[(control, data_path, index)]``: the rotation channels of the controls, the location of ``torso``."""
