@@ -3,12 +3,15 @@
 cost.
 
     python benchmarks/blender_loop.py [--data ../shared/datasets/bandai-namco-2.zip] [--repeats 10] [--no-write]
+                                      [--profile FILE]
 
 Builds the extension (linux-x64 zip; wheels cached) and runs it headless in a ``bpy`` venv (``.venv-bpy``, created
 if missing; ``$INBETWEENING_BPY_PYTHON`` picks another, e.g. Blender 4.2's) on one thread.  The clip: frames 1-300 of
 the first Bandai-Namco-2 file with more than 440 lines (as benchmarks/blender_fill.py), imported with Blender's BVH
 importer, keys every 30 frames (1, 31, ..., 271: 9 gaps of 29 frames); an edit changes one channel of one key by
-0.01 rad.  Writes the "## Blender extension: re-fill after an edit" section of BENCHMARKS.md.
+0.01 rad.  ``--profile FILE``: cProfile's tables of the runs with nothing changed and of the one-gap re-fills (cumulative
+time, 60 rows each) in FILE.
+Writes the "## Blender extension: re-fill after an edit" section of BENCHMARKS.md.
 """
 from __future__ import annotations
 
@@ -34,6 +37,7 @@ def main() -> None:
                                                      str(ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip")))
     ap.add_argument("--repeats", type=int, default=10)
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--profile", default=None, help="write cProfile's tables of the nothing-changed and one-gap re-fills to this file")
     args = ap.parse_args()
     from inbetweening.blender.bpyenv import bpy_python
     from inbetweening.blender.build import DEFAULT_CKPTS, build
@@ -46,7 +50,8 @@ def main() -> None:
             long = next(n for n in sorted(zf.namelist()) if n.endswith(".bvh") and zf.read(n).count(b"\n") > 440)
             (tmp / "long.bvh").write_bytes(zf.read(long))
         cfg = {"zip": str(zip_path), "clip": str(tmp / "long.bvh"), "every": 30, "frames": 300,
-               "repeats": args.repeats, "out": str(tmp / "res.json")}
+               "repeats": args.repeats, "out": str(tmp / "res.json"),
+               "profile": str(Path(args.profile).resolve()) if args.profile else None}
         (tmp / "cfg.json").write_text(json.dumps(cfg))
         env = {**os.environ, "BLENDER_USER_RESOURCES": str(tmp / "user"), "OMP_NUM_THREADS": "1"}
         subprocess.run([str(exe), str(ROOT / "benchmarks" / "blender" / "bpy_loop_bench.py"), str(tmp / "cfg.json")],

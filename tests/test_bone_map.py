@@ -446,6 +446,34 @@ def test_ue_mannequin():
     assert set(bm.how.values()) == {"name (UE mannequin)"}
 
 
+def test_a_rig_mapped_again_gets_its_map_without_the_detection(monkeypatch):
+    """A front end maps its rig on every fill: the same names, parents, offsets and override give the same map from
+    memory (the detection is not run); another override or other offsets are detected again, and a rig that cannot be
+    mapped fails every time."""
+    import inbetweening.runtime.bone_map.detect as detect_module
+
+    names, parents, offsets = ue_rig().arrays(False)
+    first = detect_bone_map(names, parents, offsets)
+    runs = []
+    real = detect_module._detect
+    monkeypatch.setattr(detect_module, "_detect", lambda *a: runs.append(1) or real(*a))
+    again = detect_bone_map(list(names), list(parents), np.array(offsets, dtype=np.float64))  # equal copies
+    assert again == first and runs == []
+    again.slots["Head"] = "pelvis"  # the caller's copy: the remembered map stays
+    assert detect_bone_map(names, parents, offsets) == first and runs == []
+    moved = np.array(offsets, dtype=np.float64)
+    moved[1] *= 1.5
+    assert detect_bone_map(names, parents, moved).slots == first.slots and runs == [1]
+    swapped = detect_bone_map(names, parents, offsets, override={"spine_02": "Chest", "spine_03": None})
+    assert swapped.slots["Chest"] == "spine_02" and runs == [1, 1]
+    hidden = [n if n != "pelvis" else "thing" for n in names]
+    bad = {"thing": None, "thigh_l": None, "thigh_r": None}
+    for _ in range(2):
+        with pytest.raises(BoneMapError):
+            detect_bone_map(hidden, parents, offsets, override=bad)
+    assert len(runs) == 4
+
+
 def test_ue_mannequin_five_spine_bones_two_neck_bones():
     """UE5: spine_01..05, neck_01/02: Spine the first spine bone, Chest the last, Neck the first neck bone."""
     bm = detect(ue_rig(spine=5, neck=2))

@@ -2,9 +2,11 @@
 re-filled; nothing changed; Auto Re-fill).  Driven by benchmarks/blender_loop.py."""
 from __future__ import annotations
 
+import cProfile
 import importlib
 import json
 import os
+import pstats
 import sys
 import time
 
@@ -44,21 +46,31 @@ def main() -> None:
     chk.thin(obj, set(keys))
     res = {"blender": bpy.app.version_string, "keys": keys, "runs": {}}
 
-    def run(name, edit=None, **kw):
+    def run(name, edit=None, profile=None, **kw):
         rows = []
         for i in range(cfg["repeats"]):
             if edit is not None:
                 nudge(obj, edit, 0.01 if i % 2 == 0 else -0.01)
             mod.LAST_FILL.clear()
+            if profile is not None:
+                profile.enable()
             wall, cpu = timed(lambda: bpy.ops.anim.inbetween_fill(**kw))
+            if profile is not None:
+                profile.disable()
             rows.append({"wall": wall, "cpu": cpu, "model": mod.LAST_FILL.get("model_seconds", 0.0),
                          "refilled": mod.LAST_FILL.get("refilled"), "load": os.getloadavg()[0]})
         res["runs"][name] = rows
         print(name, rows[-1], flush=True)
 
     run("full", discard_edits=True)              # every gap (Discard Edits re-fills everything)
-    run("nothing changed")                      # the record says nothing changed: no write
-    run("last key changed", edit=keys[-1])      # one gap re-filled
+    profiles = {n: cProfile.Profile() for n in ("nothing changed", "last key changed")} if cfg.get("profile") else {}
+    run("nothing changed", profile=profiles.get("nothing changed"))  # the record says nothing changed: no write
+    run("last key changed", edit=keys[-1], profile=profiles.get("last key changed"))  # one gap re-filled
+    if profiles:
+        with open(cfg["profile"], "w") as f:
+            for name, profile in profiles.items():
+                print(f"==== {name}", file=f)
+                pstats.Stats(profile, stream=f).sort_stats("cumulative").print_stats(60)
     run("middle key changed", edit=keys[len(keys) // 2])  # its two gaps and the gaps after them
 
     # Auto Re-fill: the handler's cost on an update, and the re-fill the timer runs

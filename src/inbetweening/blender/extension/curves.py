@@ -87,15 +87,21 @@ def curve_values(fc, default: float, frames) -> np.ndarray:
 
 
 class ArmatureCurves(Curves):
-    """The F-curves of an armature's action (``bag``: its channelbag, ``None`` without an action)."""
+    """The F-curves of an armature's action (``bag``: its channelbag, ``None`` without an action).  Built for one fill
+    (an operator's call): a channel's keys are read from Blender once and again only after this object changed them,
+    so keys changed from elsewhere meanwhile are not seen."""
 
     def __init__(self, obj):
         self.obj, self.bag = obj, channelbag(obj)
         self.gen = _enum_index("type", GENERATED)
         self.mine = _enum_index("type", "KEYFRAME")
+        self._scanned: dict = {}  # channel -> its keys as last read (dropped when this object changes the curve)
 
     def fcurve(self, path: str, index: int):
         return self.bag.fcurves.find(path, index=index) if self.bag is not None else None
+
+    def _changed(self, channel) -> None:
+        self._scanned.pop(tuple(channel), None)
 
     def bone_channels(self, bones) -> list:
         """The channels of the rotation and location curves (any rotation mode's) of the pose bones ``bones``."""
@@ -104,11 +110,16 @@ class ArmatureCurves(Curves):
                 if fc.data_path.rsplit(".", 1)[0] in heads and fc.data_path.rsplit(".", 1)[-1] in ROT_LOC]
 
     def keys(self, channel) -> Keys | None:
-        fc = self.fcurve(*channel)
-        if fc is None:
-            return None
-        x, y, typ, sel = scan(fc)
-        return Keys(x, y, typ == self.gen, sel)
+        """A channel's keys; read from Blender once per fill until this object changes the curve (a fill reads each
+        channel's keys three or four times)."""
+        hit = self._scanned.get(tuple(channel))
+        if hit is None:
+            fc = self.fcurve(*channel)
+            if fc is None:
+                return None
+            x, y, typ, sel = scan(fc)
+            hit = self._scanned[tuple(channel)] = (x, y, typ == self.gen, sel)
+        return Keys(*(a.copy() for a in hit))
 
     def evaluate(self, channel, frames) -> np.ndarray:
         fc = self.fcurve(*channel)
@@ -123,16 +134,19 @@ class ArmatureCurves(Curves):
         fc.keyframe_points.foreach_get("type", typ)
         typ[indices] = self.gen if generated else self.mine
         fc.keyframe_points.foreach_set("type", typ)
+        self._changed(channel)
 
     def add(self, channel, frame: int) -> None:
         path, index = channel
         pb = self.obj.pose.bones[bone_of(path)]
         pb.keyframe_insert(path.rsplit(".", 1)[1], index=index, frame=frame, group=pb.name)
+        self._changed(channel)
 
     def write(self, channel, frames, values, spans) -> None:
         prefs = bpy.context.preferences.edit
         write_curve(self.fcurve(*channel), frames, values, spans, prefs.keyframe_new_interpolation_type,
                     prefs.keyframe_new_handle_type)
+        self._changed(channel)
 
     def load_record(self):
         return record.entry(self.obj)

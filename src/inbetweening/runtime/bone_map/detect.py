@@ -7,6 +7,8 @@ import json
 import re
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from .name_pass import _names_pass
 from .names import canonical
 from .rig import _Rig, _violations
@@ -146,14 +148,43 @@ def _check_override(override: dict, rig: _Rig | None, where: str) -> dict[str, s
     return out
 
 
+_DETECTED: dict = {}  # the last rigs' maps: a front end maps its rig again on every fill
+_DETECTED_MAX = 16
+
+
+def _rig_key(names, parents, offsets, override) -> tuple | None:
+    """What a bone map depends on, as a dictionary key (``None`` where the arguments are not plain arrays)."""
+    try:
+        return (tuple(str(n) for n in names), tuple(int(p) for p in parents),
+                np.asarray(offsets, dtype=np.float64).tobytes(),
+                tuple(sorted((str(b), s) for b, s in override.items())) if override else None)
+    except (TypeError, ValueError):
+        return None
+
+
 def detect_bone_map(names, parents, offsets, override: dict[str, str] | None = None, where: str = "rig") -> BoneMap:
     """The bone map of a rig: ``names (J,)``, ``parents (J,)`` (-1 for a root, parents before children), ``offsets
     (J, 3)`` each joint's rest offset from its parent (any up axis, any unit); ``override`` ``{rig_bone: slot or
-    None}`` on top.  ``where`` names the rig in messages (``"rig 'wolf.bvh'"``).
+    None}`` on top.  ``where`` names the rig in messages (``"rig 'wolf.bvh'"``).  A rig mapped before (the same
+    names, parents, offsets and override) gets its map again without the detection.
 
     :class:`BoneMapError` (one line) when a required slot stays empty (``.template``: an override file to fill in)
     or the override is wrong (a bone the rig lacks, an unknown slot, two bones for one slot, a bone not below its
     slot parent's bone)."""
+    key = _rig_key(names, parents, offsets, override)
+    if key is not None and key in _DETECTED:
+        hit = _DETECTED[key]
+        return BoneMap(dict(hit.slots), dict(hit.how))
+    found = _detect(names, parents, offsets, override, where)
+    if key is not None:
+        if len(_DETECTED) >= _DETECTED_MAX:
+            _DETECTED.pop(next(iter(_DETECTED)))
+        _DETECTED[key] = BoneMap(dict(found.slots), dict(found.how))
+    return found
+
+
+def _detect(names, parents, offsets, override, where) -> BoneMap:
+    """:func:`detect_bone_map` without the memory of the last rigs."""
     rig = _Rig(names, parents, offsets)
     checked = _check_override(override, rig, where) if override else {}
     named, preset = _names_pass(rig)
