@@ -118,6 +118,9 @@ BENCHMARKS: tuple[Benchmark, ...] = (
               "<out dir> <name> [override ...]", BN2),
     Benchmark("finetune_unseen", "finetune_unseen.sh", "10 minutes of fine-tuning on motions never seen",
               "about 1 h", "<out>/", "RESULTS.md 4, fine-tuning on your motions", "<out dir> [<folder of takes>]", BN2),
+    Benchmark("finetune_levers", "finetune_levers.sh", "levers of the 10-minute fine-tune, the winner picked on "
+              "the user's held-out takes and tested once", "about 10 min per lever and 15 min", "<out>/",
+              "RESULTS.md 4, fine-tuning on your motions", "<out dir> <folder of takes> NAME='OVERRIDE ...' ...", BN2),
     Benchmark("partial_keys", "partial_keys.sh", "the keyframes protocol's partial-key schedules per checkpoint",
               "about 15 min per checkpoint", "<out>/", "RESULTS.md 8, partial keys", "<out dir> <name>=<checkpoint> ...", BN2),
     Benchmark("researcher_grid", "researcher_grid.sh", "mask / depth / heads / norm, 2 seeds, 200 steps",

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Levers of the ten-minute fine-tune (issue 51 item 3, RESULTS.md 4), chosen on the user's own held-out takes: each
+# lever is finetune_unseen.sh's fine-tune (models/bn2_content, 440 steps, takes 001-003 of every style of `run` and
+# `wave-both-hands`) with its overrides; the takes held out for validation (data.val_fraction of the training takes)
+# pick the winner by its best val/l2p_mean; only the winner is scored on the 483 test takes (LAFAN, keys every 15 and
+# 30), once.  One run alone on the 2-core CPU: about 10 min per lever and 15 min for the winner's scores.
+#   bash benchmarks/finetune_levers.sh <out dir> <folder of the run / wave-both-hands takes> NAME='OVERRIDE ...' ...
+#   e.g. ... base= lr4e-4='optim.optimizer.lr=4e-4' mirror='data.mirror=true'
+set -euo pipefail
+OUT=${1:?out dir}
+DATA=${2:?folder of takes}
+shift 2
+[ $# -gt 0 ] || { echo "give at least one lever: NAME='OVERRIDE ...'" >&2; exit 2; }
+mkdir -p "$OUT"
+DATA_ARGS=(data=bvh "data.path=$DATA" 'data.test_pattern=["*_00[4-9].bvh","*_0[1-9][0-9].bvh"]')
+TEN_MIN=(trainer.max_steps=440 trainer.val_check_interval=100 threads=2 run_test=false)
+for lever in "$@"; do
+  name=${lever%%=*}
+  read -r -a over <<< "${lever#*=}"
+  [ -f "$OUT/$name/done" ] && continue
+  /usr/bin/time -v ${PYTHON:-python} train.py experiment=finetune init_from=models/bn2_content/model.ckpt \
+    "${DATA_ARGS[@]}" "${TEN_MIN[@]}" "${over[@]}" hydra.run.dir="$OUT/$name" > "$OUT/$name.log" 2>&1
+  touch "$OUT/$name/done"
+done
+# the winner by validation: the lowest best val/l2p_mean of each run's kept checkpoint
+${PYTHON:-python} - "$OUT" "$@" > "$OUT/validation.md" <<'PY'
+import glob, sys, torch
+out, levers = sys.argv[1], [a.split("=", 1)[0] for a in sys.argv[2:]]
+rows = []
+for name in levers:
+    (ckpt,) = glob.glob(f"{out}/{name}/checkpoints/epoch_*.ckpt")
+    state = torch.load(ckpt, map_location="cpu", weights_only=False)["callbacks"]
+    score = next(float(v["best_model_score"]) for k, v in state.items() if k.startswith("ModelCheckpoint"))
+    rows.append((score, name, ckpt))
+print("| lever | best val/l2p_mean | checkpoint |\n|---|---:|---|")
+for score, name, ckpt in rows:
+    print(f"| {name} | {score:.4f} | {ckpt} |")
+print(f"\nwinner: {min(rows)[1]} {min(rows)[2]}")
+PY
+cat "$OUT/validation.md"
+ckpt=$(awk '/^winner:/ {print $3}' "$OUT/validation.md")
+name=$(awk '/^winner:/ {print $2}' "$OUT/validation.md")
+${PYTHON:-python} eval.py "ckpt_path=$ckpt" "${DATA_ARGS[@]}" hydra.run.dir="$OUT/${name}_eval" > "$OUT/${name}_eval.log" 2>&1
+${PYTHON:-python} eval.py "ckpt_path=$ckpt" "${DATA_ARGS[@]}" protocol=keyframes 'keyframe_intervals=[15,30]' \
+  hydra.run.dir="$OUT/${name}_keyframes" > "$OUT/${name}_keyframes.log" 2>&1
