@@ -26,6 +26,35 @@ def nudge(obj, frame: int, step: float) -> None:
     fc.update()
 
 
+STAGES = (  # (stage, [(file name end, function)]): cumulative times summed over the functions
+    ("the operator, end to end", [("inbetweening/operators.py", "execute")]),
+    ("the rig built (armature read, bone map)", [("inbetweening/operators.py", "make_rig")]),
+    ("the keys and hand edits read (record, curves)", [("dcc/edits.py", "__init__"), ("dcc/edits.py", "keyed_bones")]),
+    ("the pose read at the keys and kept frames", [("dcc/fill.py", "read")]),
+    ("the retargeting built from the keys", [("runtime/retarget.py", "__init__")]),
+    ("the runtime's fill_rig (networks included)", [("runtime/rig_fill.py", "fill_rig")]),
+    ("  the networks (ONNX Runtime)", [("runtime/onnx_backend.py", "predict")]),
+    ("the channel values from the poses", [("inbetweening/humanoid.py", "basis_values"), ("inbetweening/rig.py", "basis_values")]),
+    ("the curves written", [("inbetweening/curves.py", "write")]),
+    ("the record stored", [("dcc/edits.py", "commit")]),
+)
+
+
+def stage_table(stats: dict, repeats: int) -> str:
+    """A markdown table of :data:`STAGES`: ms per call of each profiled run (cProfile's cumulative times; the
+    profiler's own overhead included, so read the shares)."""
+    names = list(stats)
+    rows = [f"| stage | {' | '.join(names)} |", "|---|" + "---:|" * len(names)]
+    for stage, funcs in STAGES:
+        cells = []
+        for n in names:
+            ct = sum(v[3] for (file, _, func), v in stats[n].stats.items()
+                     if any(file.replace(os.sep, "/").endswith(end) and func == fn for end, fn in funcs))
+            cells.append(f"{ct / repeats * 1e3:.1f}")
+        rows.append(f"| {stage} | {' | '.join(cells)} |")
+    return "ms per call under cProfile\n\n" + "\n".join(rows) + "\n"
+
+
 def timed(fn) -> tuple[float, float]:
     t0, c0 = time.perf_counter(), time.process_time()
     fn()
@@ -68,6 +97,7 @@ def main() -> None:
     run("last key changed", edit=keys[-1], profile=profiles.get("last key changed"))  # one gap re-filled
     if profiles:
         with open(cfg["profile"], "w") as f:
+            print(stage_table({n: pstats.Stats(p) for n, p in profiles.items()}, cfg["repeats"]), file=f)
             for name, profile in profiles.items():
                 print(f"==== {name}", file=f)
                 pstats.Stats(profile, stream=f).sort_stats("cumulative").print_stats(60)

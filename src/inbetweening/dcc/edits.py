@@ -66,7 +66,9 @@ class Past:
         edited = gen[k] & (np.abs(y[k].astype(np.float64) - rec_v[at >= 0]) > TOLERANCE)
         promote = set(k[edited].tolist())
         xi = np.round(x).astype(int)
-        moved = gen & ((np.abs(x - xi) >= 1e-4) | ~np.isin(xi, rec_f))  # where the fill wrote none
+        rec = np.sort(rec_f)
+        written = rec[np.clip(np.searchsorted(rec, xi), 0, len(rec) - 1)] == xi if len(rec) else np.zeros(len(xi), bool)
+        moved = gen & ((np.abs(x - xi) >= 1e-4) | ~written)  # where the fill wrote none
         promote |= set(np.flatnonzero(moved).tolist())
         old = find(sorted(old_edits))
         old = old[old >= 0]
