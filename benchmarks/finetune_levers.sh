@@ -6,6 +6,8 @@
 # 30), once.  One run alone on the 2-core CPU: about 10 min per lever and 15 min for the winner's scores.
 #   bash benchmarks/finetune_levers.sh <out dir> <folder of the run / wave-both-hands takes> NAME='OVERRIDE ...' ...
 #   e.g. ... base= lr4e-4='optim.optimizer.lr=4e-4' mirror='data.mirror=true'
+# THREADS (2): each training's threads (two levers at once: THREADS=1, each with PICK=0); PICK=0 trains only (a lever
+# already trained is skipped, so a last call with every lever picks and tests the winner).
 set -euo pipefail
 OUT=${1:?out dir}
 DATA=${2:?folder of takes}
@@ -13,7 +15,7 @@ shift 2
 [ $# -gt 0 ] || { echo "give at least one lever: NAME='OVERRIDE ...'" >&2; exit 2; }
 mkdir -p "$OUT"
 DATA_ARGS=(data=bvh "data.path=$DATA" 'data.test_pattern=["*_00[4-9].bvh","*_0[1-9][0-9].bvh"]')
-TEN_MIN=(trainer.max_steps=440 trainer.val_check_interval=100 threads=2 run_test=false)
+TEN_MIN=(trainer.max_steps=440 trainer.val_check_interval=100 "threads=${THREADS:-2}" run_test=false)
 for lever in "$@"; do
   name=${lever%%=*}
   read -r -a over <<< "${lever#*=}"
@@ -22,6 +24,7 @@ for lever in "$@"; do
     "${DATA_ARGS[@]}" "${TEN_MIN[@]}" "${over[@]}" hydra.run.dir="$OUT/$name" > "$OUT/$name.log" 2>&1
   touch "$OUT/$name/done"
 done
+[ "${PICK:-1}" = 0 ] && exit 0
 # the winner by validation: the lowest best val/l2p_mean of each run's kept checkpoint
 ${PYTHON:-python} - "$OUT" "$@" > "$OUT/validation.md" <<'PY'
 import glob, sys, torch
