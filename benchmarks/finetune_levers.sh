@@ -2,8 +2,9 @@
 # Levers of the ten-minute fine-tune (issue 51 item 3, RESULTS.md 4), chosen on the user's own held-out takes: each
 # lever is finetune_unseen.sh's fine-tune (models/bn2_content, 440 steps, takes 001-003 of every style of `run` and
 # `wave-both-hands`) with its overrides; the takes held out for validation (data.val_fraction of the training takes)
-# pick the winner by its best val/l2p_mean; only the winner is scored on the 483 test takes (LAFAN, keys every 15 and
-# 30), once.  One run alone on the 2-core CPU: about 10 min per lever and 15 min for the winner's scores.
+# pick the winner by its best val/l2p_mean; only the winner is scored on the 483 test takes, once: LAFAN and keys every
+# 15 and 30 for its best checkpoint (the network as it is, as finetune_unseen.sh scores), keys for calibrated.ckpt
+# (the blend fitted on the validation takes).  One run alone on the 2-core CPU: about 10 min per lever and 15 min for the winner's scores.
 #   bash benchmarks/finetune_levers.sh <out dir> <folder of the run / wave-both-hands takes> NAME='OVERRIDE ...' ...
 #   e.g. ... base= lr4e-4='optim.optimizer.lr=4e-4' mirror='data.mirror=true'
 # THREADS (2): each training's threads (two levers at once: THREADS=1, each with PICK=0); PICK=0 trains only (a lever
@@ -46,3 +47,6 @@ name=$(awk '/^winner:/ {print $2}' "$OUT/validation.md")
 ${PYTHON:-python} eval.py "ckpt_path=$ckpt" "${DATA_ARGS[@]}" hydra.run.dir="$OUT/${name}_eval" > "$OUT/${name}_eval.log" 2>&1
 ${PYTHON:-python} eval.py "ckpt_path=$ckpt" "${DATA_ARGS[@]}" protocol=keyframes 'keyframe_intervals=[15,30]' \
   hydra.run.dir="$OUT/${name}_keyframes" > "$OUT/${name}_keyframes.log" 2>&1
+# the checkpoint the run hands a user: the same weights with the do-no-harm blend fitted on the validation takes
+${PYTHON:-python} eval.py "ckpt_path=$OUT/$name/checkpoints/calibrated.ckpt" "${DATA_ARGS[@]}" protocol=keyframes \
+  'keyframe_intervals=[15,30]' hydra.run.dir="$OUT/${name}_calibrated_keyframes" > "$OUT/${name}_calibrated_keyframes.log" 2>&1
