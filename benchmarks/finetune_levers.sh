@@ -4,7 +4,7 @@
 # `wave-both-hands`) with its overrides; the takes held out for validation (data.val_fraction of the training takes)
 # pick the winner by its best val/l2p_mean; only the winner is scored on the 483 test takes, once: LAFAN and keys every
 # 15 and 30 for its best checkpoint (the network as it is, as finetune_unseen.sh scores), keys for calibrated.ckpt
-# (the blend fitted on the validation takes).  One run alone on the 2-core CPU: about 10 min per lever and 15 min for the winner's scores.
+# (the blend fitted on the validation takes).  Alone on the 2-core CPU: about 10 min per lever, 20 min for the scores.
 #   bash benchmarks/finetune_levers.sh <out dir> <folder of the run / wave-both-hands takes> NAME='OVERRIDE ...' ...
 #   e.g. ... base= lr4e-4='optim.optimizer.lr=4e-4' mirror='data.mirror=true'
 # THREADS (2): each training's threads (two levers at once: THREADS=1, each with PICK=0); PICK=0 trains only (a lever
