@@ -37,7 +37,8 @@ def main() -> None:
                                                      str(ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip")))
     ap.add_argument("--repeats", type=int, default=10)
     ap.add_argument("--no-write", action="store_true")
-    ap.add_argument("--profile", default=None, help="write cProfile's tables of the nothing-changed and one-gap re-fills to this file")
+    ap.add_argument("--profile", default=None,
+                    help="write cProfile's tables of the nothing-changed and one-gap re-fills to this file")
     args = ap.parse_args()
     from inbetweening.blender.bpyenv import bpy_python
     from inbetweening.blender.build import DEFAULT_CKPTS, build

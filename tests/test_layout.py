@@ -138,7 +138,7 @@ def test_the_layout_doc_names_every_package_and_module():
     doc = (SRC.parent / "docs" / "development.md").read_text()
     layout = doc[doc.index("## Layout"):doc.index("## Extending")]
     missing = []
-    for name, file in modules().items():
+    for file in modules().values():
         if file.name == "__init__.py":
             if f"{file.parent.name}/" not in layout:
                 missing.append(f"package {file.parent.name}/")

@@ -23,7 +23,6 @@ from inbetweening.geometry.quaternion import qinv, qmul, qrot
 from inbetweening.predictor.checkpoint import CheckpointError
 from inbetweening.training.module import InbetweenModule
 
-
 REPO_MODELS = Path(__file__).resolve().parents[1] / "models"
 
 

@@ -5,8 +5,8 @@ starts TensorBoard on 127.0.0.1 and reads its HTTP API like the browser does."""
 from __future__ import annotations
 
 import json
-import re
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -145,7 +145,7 @@ def test_groups_read_train_val_test(fitted):
     assert sorted(["val", "test", "test_network", "train", BASELINE])[-1] == BASELINE  # compared by character code
     # test/: the calibrated fill (what the tools deliver); test_network/: the network alone, beside it
     for n in (5, 15, 30, 45):
-        net, fill = ea.Scalars(f"test_network/l2p@{n}")[-1].value, ea.Scalars(f"test/l2p@{n}")[-1].value
+        net = ea.Scalars(f"test_network/l2p@{n}")[-1].value
         assert ea.Scalars(f"test_network/l2p_ratio@{n}")[-1].value == pytest.approx(
             net / ea.Scalars(f"{BASELINE}/test/l2p@{n}")[-1].value, rel=1e-5)
     assert any(ea.Scalars(f"test_network/l2p@{n}")[-1].value != ea.Scalars(f"test/l2p@{n}")[-1].value

@@ -34,7 +34,8 @@ STAGES = (  # (stage, [(file name end, function)]): cumulative times summed over
     ("the retargeting built from the keys", [("runtime/retarget.py", "__init__")]),
     ("the runtime's fill_rig (networks included)", [("runtime/rig_fill.py", "fill_rig")]),
     ("  the networks (ONNX Runtime)", [("runtime/onnx_backend.py", "predict")]),
-    ("the channel values from the poses", [("inbetweening/humanoid.py", "basis_values"), ("inbetweening/rig.py", "basis_values")]),
+    ("the channel values from the poses", [("inbetweening/humanoid.py", "basis_values"),
+                                           ("inbetweening/rig.py", "basis_values")]),
     ("the curves written", [("inbetweening/curves.py", "write")]),
     ("the record stored", [("dcc/edits.py", "commit")]),
 )

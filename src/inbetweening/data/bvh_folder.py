@@ -53,7 +53,8 @@ from inbetweening.geometry.interp import interpolate_pose
 from inbetweening.geometry.quaternion import qinv, qrot
 from inbetweening.geometry.skeleton import Skeleton
 
-__all__ = ["BVH_DATASET", "DERIVATION", "FolderOptions", "derive_spec", "hash_split", "pattern_split", "resample_clip", "source_paths"]
+__all__ = ["BVH_DATASET", "DERIVATION", "FolderOptions", "derive_spec", "hash_split", "pattern_split", "resample_clip",
+           "source_paths"]
 
 BVH_DATASET = "bvh"
 DERIVATION = 2  # in the prepared-data cache key: 2: a moving top joint above a hips-like root folds too

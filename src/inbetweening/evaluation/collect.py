@@ -26,8 +26,8 @@ from pathlib import Path
 
 import yaml
 
-METRIC_ORDER = ("l2q", "l2p", "l2p_ratio", "net_l2p", "net_l2p_ratio", "npss", "kf_model_cm", "kf_interp_cm", "kf_ratio", "kf_skate_model", "kf_skate_interp",
-                "kf_skate_gt")
+METRIC_ORDER = ("l2q", "l2p", "l2p_ratio", "net_l2p", "net_l2p_ratio", "npss", "kf_model_cm", "kf_interp_cm", "kf_ratio",
+                "kf_skate_model", "kf_skate_interp", "kf_skate_gt")
 KEYFRAME_FIGURES = tuple(m[3:] for m in METRIC_ORDER if m.startswith("kf_"))
 IGNORED = ("hydra.", "paths.", "seed=", "ckpt_path=", "trainer.max_steps=", "trainer.max_epochs=", "ablation=",
            "trainer.val_check_interval=", "model.checkpoint_layers=", "model.fused_attention=")

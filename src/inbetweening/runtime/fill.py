@@ -41,12 +41,12 @@ from inbetweening.geometry import canonical
 from inbetweening.geometry.interp import interpolate_keyframes, interpolate_known, interpolate_pose
 from inbetweening.geometry.quaternion import qnormalize, remove_discontinuities
 
+from . import rig_fill
 from .adapt import Adaptation, adapt_clip, check_adaptable
 from .foot_lock import ClipFeet, clip_feet, gap_contacts, lock_gap
 from .model import Backend, InbetweenError
 from .partial import check_clip, known_values
 from .plan import GapPlan, check_refill, chosen_gaps, gap_windows, key_gaps, plan_gaps
-from . import rig_fill
 from .rig_fill import RigFilled
 from .settings import DEFAULT_SETTINGS, FillSettings
 from .trust import Check, blend, checks_of, gap_share, gap_weights, scored

@@ -186,9 +186,10 @@ def run_label(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[st
     """What distinguishes the run, its TensorBoard name's first part (a path-safe string, at most :data:`LABEL_MAX`
     characters; overrides that do not fit are counted, ``+3 more``):
     in a multirun the swept keys' values, then the keys in brackets (``zero layer (mask norm)``: TensorBoard's image
-    cards show about 16 characters of a run's name), else the command line's overrides (sorted; a group set to its default option,
-    ``data=synthetic``, is no difference and left out: ``defaults``, default :func:`default_choices`), each key shortened to its last
-    part (``model.norm=layer`` -> ``norm=layer``), then the model (``zero layer (mask norm) - graph_transformer``;
+    cards show about 16 characters of a run's name), else the command line's overrides (sorted; a group set to its
+    default option, ``data=synthetic``, is no difference and left out: ``defaults``, default
+    :func:`default_choices`), each key shortened to its last part (``model.norm=layer`` -> ``norm=layer``), then the
+    model (``zero layer (mask norm) - graph_transformer``;
     ``graph_transformer`` alone for a run of the defaults; no model when the model is among them)."""
     defaults = {} if swept else default_choices() if defaults is None else defaults  # a swept value always counts
     keep = [o for o in overrides if not _NOT_HPARAMS.match(o.lstrip("+~")) and not _LABEL_SKIP.match(o.lstrip("+~"))
@@ -212,10 +213,10 @@ def run_label(cfg: DictConfig, overrides: Sequence[str] = (), swept: Sequence[st
 def trial_id(label: str, version: str) -> str:
     """A run's HParams trial id from its folder ``<label>/<version>`` (``version``: its start time,
     ``2026-11-25_19-21-49[_2]``): the start time of day, then the label's values (``zero layer (mask norm) -
-    graph_transformer`` or ``depth=2 - graph_transformer`` -> ``zero layer``, ``2``), then the date (and the same-second suffix), e.g. ``19:21:49 zero layer
-    (2026-11-25)``.  TensorBoard's table cuts trial ids to about 15 characters: a re-run differs from the first run in
-    its first 8, the jobs of a sweep started in the same second in the values that follow.  Unique as the folder is;
-    a resumed run keeps it."""
+    graph_transformer`` or ``depth=2 - graph_transformer`` -> ``zero layer``, ``2``), then the date (and the
+    same-second suffix), e.g. ``19:21:49 zero layer (2026-11-25)``.  TensorBoard's table cuts trial ids to about 15
+    characters: a re-run differs from the first run in its first 8, the jobs of a sweep started in the same second in
+    the values that follow.  Unique as the folder is; a resumed run keeps it."""
     m = re.match(r"^(\d{4}-\d{2}-\d{2})_(\d{2})-(\d{2})-(\d{2})(_\d+)?$", str(version))
     head = str(label).split(" - ")[0]
     values = (" ".join(p.split("=", 1)[1] for p in head.split(" ") if "=" in p) if "=" in head
