@@ -145,3 +145,16 @@ def test_the_layout_doc_names_every_package_and_module():
         elif file.name not in layout:
             missing.append(str(file.relative_to(SRC)))
     assert not missing, f"docs/development.md's Layout does not name: {missing}"
+
+
+def test_the_code_passes_the_linter():
+    """``ruff check`` (configured in pyproject.toml; a dev dependency) finds nothing in the package, the tests and the
+    benchmarks: a newcomer's change is held to the same rules."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("ruff")
+    root = SRC.parent
+    out = subprocess.run([sys.executable, "-m", "ruff", "check", "--quiet", "src", "tests", "benchmarks"], cwd=root,
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, (out.stdout + out.stderr)[-3000:]
