@@ -535,7 +535,8 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     at frames 1, 31, 61 (``torso``, ``hips``, ``chest``, ``neck``, ``head``, shoulders, FK arms and legs, a toe;
     ``spine_fk.001`` and a finger too, which the fill does not write): the motion is read from the deform bones, the
     in-betweens are keyed on the FK controls' rotations and ``torso``'s rotation and location only, every key is kept,
-    nothing outside the keys changes, the scene's frame is restored and undo restores the curves.  The deform bones
+    nothing outside the keys changes, the scene's frame and every constraint's switch are restored (one the user muted
+    stays muted) and undo restores the curves.  The deform bones
     the FK controls turn take the runtime's own ``fill_rig`` of the keys read from Blender (PyTorch here, ONNX there)
     within 0.05 degrees, the hips' and the legs' heads within 0.1 cm (the solve's tolerance); Rigify's spine bends its
     own way between the hips and the chest (the chest's head within 1 cm, the head's within 2 cm).  Limbs in IK (left
@@ -564,6 +565,8 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     assert not bad, bad
     assert set(r["changed_curves"]) <= written and len(r["changed_curves"]) > 60
     assert r["fill"]["solve_residual_deg"] < 0.05 and r["fill"]["solve_residual_hips"] < 1e-3
+    # the solve switches off the constraints it does not need, and back: one the user muted stays muted
+    assert r["constraints_as_they_were"] and r["constraints_muted_before"] >= 1
     # the deform bones as Blender poses them after the fill against the runtime's fill_rig of the keys it read
     from inbetweening.api.inbetweener import Inbetweener
     from inbetweening.geometry.quaternion import qinv, qmul

@@ -66,7 +66,6 @@ def generated():
 def key_motion(root, lq_model, frame0: int = 1, rig_kind: str = "metarig"):
     """A fresh meta-rig (or generated rig) keyed on every frame with the clip carried onto it; ``(obj, mapped bone
     names, frames)``."""
-    rig = ext("rig")
     info = ext("operators").load_model("").info
     if rig_kind == "generated":
         obj = generated()
@@ -76,7 +75,8 @@ def key_motion(root, lq_model, frame0: int = 1, rig_kind: str = "metarig"):
         hr = ext("humanoid").HumanoidRig(obj, info, None)
     n = len(root)
     ident = np.tile([1.0, 0.0, 0.0, 0.0], (len(hr.names), 1))
-    ret = hr.plan(ident)
+    hr.plan(ident)
+    ret = hr.retarget
     free_q = np.repeat(ident[None], n, 0)
     free_p = np.repeat(hr.offsets[None], n, 0)
     lq, lp = ret.to_rig(root, lq_model, free_q, free_p, movers=hr.movers)
@@ -85,7 +85,7 @@ def key_motion(root, lq_model, frame0: int = 1, rig_kind: str = "metarig"):
     for j, path, i in hr.channels():  # create the curves, then set every frame's key at once
         pb = hr.pbones[j]
         pb.keyframe_insert(path.rsplit(".", 1)[1], index=i, frame=frame0, group=pb.name)
-    bag = rig.channelbag(obj)
+    bag = ext("curves").channelbag(obj)
     for (_, path, i), v in values.items():
         fc = bag.fcurves.find(path, index=i)
         kp = fc.keyframe_points
@@ -93,7 +93,6 @@ def key_motion(root, lq_model, frame0: int = 1, rig_kind: str = "metarig"):
             kp.add(n - len(kp))
         co = np.stack([np.asarray(frames, np.float32), v.astype(np.float32)], -1).reshape(-1)
         kp.foreach_set("co", co)
-        kp.foreach_set("interpolation", np.full(n, rig._enum_index("interpolation", "BEZIER"), np.int32))
         fc.update()
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = frames[0], frames[-1]
@@ -106,7 +105,7 @@ def heads(obj, names, frames) -> np.ndarray:
 
 
 def bezier_keys(obj) -> None:
-    for fc in ext("rig").channelbag(obj).fcurves:
+    for fc in ext("curves").channelbag(obj).fcurves:
         for k in fc.keyframe_points:
             k.interpolation = "BEZIER"
             k.handle_left_type = k.handle_right_type = "AUTO_CLAMPED"
@@ -114,7 +113,7 @@ def bezier_keys(obj) -> None:
 
 
 def thin(obj, keep: set[int]) -> None:
-    for fc in ext("rig").channelbag(obj).fcurves:
+    for fc in ext("curves").channelbag(obj).fcurves:
         kp = fc.keyframe_points
         co = np.zeros(2 * len(kp), np.float32)
         kp.foreach_get("co", co)
@@ -166,7 +165,7 @@ def timing(motion, frames: int, n_keys: int, repeats: int, rig_kind: str = "meta
         res = bpy.ops.anim.inbetween_fill()
         assert res == {"FINISHED"}, res
         out.append({"seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0,
-                    "windows": mod.load_model("").calls - calls, "channels": len(ext("rig").channelbag(obj).fcurves),
+                    "windows": mod.load_model("").calls - calls, "channels": len(ext("curves").channelbag(obj).fcurves),
                     "model_seconds": mod.LAST_FILL["model_seconds"], "load": os.getloadavg()[0],
                     "solve_passes": mod.LAST_FILL.get("solve_passes")})
     return out

@@ -68,6 +68,8 @@ def scenario(sc: dict, out_dir: str) -> dict:
     for name in SWITCHES:  # FK, but the limbs the scenario leaves in IK
         obj.pose.bones[name]["IK_FK"] = 0.0 if name in sc.get("ik", ()) else 1.0
     key_poses(obj, FK_POSES, loc_bone="torso")
+    face = next(pb for pb in obj.pose.bones if pb.constraints and "eye" in pb.name)  # a constraint the user muted
+    face.constraints[0].mute = True
     for name in sc.get("ik_keyed", ()):  # FK at the first key, IK at the last
         pb = obj.pose.bones[name]
         for frame, value in ((KEYS[0], 1.0), (KEYS[-1], 0.0)):
@@ -91,6 +93,7 @@ def scenario(sc: dict, out_dir: str) -> dict:
             full_q[frames.index(f)], full_p[frames.index(f)] = lq[t], lp[t]
         dump = {"names": np.array(rr.names), "parents": np.array(rr.parents), "offsets": rr.offsets,
                 "frames": np.array(frames), "lq": full_q, "lp": full_p}
+    mutes = [(pb.name, c.name, c.mute) for pb in obj.pose.bones for c in pb.constraints]
     before = snapshot(obj)
     grid = np.arange(KEYS[0] - 3, KEYS[-1] + 3.01, 0.5)
     values_before = {k: np.array([v[2].evaluate(f) for f in grid]) for k, v in before.items()}
@@ -103,6 +106,8 @@ def scenario(sc: dict, out_dir: str) -> dict:
                                             "solve_residual_deg", "solve_residual_hips", "solve_passes",
                                             "model_seconds", "seconds")}
     after = snapshot(obj)
+    res["constraints_as_they_were"] = mutes == [(pb.name, c.name, c.mute) for pb in obj.pose.bones for c in pb.constraints]
+    res["constraints_muted_before"] = sum(m for _, _, m in mutes)
     lost = []
     for key, (co, _, _) in before.items():
         co2 = after[key][0]

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
-from mathutils import Matrix, Quaternion
+from mathutils import Matrix
 
 from inbetweening import dcc
 from inbetweening.geometry.quaternion import qinv, qmul, qnormalize
@@ -30,7 +30,7 @@ from inbetweening.runtime import ModelInfo
 from .curves import ArmatureCurves, OnArmature, bone_path
 from .humanoid import VIRTUAL_ROOT
 from .rig import RigError, _to_np, rot_path, rotation_channels, rotation_quats
-from .rigify_solve import ControlSolve, rot, set_rotation, stands_for
+from .rigify_solve import ControlSolve, rot, stands_for
 
 FK_CONTROLS = {"Hips": ("hips",), "Chest": ("chest",), "Neck": ("neck",), "Head": ("head",)}
 for _s in "LR":
@@ -138,6 +138,31 @@ class RigifyRig(OnArmature, dcc.MappedRig):
         self.movers = [self.hips]
         self.residual, self.passes = (0.0, 0.0), 0
 
+    def needed_bones(self) -> set[str]:
+        """The bones whose evaluation poses the bones the solve reads and writes: those, their parents, their
+        constraints' targets and the bones their drivers read, and so on up."""
+        pose, obj = self.obj.pose.bones, self.obj
+        drivers: dict = {}
+        for d in (obj.animation_data.drivers if obj.animation_data else ()):
+            if d.data_path.startswith('pose.bones["'):
+                drivers.setdefault(d.data_path.split('"')[1], []).append(d)
+        need: set = set()
+        stack = [pb.name for pb in self.seen if pb is not None] + [pb.name for pb in self.pbones]
+        while stack:
+            name = stack.pop()
+            if name in need or name not in pose:
+                continue
+            need.add(name)
+            pb = pose[name]
+            stack += [pb.parent.name] if pb.parent is not None else []
+            for c in pb.constraints:
+                stack += [getattr(c, "subtarget", "") or ""] + [t.subtarget for t in getattr(c, "targets", ())
+                                                                 if getattr(t, "target", None) == obj]
+                stack += [getattr(c, "pole_subtarget", "") or ""]
+            for d in drivers.get(name, ()):
+                stack += [t.bone_target for v in d.driver.variables for t in v.targets if t.id == obj and t.bone_target]
+        return need
+
     def key_channels(self) -> list:
         """The rotation and location curves of the written controls (``torso`` included): their keys are the fill's."""
         return self.curves.bone_channels(self.controls)
@@ -232,16 +257,16 @@ class RigifyRig(OnArmature, dcc.MappedRig):
         qb = np.zeros((len(frames), len(self.pbones), 4))
         loc = np.zeros((len(frames), 3))
         worst, solve = [0.0, 0.0], ControlSolve(self)
+        need = self.needed_bones()  # the rest of the rig's constraints are switched off while it solves
+        quiet = [c for pb in self.obj.pose.bones if pb.name not in need for c in pb.constraints if not c.mute]
         try:
+            for c in quiet:
+                c.mute = True
             for fc, _ in muted:  # the scene's frame then sets every other channel, the solve these
                 fc.mute = True
             for t, fr in enumerate(frames):
-                if t and frames[t - 1] == fr - 1:  # start from the frames before's solutions, carried on
-                    go = t > 1 and frames[t - 2] == fr - 2
-                    for k, pb in enumerate(self.pbones):
-                        q = Quaternion(qb[t - 1, k])
-                        set_rotation(pb, q @ Quaternion(qb[t - 2, k]).rotation_difference(q) if go else q)
-                    self.pbones[-1].location = 2 * loc[t - 1] - loc[t - 2] if go else loc[t - 1]
+                if t and frames[t - 1] == fr - 1:  # start from one pass against the frame before's solved pose
+                    solve.solve(target_q[t], gp[t], evaluated=False)
                 else:  # from the curves
                     for (path, i), fc in curves.items():
                         if fc is not None:
@@ -255,6 +280,8 @@ class RigifyRig(OnArmature, dcc.MappedRig):
                     qb[t, k] = rotation_quats(pb.rotation_mode, np.array([list(getattr(pb, path))]))[0]
                 loc[t] = self.pbones[-1].location
         finally:
+            for c in quiet:
+                c.mute = False
             for fc, mute in muted:
                 fc.mute = mute
             for pb, path, values in saved:

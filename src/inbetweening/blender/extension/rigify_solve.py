@@ -10,13 +10,17 @@ evaluate again.
   to the control in armature space puts the bone on its target.  Its channels are computed against its parent as that
   parent is about to move in the same pass (:meth:`ControlSolve._upstream`), so a chain settles in one pass.
 - **torso** has no bone of its own.  Rigify hangs the hips below and the chest above its pivot, and bends the spine
-  between them: with the hips and the chest held, the spine from the Spine bone's head to the chest's head turns half
-  as much as the torso.  The torso is turned by twice the turn that points that line, and the twist of the bone between
-  the Spine and the Chest bones, where the fill puts them; then moved so the hips' bone's head is where the fill puts
-  it.  The spine's bend (the chest's distance from the Spine bone's head) and the Spine bone's roll are Rigify's.
+  between them: with the hips and the chest held, the spine from the Spine bone's head to the chest's head turns about
+  half as much as the torso.  The torso is turned by the turn that points that line, and the twist of the bone between
+  the Spine and the Chest bones, where the fill puts them, over that share (:meth:`ControlSolve._torso_turn`: measured
+  on the pass before, starting from a half); then moved so the hips' bone's head is where the fill puts it.  The
+  spine's bend (the chest's distance from the Spine bone's head) and the Spine bone's roll are Rigify's.
+- **A frame after a solved one** starts from one pass against the frame before's evaluated pose
+  (``solve(..., evaluated=False)``), so the scene evaluation that sets the frame is the first check.
 - The passes end when every FK control's bone is within :data:`TOLERANCE` of its target, the hips' head within
-  :data:`TOLERANCE` of the hips' height and the torso's turn below :data:`TORSO_TOLERANCE` (measured: two or three
-  passes from the frames before's solutions, carried on), or after :data:`MAX_PASSES`.
+  :data:`TOLERANCE` of the hips' height and the torso's turn below :data:`TORSO_TOLERANCE`, or after
+  :data:`MAX_PASSES` (measured, `benchmarks/blender_rigify.py --rig generated`: 260 passes for 290 generated frames
+  besides their 290 frame changes, where starting from the frames before's solutions carried on took 425).
 """
 from __future__ import annotations
 
@@ -87,6 +91,7 @@ class ControlSolve:
         self.chest = rig.names.index(rig.map.slots["Chest"])
         self.between = rig.parents[self.chest]  # the bone between the Spine and the Chest bones (Rigify's spine.002)
         self.scale = max(rig.dbones[rig.hips].bone.head_local.length, 1e-6)
+        self.gain, self.sent = 0.5, None  # the spine's turn per turn of the torso, as last measured; the last turn asked
 
     def _upstream(self, k: int) -> list[tuple[int, float]]:
         """``[(control, share)]``: the controls whose turns carry control ``k``'s parent, and the share of each turn it
@@ -126,40 +131,70 @@ class ControlSolve:
     def _pose(self, j: int) -> Matrix:
         return self.rig.seen[j].matrix @ self.rig.rel[j]
 
-    def solve(self, target_q: np.ndarray, target_p: np.ndarray) -> tuple[float, float]:
+    def solve(self, target_q: np.ndarray, target_p: np.ndarray, evaluated: bool = True) -> tuple[float, float]:
         """Pose the controls at the current frame for the armature-space rotations ``target_q (J, 4)`` and heads
         ``target_p (J, 3)`` of the skeleton's joints; returns the residual (radians; the hips' distance in units of its
-        height)."""
-        rig, obj, torso = self.rig, self.rig.obj, self.torso
-        target = [Quaternion(target_q[j]) for j in rig.owned]
-        hips_at, chest_at, spine_at = (Vector(target_p[j]) for j in (rig.hips, self.chest, rig.owned[torso]))
-        between_q, z, one = Quaternion(target_q[self.between]), Vector((0.0, 0.0, 1.0)), Quaternion()
-        for it in range(MAX_PASSES + 1):
-            mats = [pb.matrix.copy() for pb in rig.pbones]
-            deform = [self._pose(j) for j in rig.owned]
-            spin = align(self._pose(self.chest).translation - deform[torso].translation,
-                         rot(rig.dbones[self.between].matrix) @ z, chest_at - spine_at, between_q @ z)
-            res = (max(angle(t, rot(d)) for t, d in zip(target[:-1], deform[:-1])),
-                   (hips_at - deform[self.hips_k].translation).length / self.scale)
-            if (max(res) < TOLERANCE and angle(spin, one) < TORSO_TOLERANCE) or it == MAX_PASSES:
+        height).  ``evaluated=False``: one pass against the pose Blender evaluated last (the frame before's, solved),
+        no evaluation and no residual (``(nan, nan)``): the next frame's start, which its scene evaluation checks."""
+        target = [Quaternion(target_q[j]) for j in self.rig.owned]
+        at = tuple(Vector(target_p[j]) for j in (self.rig.hips, self.chest, self.rig.owned[self.torso]))
+        between_q = Quaternion(target_q[self.between])
+        if not evaluated:
+            self._pass(target, at, between_q)
+            return math.nan, math.nan
+        for _ in range(MAX_PASSES):
+            res = self._pass(target, at, between_q, check=True)
+            if res is not None:
                 return res
-            moved: dict = {}
-            for k in self.order:
-                m = mats[k]
-                w = Matrix.Identity(4)  # how the parent is about to move
-                for up, share in self.up[k]:
-                    w = (moved[up] if share == 1.0 else Quaternion().slerp(moved[up].to_quaternion(), share)
-                         .to_matrix().to_4x4()) @ w
-                turn = spin @ spin if k == torso else target[k] @ rot(deform[k]).inverted()
-                new = Matrix.LocRotScale((w @ m).translation, turn @ rot(m), m.to_scale())
-                basis = obj.convert_space(pose_bone=rig.pbones[k], matrix=w.inverted() @ new, from_space="POSE",
-                                          to_space="LOCAL")
-                set_rotation(rig.pbones[k], basis.to_quaternion())
-                moved[k] = new @ m.inverted()
-            m = moved[torso] @ mats[torso]  # the torso's place: what is left of the hips'
-            m.translation = m.translation + hips_at - moved[self.hips_k] @ deform[self.hips_k].translation
-            rig.pbones[torso].location = obj.convert_space(pose_bone=rig.pbones[torso], matrix=m, from_space="POSE",
-                                                           to_space="LOCAL").translation
             bpy.context.view_layer.update()
             self.passes += 1
-        return res
+        return self.residual(target, at)
+
+    def residual(self, target, at) -> tuple[float, float]:
+        deform = [self._pose(j) for j in self.rig.owned]
+        return (max(angle(t, rot(d)) for t, d in zip(target[:-1], deform[:-1])),
+                (at[0] - deform[self.hips_k].translation).length / self.scale)
+
+    def _torso_turn(self, spin: Quaternion) -> Quaternion:
+        """The torso's turn for the spine's ``spin``: ``spin / gain``, the gain measured on the pass before (what the
+        spine turned of what it was asked, within 0.3-0.7; Rigify's spine: about half)."""
+        v = Vector(spin.to_exponential_map())
+        if self.sent is not None and self.sent.length > 1e-4:
+            got = self.sent - v  # the spin the last turn removed
+            self.gain = min(0.7, max(0.3, self.gain * got.dot(self.sent) / self.sent.length_squared))
+        self.sent = v.copy()
+        return Quaternion(v / self.gain)
+
+    def _pass(self, target, at, between_q, check: bool = False):
+        """One pass: read the evaluated pose, turn every control by what its bone lacks (``check``: unless every bone
+        is within the tolerance already; then the residual is returned and nothing moves)."""
+        rig, obj, torso = self.rig, self.rig.obj, self.torso
+        hips_at, chest_at, spine_at = at
+        z, one = Vector((0.0, 0.0, 1.0)), Quaternion()
+        mats = [pb.matrix.copy() for pb in rig.pbones]
+        deform = [self._pose(j) for j in rig.owned]
+        spin = align(self._pose(self.chest).translation - deform[torso].translation,
+                     rot(rig.dbones[self.between].matrix) @ z, chest_at - spine_at, between_q @ z)
+        if check:
+            res = (max(angle(t, rot(d)) for t, d in zip(target[:-1], deform[:-1])),
+                   (hips_at - deform[self.hips_k].translation).length / self.scale)
+            if max(res) < TOLERANCE and angle(spin, one) < TORSO_TOLERANCE:
+                return res
+        moved: dict = {}
+        for k in self.order:
+            m = mats[k]
+            w = Matrix.Identity(4)  # how the parent is about to move
+            for up, share in self.up[k]:
+                w = (moved[up] if share == 1.0 else Quaternion().slerp(moved[up].to_quaternion(), share)
+                     .to_matrix().to_4x4()) @ w
+            turn = self._torso_turn(spin) if k == torso else target[k] @ rot(deform[k]).inverted()
+            new = Matrix.LocRotScale((w @ m).translation, turn @ rot(m), m.to_scale())
+            basis = obj.convert_space(pose_bone=rig.pbones[k], matrix=w.inverted() @ new, from_space="POSE",
+                                      to_space="LOCAL")
+            set_rotation(rig.pbones[k], basis.to_quaternion())
+            moved[k] = new @ m.inverted()
+        m = moved[torso] @ mats[torso]  # the torso's place: what is left of the hips'
+        m.translation = m.translation + hips_at - moved[self.hips_k] @ deform[self.hips_k].translation
+        rig.pbones[torso].location = obj.convert_space(pose_bone=rig.pbones[torso], matrix=m, from_space="POSE",
+                                                       to_space="LOCAL").translation
+        return None
