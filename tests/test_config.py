@@ -40,6 +40,7 @@ BAD = [
     (["data.synthetic.min_frames=30"], r"^data.synthetic.min_frames/max_frames: need 66 <= min <= max"),
     (["data.path=/nonexistent"], r"^data.path: data=synthetic generates its clips and reads no path"),
     (["optim.optimizer.lr=0"], r"^optim.optimizer.lr: must be > 0"),
+    (["optim.freeze=layers"], r"^optim.freeze: must be a list of parameter-name patterns \(e.g. \['layers.\[0-2\].\*'\]\)"),
     (["centre=middle"], r"^centre: must be one of \['known', 'last', 'window'\]"),
     (["mask.name=blur"], r"^mask.name: unknown mask 'blur'"),
     (["+optim.lr=1e-3"], r"^optim.lr: not a setting of optim; set optim.optimizer.\* \(e.g. optim.optimizer.lr\)"),

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -191,6 +192,36 @@ def test_norms_train_loss_decreases(norm, tmp_path, cache_dir):
         loss().backward()
         opt.step()
     assert float(loss()) < 0.7 * first
+
+
+def test_frozen_parameters_keep_their_values_and_the_rest_train(tmp_path, cache_dir):
+    """``optim.freeze``: the parameters whose names match keep their values through optimiser steps, the others move;
+    a pattern that matches nothing is one clear line naming the key."""
+    cfg = compose_cfg("train", BASE + MODEL_TINY["graph_transformer"] + ["optim.freeze=['layers.0.*','in_*']"],
+                      tmp_path, cache_dir)
+    validate(cfg)
+    dm = make_datamodule(cfg)
+    dm.setup("fit")
+    module = make_module(cfg, dm)
+    before = {n: p.detach().clone() for n, p in module.net.named_parameters()}
+    frozen = {n for n in before if re.match(r"layers\.0\.|in_", n)}  # the test's own reading of the patterns
+    assert frozen and len(frozen) < len(before) and set(module.frozen) == frozen
+    opt = module.configure_optimizers()["optimizer"]
+    batch = dm.collate_train(list(range(8)))
+    module.train()
+    for _ in range(3):
+        opt.zero_grad()
+        module._step_loss(batch, "train").backward()
+        opt.step()
+    after = dict(module.net.named_parameters())
+    assert all(torch.equal(after[n], before[n]) for n in frozen)
+    assert all(not torch.equal(after[n], before[n]) for n in before if n not in frozen and n.endswith("weight")
+               and n.startswith("layers."))
+    bad = compose_cfg("train", BASE + MODEL_TINY["graph_transformer"] + ["optim.freeze=['encoder.*']"], tmp_path / "b",
+                      cache_dir)
+    with pytest.raises(ConfigError, match=r"^optim.freeze: 'encoder.\*' matches no parameter of the network "
+                                          r"\(GraphTransformer.*layers.0"):
+        make_module(bad, dm)
 
 
 @pytest.mark.parametrize(

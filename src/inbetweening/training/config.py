@@ -114,7 +114,8 @@ def _target_args(cfg, key: str, given_elsewhere: tuple[str, ...] = ()) -> None:
 
 def _check_optim(cfg) -> None:
     """``optim.optimizer``: a torch optimiser partial, ``lr > 0``; ``optim.scheduler``: null or a schedule partial
-    (``warmup_steps >= 0``, ``decay``, ``min_lr_ratio`` in [0, 1])."""
+    (``warmup_steps >= 0``, ``decay``, ``min_lr_ratio`` in [0, 1]); ``optim.freeze``: a list of patterns (each is
+    matched against the network when the module is built: :func:`~inbetweening.training.schedules.freeze`)."""
     import torch
 
     from inbetweening.training.schedules import DECAYS
@@ -123,9 +124,13 @@ def _check_optim(cfg) -> None:
     if optim is None:
         return
     for k in optim:
-        if k not in ("optimizer", "scheduler"):
-            raise ConfigError(f"optim.{k}: not a setting of optim; set optim.optimizer.* (e.g. optim.optimizer.lr) "
-                              f"or optim.scheduler.* (e.g. optim.scheduler.warmup_steps)")
+        if k not in ("optimizer", "scheduler", "freeze"):
+            raise ConfigError(f"optim.{k}: not a setting of optim; set optim.optimizer.* (e.g. optim.optimizer.lr), "
+                              f"optim.scheduler.* (e.g. optim.scheduler.warmup_steps) or optim.freeze")
+    freeze = _get(cfg, "optim.freeze")
+    if freeze is not None and (isinstance(freeze, str) or not all(isinstance(x, str) and x for x in freeze)):
+        raise ConfigError(f"optim.freeze: must be a list of parameter-name patterns (e.g. ['layers.[0-2].*']), "
+                          f"got {freeze!r}")
     cls = _resolve(cfg, "optim.optimizer")
     if not (isinstance(cls, type) and issubclass(cls, torch.optim.Optimizer)):
         raise ConfigError(f"optim.optimizer._target_: {_get(cfg, 'optim.optimizer._target_')} is not a torch optimiser "

@@ -28,7 +28,7 @@ from inbetweening.predictor.predictor import LEGACY_CENTRE, Predictor
 from inbetweening.predictor.settings import PredictorSettings
 from inbetweening.training.distil import Teacher
 from inbetweening.training.losses import total_loss
-from inbetweening.training.schedules import build_optimizers, upgrade_optim
+from inbetweening.training.schedules import build_optimizers, freeze, upgrade_optim
 from inbetweening.training.tb_logging import tb_scalars
 
 _DEFAULT = PredictorSettings.defaults()  # the predictor's settings take the defaults they persist with
@@ -102,6 +102,7 @@ class InbetweenModule(L.LightningModule):
         self.loss_weights = dict(loss or {"l1": 1.0})
         self.optim_cfg = upgrade_optim(optim)  # checkpoints of the old form (optim.name, optim.lr, ...) still load
         self.hparams["optim"] = self.optim_cfg
+        self.frozen = freeze(self.net, self.optim_cfg.get("freeze") or ())  # optim.freeze: kept as they are
         j = self.skeleton.num_joints
         mean, std = (self.mean, self.std) if score_stats is None else (score_stats["mean"], score_stats["std"])
         self.val_bench = BenchmarkMetric(mean, std, val_lengths)

@@ -14,8 +14,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable
+from fnmatch import fnmatchcase
 
 import torch
+
+from inbetweening.training.config import ConfigError
 
 DECAYS = ("cosine", "linear", "constant")
 SCHEDULE_TARGET = f"{__name__}.warmup_decay"
@@ -69,7 +72,7 @@ def upgrade_optim(optim: dict | None) -> dict:
         "_target_": SCHEDULE_TARGET, "_partial_": True, "warmup_steps": warmup,
         "decay": "constant" if constant else "linear" if sched == "linear" else "cosine",  # (any other: cosine)
         "min_lr_ratio": float(optim.get("min_lr_ratio", 0.0))}
-    return {"optimizer": opt, "scheduler": scheduler}
+    return {"optimizer": opt, "scheduler": scheduler, "freeze": []}
 
 
 def build_optimizers(optim: dict, params: Iterable[torch.nn.Parameter], total_steps: Callable[[], int]):
@@ -83,3 +86,22 @@ def build_optimizers(optim: dict, params: Iterable[torch.nn.Parameter], total_st
         return opt
     scheduler = instantiate(optim["scheduler"], _convert_="all")(opt, total_steps=total_steps())
     return {"optimizer": opt, "lr_scheduler": {"scheduler": scheduler, "interval": "step", "name": "lr"}}
+
+
+def freeze(net: torch.nn.Module, patterns: Iterable[str]) -> list[str]:
+    """``optim.freeze``: the parameters of ``net`` whose names (``layers.0.spatial.q_proj.weight``, ``in_weight``, ...)
+    match one of the ``fnmatch`` patterns keep their values: no gradient, so no optimiser step (the fine-tune's
+    "which layers" lever).  Returns their names; a pattern that matches none is a ``ConfigError`` naming the
+    network's parameter groups."""
+    names = [n for n, _ in net.named_parameters()]
+    patterns = list(patterns)
+    for pat in patterns:
+        if not any(fnmatchcase(n, pat) for n in names):
+            groups = sorted({".".join(n.split(".")[:2]) if n.startswith("layers.") else n.split(".")[0] for n in names})
+            raise ConfigError(f"optim.freeze: {pat!r} matches no parameter of the network ({type(net).__name__}: "
+                              f"{', '.join(groups[:12])}{', ...' if len(groups) > 12 else ''})")
+    frozen = [n for n in names if any(fnmatchcase(n, pat) for pat in patterns)]
+    for n, p in net.named_parameters():
+        if n in frozen:
+            p.requires_grad_(False)
+    return frozen
