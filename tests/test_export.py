@@ -177,3 +177,39 @@ def test_window_graph_carries_the_do_no_harm_blend(tiny_contact_checkpoint, tmp_
     assert json.loads(info["metadata"]["blend"]) == [0.0, 0.25, 0.5, 0.75, 1.0]
     assert np.abs(outs[0][0] - outs[1][0]).max() > 1e-3  # weight 0.5 moved the prediction
     assert np.abs(outs[0][0] - ones[0]).max() < 1e-4  # weight 1: the network as it is
+
+
+def test_the_window_graph_is_saved_folded_with_the_same_outputs(tiny_contact_checkpoint, tmp_path):
+    """The exported window graph carries ONNX Runtime's basic optimisations (constants folded), so a session loads it
+    without optimising: fewer nodes than ``torch.onnx.export`` writes (exported here with the test's own call), standard
+    operators only, and bit for bit the outputs of that plain export, run as exported or with the same optimisations
+    at load."""
+    from inbetweening.api.export import export_window_onnx, window_example
+    from inbetweening.predictor.checkpoint import load_predictor
+    from inbetweening.runtime.torch_backend import WindowPath
+
+    pred = load_predictor(str(tiny_contact_checkpoint)).eval()
+    export_window_onnx(pred, tmp_path / "folded.onnx")
+    example = window_example(pred, 2, 15)
+    names = ["root", "local_q", "known", "weight"]
+    with torch.no_grad():
+        outputs = [f"out{i}" for i in range(len(WindowPath(pred)(*example)))]
+        torch.onnx.export(WindowPath(pred).eval(), example, str(tmp_path / "plain.onnx"), dynamo=False, opset_version=17,
+                          input_names=names, output_names=outputs,
+                          dynamic_axes={k: {0: "batch", 1: "frames"} for k in names + outputs})
+    folded, plain = onnx.load(str(tmp_path / "folded.onnx")), onnx.load(str(tmp_path / "plain.onnx"))
+    assert len(folded.graph.node) < 0.8 * len(plain.graph.node)
+    assert {n.domain for n in folded.graph.node} <= {"", "ai.onnx"}
+    assert {o.domain for o in folded.opset_import} <= {"", "ai.onnx"}
+    onnx.checker.check_model(folded)
+    off, basic = ort.SessionOptions(), ort.SessionOptions()
+    off.graph_optimization_level = ort.GraphOptimizationLevel.ORT_DISABLE_ALL
+    basic.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_BASIC
+    sessions = [ort.InferenceSession(str(tmp_path / f), o, providers=["CPUExecutionProvider"])
+                for f, o in (("folded.onnx", off), ("plain.onnx", off), ("plain.onnx", basic))]
+    for gap, seed in ((3, 1), (29, 2)):
+        root, q, known, weight = window_example(pred, 3, gap, seed)
+        feeds = {"root": root.numpy(), "local_q": q.numpy(), "known": known.numpy(), "weight": weight.numpy()}
+        runs = [s.run(None, {k: v for k, v in feeds.items() if k in {i.name for i in s.get_inputs()}}) for s in sessions]
+        for other in runs[1:]:
+            assert all(np.array_equal(a, b) for a, b in zip(runs[0], other))
