@@ -115,7 +115,7 @@ def _target_args(cfg, key: str, given_elsewhere: tuple[str, ...] = ()) -> None:
 def _check_optim(cfg) -> None:
     """``optim.optimizer``: a torch optimiser partial, ``lr > 0``; ``optim.scheduler``: null or a schedule partial
     (``warmup_steps >= 0``, ``decay``, ``min_lr_ratio`` in [0, 1]); ``optim.freeze``: a list of patterns (each is
-    matched against the network when the module is built: :func:`~inbetweening.training.schedules.freeze`)."""
+    matched against the network when the module is built: :func:`~inbetweening.training.module.freeze`)."""
     import torch
 
     from inbetweening.training.schedules import DECAYS

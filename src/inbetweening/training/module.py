@@ -7,7 +7,8 @@ Everything in ``hparams`` is a plain value (dicts, lists, numbers, strings), so
 from __future__ import annotations
 
 import io
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from fnmatch import fnmatchcase
 from pathlib import Path
 
 import lightning as L
@@ -26,9 +27,10 @@ from inbetweening.predictor.checkpoint import (
 from inbetweening.predictor.masks import JointGaps
 from inbetweening.predictor.predictor import LEGACY_CENTRE, Predictor
 from inbetweening.predictor.settings import PredictorSettings
+from inbetweening.training.config import ConfigError
 from inbetweening.training.distil import Teacher
 from inbetweening.training.losses import total_loss
-from inbetweening.training.schedules import build_optimizers, freeze, upgrade_optim
+from inbetweening.training.schedules import build_optimizers, upgrade_optim
 from inbetweening.training.tb_logging import tb_scalars
 
 _DEFAULT = PredictorSettings.defaults()  # the predictor's settings take the defaults they persist with
@@ -383,6 +385,25 @@ class InbetweenModule(L.LightningModule):
         if not params:  # non-trainable baselines: a dummy optimiser keeps Lightning happy
             params = [torch.nn.Parameter(torch.zeros(1))]
         return build_optimizers(self.optim_cfg, params, self._total_steps)
+
+
+def freeze(net: torch.nn.Module, patterns: Iterable[str]) -> list[str]:
+    """``optim.freeze``: the parameters of ``net`` whose names (``layers.0.spatial.q_proj.weight``, ``in_weight``, ...)
+    match one of the ``fnmatch`` patterns keep their values: no gradient, so no optimiser step (the fine-tune's
+    "which layers" lever).  Returns their names; a pattern that matches none is a ``ConfigError`` naming the
+    network's parameter groups."""
+    names = [n for n, _ in net.named_parameters()]
+    patterns = list(patterns)
+    for pat in patterns:
+        if not any(fnmatchcase(n, pat) for n in names):
+            groups = sorted({".".join(n.split(".")[:2]) if n.startswith("layers.") else n.split(".")[0] for n in names})
+            raise ConfigError(f"optim.freeze: {pat!r} matches no parameter of the network ({type(net).__name__}: "
+                              f"{', '.join(groups[:12])}{', ...' if len(groups) > 12 else ''})")
+    frozen = [n for n in names if any(fnmatchcase(n, pat) for pat in patterns)]
+    for n, p in net.named_parameters():
+        if n in frozen:
+            p.requires_grad_(False)
+    return frozen
 
 
 def load_module(path: str | Path, **overrides) -> InbetweenModule:

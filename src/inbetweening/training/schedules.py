@@ -14,11 +14,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable
-from fnmatch import fnmatchcase
 
 import torch
-
-from inbetweening.training.config import ConfigError
 
 DECAYS = ("cosine", "linear", "constant")
 SCHEDULE_TARGET = f"{__name__}.warmup_decay"
@@ -87,21 +84,3 @@ def build_optimizers(optim: dict, params: Iterable[torch.nn.Parameter], total_st
     scheduler = instantiate(optim["scheduler"], _convert_="all")(opt, total_steps=total_steps())
     return {"optimizer": opt, "lr_scheduler": {"scheduler": scheduler, "interval": "step", "name": "lr"}}
 
-
-def freeze(net: torch.nn.Module, patterns: Iterable[str]) -> list[str]:
-    """``optim.freeze``: the parameters of ``net`` whose names (``layers.0.spatial.q_proj.weight``, ``in_weight``, ...)
-    match one of the ``fnmatch`` patterns keep their values: no gradient, so no optimiser step (the fine-tune's
-    "which layers" lever).  Returns their names; a pattern that matches none is a ``ConfigError`` naming the
-    network's parameter groups."""
-    names = [n for n, _ in net.named_parameters()]
-    patterns = list(patterns)
-    for pat in patterns:
-        if not any(fnmatchcase(n, pat) for n in names):
-            groups = sorted({".".join(n.split(".")[:2]) if n.startswith("layers.") else n.split(".")[0] for n in names})
-            raise ConfigError(f"optim.freeze: {pat!r} matches no parameter of the network ({type(net).__name__}: "
-                              f"{', '.join(groups[:12])}{', ...' if len(groups) > 12 else ''})")
-    frozen = [n for n in names if any(fnmatchcase(n, pat) for pat in patterns)]
-    for n, p in net.named_parameters():
-        if n in frozen:
-            p.requires_grad_(False)
-    return frozen
