@@ -19,7 +19,7 @@ evaluate again.
   (``solve(..., evaluated=False)``), so the scene evaluation that sets the frame is the first check.
 - The passes end when every FK control's bone is within :data:`TOLERANCE` of its target, the hips' head within
   :data:`TOLERANCE` of the hips' height and the torso's turn below :data:`TORSO_TOLERANCE`, or after
-  :data:`MAX_PASSES` (measured, `benchmarks/blender_rigify.py --rig generated`: 260 passes for 290 generated frames
+  :data:`MAX_PASSES` (measured, `benchmarks/blender_rigify.py --rig generated`: 201 passes for 290 generated frames
   besides their 290 frame changes, where starting from the frames before's solutions carried on took 425).
 """
 from __future__ import annotations
@@ -179,6 +179,7 @@ class ControlSolve:
             res = (max(angle(t, rot(d)) for t, d in zip(target[:-1], deform[:-1])),
                    (hips_at - deform[self.hips_k].translation).length / self.scale)
             if max(res) < TOLERANCE and angle(spin, one) < TORSO_TOLERANCE:
+                self.sent = None  # the next turn is the next frame's: nothing to measure the gain on
                 return res
         moved: dict = {}
         for k in self.order:
