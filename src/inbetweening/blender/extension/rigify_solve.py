@@ -11,15 +11,16 @@ evaluate again.
   parent is about to move in the same pass (:meth:`ControlSolve._upstream`), so a chain settles in one pass.
 - **torso** has no bone of its own.  Rigify hangs the hips below and the chest above its pivot, and bends the spine
   between them: with the hips and the chest held, the spine from the Spine bone's head to the chest's head turns about
-  half as much as the torso.  The torso is turned by the turn that points that line, and the twist of the bone between
-  the Spine and the Chest bones, where the fill puts them, over that share (:meth:`ControlSolve._torso_turn`: measured
-  on the pass before, starting from a half); then moved so the hips' bone's head is where the fill puts it.  The
+  half as much as the torso.  The torso is turned so that line points, and the bone between the Spine and the Chest
+  bones twists, where the fill puts them, through an estimate of how the spine turns per turn of the torso
+  (:meth:`ControlSolve._torso_turn`: a half at first, corrected by every turn whose result is read); then moved so the
+  hips' bone's head is where the fill puts it.  The
   spine's bend (the chest's distance from the Spine bone's head) and the Spine bone's roll are Rigify's.
 - **A frame after a solved one** starts from one pass against the frame before's evaluated pose
   (``solve(..., evaluated=False)``), so the scene evaluation that sets the frame is the first check.
 - The passes end when every FK control's bone is within :data:`TOLERANCE` of its target, the hips' head within
   :data:`TOLERANCE` of the hips' height and the torso's turn below :data:`TORSO_TOLERANCE`, or after
-  :data:`MAX_PASSES` (measured, `benchmarks/blender_rigify.py --rig generated`: 201 passes for 290 generated frames
+  :data:`MAX_PASSES` (measured, `benchmarks/blender_rigify.py --rig generated`: 182 passes for 290 generated frames
   besides their 290 frame changes, where starting from the frames before's solutions carried on took 425).
 """
 from __future__ import annotations
@@ -91,7 +92,7 @@ class ControlSolve:
         self.chest = rig.names.index(rig.map.slots["Chest"])
         self.between = rig.parents[self.chest]  # the bone between the Spine and the Chest bones (Rigify's spine.002)
         self.scale = max(rig.dbones[rig.hips].bone.head_local.length, 1e-6)
-        self.gain, self.sent = 0.5, None  # the spine's turn per turn of the torso, as last measured; the last turn asked
+        self.jac, self.sent, self.sent_spin = Matrix.Identity(3) * 0.5, None, None  # see _torso_turn
 
     def _upstream(self, k: int) -> list[tuple[int, float]]:
         """``[(control, share)]``: the controls whose turns carry control ``k``'s parent, and the share of each turn it
@@ -156,14 +157,21 @@ class ControlSolve:
                 (at[0] - deform[self.hips_k].translation).length / self.scale)
 
     def _torso_turn(self, spin: Quaternion) -> Quaternion:
-        """The torso's turn for the spine's ``spin``: ``spin / gain``, the gain measured on the pass before (what the
-        spine turned of what it was asked, within 0.3-0.7; Rigify's spine: about half)."""
+        """The torso's turn for the spine's ``spin`` (rotation vectors): ``J^-1 spin``, ``J`` how the spine turns per
+        turn of the torso (a 3 x 3 matrix: its bend and its twist answer differently), from a half at the start and
+        corrected after each turn whose result was read (Broyden's update)."""
         v = Vector(spin.to_exponential_map())
         if self.sent is not None and self.sent.length > 1e-4:
-            got = self.sent - v  # the spin the last turn removed
-            self.gain = min(0.7, max(0.3, self.gain * got.dot(self.sent) / self.sent.length_squared))
-        self.sent = v.copy()
-        return Quaternion(v / self.gain)
+            u, got = self.sent, self.sent_spin - v  # the turn asked, the spin it removed
+            r = (got - self.jac @ u) / u.length_squared
+            self.jac = self.jac + Matrix([[a * b for b in u] for a in r])
+        try:
+            turn = self.jac.inverted() @ v
+        except ValueError:  # a singular estimate: start again from a half
+            self.jac = Matrix.Identity(3) * 0.5
+            turn = self.jac.inverted() @ v
+        self.sent, self.sent_spin = turn.copy(), v.copy()
+        return Quaternion(turn)
 
     def _pass(self, target, at, between_q, check: bool = False):
         """One pass: read the evaluated pose, turn every control by what its bone lacks (``check``: unless every bone
