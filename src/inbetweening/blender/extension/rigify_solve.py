@@ -14,8 +14,8 @@ evaluate again.
   half as much as the torso.  The torso is turned so that line points, and the bone between the Spine and the Chest
   bones twists, where the fill puts them, through an estimate of how the spine turns per turn of the torso
   (:meth:`ControlSolve._torso_turn`: a half at first, corrected by every turn whose result is read); then moved so the
-  hips' bone's head is where the fill puts it.  The
-  spine's bend (the chest's distance from the Spine bone's head) and the Spine bone's roll are Rigify's.
+  hips' bone's head is where the fill puts it.  The spine's bend (the chest's distance from the Spine bone's head) and
+  the Spine bone's roll are Rigify's.
 - **A frame after a solved one** starts from one pass against the frame before's evaluated pose
   (``solve(..., evaluated=False)``), so the scene evaluation that sets the frame is the first check.
 - The passes end when every FK control's bone is within :data:`TOLERANCE` of its target, the hips' head within
