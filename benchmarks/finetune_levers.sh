@@ -4,7 +4,8 @@
 # `wave-both-hands`) with its overrides; the takes held out for validation (data.val_fraction of the training takes)
 # pick the winner by its best val/l2p_mean; only the winner is scored on the 483 test takes, once: LAFAN and keys every
 # 15 and 30 for its best checkpoint (the network as it is, as finetune_unseen.sh scores), keys for calibrated.ckpt
-# (the blend fitted on the validation takes).  Alone on the 2-core CPU: about 10 min per lever, 20 min for the scores.
+# (the blend fitted on the validation takes); and what it forgot: BN-2's standard split, the winner against
+# models/bn2_content.  Alone on the 2-core CPU: about 10 min per lever, 25 min for the scores.
 #   bash benchmarks/finetune_levers.sh <out dir> <folder of the run / wave-both-hands takes> NAME='OVERRIDE ...' ...
 #   e.g. ... base= lr4e-4='optim.optimizer.lr=4e-4' mirror='data.mirror=true'
 # THREADS (2): each training's threads (two levers at once: THREADS=1, each with PICK=0); PICK=0 trains only (a lever
@@ -50,3 +51,7 @@ ${PYTHON:-python} eval.py "ckpt_path=$ckpt" "${DATA_ARGS[@]}" protocol=keyframes
 # the checkpoint the run hands a user: the same weights with the do-no-harm blend fitted on the validation takes
 ${PYTHON:-python} eval.py "ckpt_path=$OUT/$name/checkpoints/calibrated.ckpt" "${DATA_ARGS[@]}" protocol=keyframes \
   'keyframe_intervals=[15,30]' hydra.run.dir="$OUT/${name}_calibrated_keyframes" > "$OUT/${name}_calibrated_keyframes.log" 2>&1
+# what it forgot: BN-2's standard split (LAFAN protocol), the winner against the model it started from
+[ -f "$OUT/start_standard/benchmark.json" ] || ${PYTHON:-python} eval.py ckpt_path=models/bn2_content/model.ckpt \
+  data=bandai_namco hydra.run.dir="$OUT/start_standard" > "$OUT/start_standard.log" 2>&1
+${PYTHON:-python} eval.py "ckpt_path=$ckpt" data=bandai_namco hydra.run.dir="$OUT/${name}_standard" > "$OUT/${name}_standard.log" 2>&1
