@@ -149,10 +149,11 @@ class ControlSolve:
                 return res
             bpy.context.view_layer.update()
             self.passes += 1
-        return self.residual(target, at)
+        return self._residual(target, at, [self._pose(j) for j in self.rig.owned])
 
-    def residual(self, target, at) -> tuple[float, float]:
-        deform = [self._pose(j) for j in self.rig.owned]
+    def _residual(self, target, at, deform) -> tuple[float, float]:
+        """The FK controls' bones' largest angle from their targets (radians) and the hips' distance from theirs (in
+        units of the hips' height), for the evaluated poses ``deform`` of ``rig.owned``."""
         return (max(angle(t, rot(d)) for t, d in zip(target[:-1], deform[:-1])),
                 (at[0] - deform[self.hips_k].translation).length / self.scale)
 
@@ -184,10 +185,9 @@ class ControlSolve:
         spin = align(self._pose(self.chest).translation - deform[torso].translation,
                      rot(rig.dbones[self.between].matrix) @ z, chest_at - spine_at, between_q @ z)
         if check:
-            res = (max(angle(t, rot(d)) for t, d in zip(target[:-1], deform[:-1])),
-                   (hips_at - deform[self.hips_k].translation).length / self.scale)
+            res = self._residual(target, at, deform)
             if max(res) < TOLERANCE and angle(spin, one) < TORSO_TOLERANCE:
-                self.sent = None  # the next turn is the next frame's: nothing to measure the gain on
+                self.sent = None  # the next turn is the next frame's: nothing to measure the spine's answer on
                 return res
         moved: dict = {}
         for k in self.order:
