@@ -68,6 +68,50 @@ def test_members_are_weighted_by_their_calibrated_weight_for_the_gap(pair):
     assert not np.allclose(re, ra)  # the two networks differ: the test sees the mean
 
 
+class _Counted:
+    """A member that counts the windows it is asked to predict."""
+
+    def __init__(self, member):
+        self.member, self.info, self.windows = member, member.info, 0
+
+    def predict(self, root, *args, **kw):
+        self.windows += len(root)
+        return self.member.predict(root, *args, **kw)
+
+
+def test_a_member_with_no_share_runs_only_for_the_contact_it_gives(pair, tiny_checkpoint):
+    plain, contact = (copy.copy(m) for m in pair)
+    plain.info = dataclasses.replace(plain.info, blend=(0.9, 0.8, 0.6))
+    contact.info = dataclasses.replace(contact.info, blend=(0.0, 0.0, 0.0, 0.5))  # no share in gaps of 1-3 frames
+    idle = copy.copy(pair[0])
+    idle.info = dataclasses.replace(idle.info, blend=(0.0, 0.0, 0.0, 0.5))  # no share there, no contact either
+    members = [_Counted(m) for m in (plain, contact, idle)]
+    ens = EnsembleBackend(members)
+    root, q, known = _windows(plain, b=2, gap=3)
+    ra, qa, _ = plain.predict(root, q, known, None)
+    _, _, cb = contact.predict(root, q, known, None)
+    r, qe, c = ens.predict(root, q, known, None)  # the contact wanted: the contact member runs, the idle one not
+    assert np.array_equal(r, ra) and np.allclose(qe, qa / np.linalg.norm(qa, axis=-1, keepdims=True), atol=1e-12)
+    assert np.allclose(c, cb) and [m.windows for m in members] == [2, 2, 0]
+    r2, q2, c2 = ens.predict(root, q, known, None, contacts=False)  # the self-check's windows: only the one with a share
+    assert np.array_equal(r2, r) and np.array_equal(q2, qe) and c2 is None
+    assert [m.windows for m in members] == [4, 2, 0]
+    root, q, known = _windows(plain, b=2, gap=5)  # every member has a share at 5 frames: all run
+    ens.predict(root, q, known, None, contacts=False)
+    assert [m.windows for m in members] == [6, 4, 2]
+    # through the runtime: keys 10, 12, 14, 16 are checked, 12 and 14 across 3-frame gaps where the first member alone
+    # has a share; the fill generates gaps of 9, 1, 1, 1 and 13 frames
+    local_q, root_pos = generate_clip(np.random.default_rng(5), 40)
+    keys = [0, 10, 12, 14, 16, 30]
+    runtime = FillRuntime(ens)
+    before = [m.windows for m in members]
+    out = runtime.fill(root_pos, local_q, keys)
+    assert len(out.checks) == 4 and np.array_equal(out.root[keys], root_pos[keys])
+    ran = [m.windows - b for m, b in zip(members, before)]
+    assert ran[0] - ran[1] == 2  # the two 3-frame checks: not the contact member (the check reads no contact)
+    assert ran[1] - ran[2] == 3  # the three 1-frame gaps generated: the contact member for its contact, not the idle one
+
+
 def test_a_member_of_another_skeleton_is_refused_by_name(pair):
     a, b = pair
     other = dataclasses.replace(b.info, n_past=b.info.n_past + 1)

@@ -39,7 +39,7 @@ class Recorder:
     def __init__(self, model_info: ModelInfo, contact: float | None = None):
         self.info, self.contact, self.seen = model_info, contact, []
 
-    def predict(self, root, local_q, known, weight):
+    def predict(self, root, local_q, known, weight, contacts=True):
         self.seen.append((root.copy(), local_q.copy(), known.copy(), None if weight is None else weight.copy()))
         r = np.broadcast_to(np.array([5.0, 90.0, 0.0]), root.shape).copy()
         q = np.zeros(local_q.shape)
@@ -211,7 +211,7 @@ class Lift:
     def __init__(self, model_info: ModelInfo, lift: float = 1.0):
         self.info, self.lift = model_info, lift
 
-    def predict(self, root, local_q, known, weight):
+    def predict(self, root, local_q, known, weight, contacts=True):
         p, t = self.info.n_past, root.shape[1]
         s = np.clip((np.arange(t) - (p - 1)) / (t - p), 0, 1)
         r = root[:, p - 1 : p] + s[None, :, None] * (root[:, -1:] - root[:, p - 1 : p])

@@ -86,16 +86,21 @@ class EnsembleBackend:
         out.info, out.share_power = self.info, self.share_power
         return out
 
-    def predict(self, root, local_q, known, weight):
+    def predict(self, root, local_q, known, weight, contacts=True):
+        """The members' weighted mean (module docstring).  A member with no share in the pose at the window's gap
+        length (a calibrated weight of 0) is not run unless its contact is needed (``contacts`` and it predicts
+        one): the result is the same, without its network's time."""
         self.calls += 1
         a = member_weights([m.info for m in self.members], np.shape(root)[1] - self.info.n_past - 1,
                            self.share_power)
-        outs = [m.predict(root, local_q, known, weight) for m in self.members]
-        roots = sum(w * np.asarray(o[0], np.float64) for w, o in zip(a, outs))
-        qs = [np.asarray(o[1], np.float64) for o in outs]
-        total = a[0] * qs[0]
-        for w, q in zip(a[1:], qs[1:]):  # the same hemisphere as the first member's, then the normalised sum
-            total = total + w * np.where(np.sum(q * qs[0], axis=-1, keepdims=True) < 0, -q, q)
+        run = [i for i, m in enumerate(self.members) if a[i] > 0 or (contacts and m.info.has_contacts)]
+        outs = {i: self.members[i].predict(root, local_q, known, weight, contacts=contacts) for i in run}
+        posed = [i for i in run if a[i] > 0]
+        roots = sum(a[i] * np.asarray(outs[i][0], np.float64) for i in posed)
+        qs = [np.asarray(outs[i][1], np.float64) for i in posed]
+        total = a[posed[0]] * qs[0]
+        for i, q in zip(posed[1:], qs[1:]):  # the same hemisphere as the first member's, then the normalised sum
+            total = total + a[i] * np.where(np.sum(q * qs[0], axis=-1, keepdims=True) < 0, -q, q)
         q = total / np.linalg.norm(total, axis=-1, keepdims=True)
-        contacts = [np.asarray(o[2], np.float64) for o in outs if o[2] is not None]
-        return roots, q, (np.mean(contacts, axis=0) if contacts else None)
+        contact = [np.asarray(outs[i][2], np.float64) for i in run if outs[i][2] is not None] if contacts else []
+        return roots, q, (np.mean(contact, axis=0) if contact else None)

@@ -282,17 +282,18 @@ class FillRuntime:
         return croot, cq, (centre, rot)
 
     def predict_windows(self, wr: np.ndarray, wq: np.ndarray, known: np.ndarray | None = None,
-                        backend=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+                        backend=None, contacts: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Windows in the clip's frame -> the network's prediction of the gap (no blend): ``root (B, n, 3), local_q
         (B, n, J, 4)`` (unit), contact ``(B, n, J)`` or ``None``: canonical frame, backend, back.  ``known``: the
         windows' mask (default :meth:`known_mask` without partial keys); ``backend``: another network than the
-        runtime's (a clip's adapted one)."""
+        runtime's (a clip's adapted one); ``contacts=False``: the contact is not wanted (the backend may skip work for it
+        and return ``None``)."""
         b, t = wr.shape[:2]
         p = self.info.n_past
         n = t - p - 1
         known = self.known_mask(b, n) if known is None else known
         croot, cq, (centre, rot) = self.canonical_windows(wr, wq, known)
-        pr, pq, pc = (backend or self.backend).predict(croot, cq, known, None)
+        pr, pq, pc = (backend or self.backend).predict(croot, cq, known, None, contacts=contacts)
         pr, pq = canonical.uncanonicalise(np.asarray(pr, np.float64), np.asarray(pq, np.float64), centre, rot)
         pr, pq = pr[:, p : p + n], pq[:, p : p + n]
         pq = pq / np.linalg.norm(pq, axis=-1, keepdims=True)  # exactly unit
@@ -318,7 +319,7 @@ class FillRuntime:
                 part = items[s : s + size]
                 spans = [(c.checks[i].a, c.checks[i].b) for c, _, i in part]
                 wr, wq = self.windows([b[0] for _, b, _ in part], [b[1] for _, b, _ in part], spans)
-                pr, pq, _ = self.predict_windows(wr, wq)
+                pr, pq, _ = self.predict_windows(wr, wq, contacts=False)
                 for j, (c, base, i) in enumerate(part):
                     ch = c.checks[i]
                     t = ch.key - ch.a - 1

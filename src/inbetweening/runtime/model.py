@@ -86,8 +86,11 @@ class Backend(Protocol):
     weight (B, T, J) float32 | None)``: windows already in their canonical frame -> ``(root, local_q, contact)``, the
     decoded prediction (float64; ``contact (B, T, J)`` in [0, 1], or ``None`` for a network without contact channels),
     the network's correction to the interpolation scaled by ``weight`` (``None``: unscaled; the fill runtime asks for
-    the network unscaled and blends per gap itself, :mod:`.trust`)."""
+    the network unscaled and blends per gap itself, :mod:`.trust`).  ``contacts=False``: the caller does not read the
+    contact (the self-check's windows), so a backend may leave out work done only for it (an ensemble's members
+    with no share in the pose; :mod:`.ensemble`)."""
 
     info: ModelInfo
 
-    def predict(self, root: np.ndarray, local_q: np.ndarray, known: np.ndarray, weight: np.ndarray | None): ...
+    def predict(self, root: np.ndarray, local_q: np.ndarray, known: np.ndarray, weight: np.ndarray | None,
+                contacts: bool = True): ...
