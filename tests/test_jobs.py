@@ -102,6 +102,41 @@ def test_init_stats_picks_the_datas_statistics_by_default_or_the_checkpoints(ini
     assert list(module.hparams["pos_mean"]) == list(want)
 
 
+def test_init_keep_mixes_the_fitted_weights_with_the_starts_and_calibrates_those(tiny_checkpoint, tmp_path,
+                                                                                           cache_dir):
+    """``init_keep``: after the fit, the best checkpoint's network weights taken that share of the way back to
+    init_from's (checked with the test's own arithmetic on the files); the calibrated checkpoint and the test use
+    them; the settings it needs are one line each."""
+    import torch
+
+    from conftest import compose_cfg
+    from inbetweening.training.config import ConfigError, validate
+    from inbetweening.training.train import train
+
+    data = [o for o in TINY_CKPT_OVERRIDES if o.startswith("data.")]
+    base = ["experiment=finetune", *data, f"init_from='{tiny_checkpoint}'", "init_stats=checkpoint", "trainer.max_steps=3",
+            "trainer.val_check_interval=3", "callbacks=default", "logger=none", "run_test=false"]
+    out = tmp_path / "ft"
+    train(compose_cfg("train", [*base, "init_keep=0.25"], out, cache_dir))
+    ckpts = out / "checkpoints"
+    (best,) = [p for p in ckpts.glob("epoch_*.ckpt")]
+    load = lambda p: torch.load(p, map_location="cpu", weights_only=False)["state_dict"]  # noqa: E731
+    fitted, start, kept, calibrated = load(best), load(tiny_checkpoint), load(ckpts / "kept_start.ckpt"), \
+        load(ckpts / "calibrated.ckpt")
+    start = {k if k.startswith("predictor.") else "predictor." + k: v for k, v in start.items()}
+    nets = [k for k in fitted if k.startswith("predictor.net.") and fitted[k].is_floating_point()]
+    moved = [k for k in nets if not torch.equal(fitted[k], start[k])]
+    assert moved  # the fit changed the network
+    for k in nets:
+        assert torch.allclose(kept[k], 0.75 * fitted[k] + 0.25 * start[k], atol=1e-6)
+        assert torch.equal(calibrated[k], kept[k])
+    for bad, pattern in ((["init_keep=1.5"], "^init_keep: must be a number from 0 to 1"),
+                         (["init_keep=0.5", "init_stats=data"], "^init_keep: .* set init_stats=checkpoint"),
+                         (["init_from=null", "init_stats=data", "init_keep=0.5"], "^init_keep: .* give init_from")):
+        with pytest.raises(ConfigError, match=pattern):
+            validate(compose_cfg("train", [*base, *bad], tmp_path / "bad", cache_dir))
+
+
 def test_init_from_of_another_skeleton_names_both(tmp_path, cache_dir):
     import torch
 

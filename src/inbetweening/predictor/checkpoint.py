@@ -88,6 +88,27 @@ def predictor_state(state_dict: dict) -> dict:
     return {k: v for k, v in state_dict.items() if k.startswith("net.")}
 
 
+def kept_start(ckpt: dict, start: dict, keep: float) -> dict:
+    """A copy of the checkpoint dict ``ckpt`` whose network weights are taken ``keep`` of the way back to those of
+    ``start`` (a checkpoint dict of the same network, either layout): ``(1 - keep) * trained + keep * start`` for
+    every floating-point tensor of the predictor (weight-space ensembling of a fine-tune with the model it started
+    from, ``init_keep``).  ``keep`` 0 is ``ckpt``, 1 its start's network; the hyper-parameters are ``ckpt``'s, so both
+    must share the normalisation statistics.  :class:`CheckpointError` when the networks differ."""
+    mine, theirs = ckpt["state_dict"], predictor_state(start["state_dict"])
+    prefix = PREDICTOR_PREFIX if any(k.startswith(PREDICTOR_PREFIX) for k in mine) else ""
+    ours = {k[len(prefix):]: k for k in mine if k.startswith(prefix + "net.")}
+    if set(ours) != set(theirs) or any(tuple(mine[ours[k]].shape) != tuple(theirs[k].shape) for k in ours):
+        raise CheckpointError("init_keep: the trained network and init_from's differ in their parameters; "
+                              "weights can only be mixed between one network's")
+    state = dict(mine)
+    for k, full in ours.items():
+        if torch.is_floating_point(mine[full]):
+            state[full] = (1.0 - keep) * mine[full] + keep * theirs[k].to(mine[full].dtype)
+    out = {k: v for k, v in ckpt.items() if k not in ("optimizer_states", "lr_schedulers")}
+    out["state_dict"] = state
+    return out
+
+
 def upgrade_module_state(state_dict: dict) -> dict:
     """A training module's state dict in today's layout: older ``net.*`` keys become ``predictor.net.*``."""
     return {(PREDICTOR_PREFIX + k if k.startswith("net.") else k): v for k, v in state_dict.items()}

@@ -334,6 +334,14 @@ def validate(cfg: DictConfig) -> None:
         raise ConfigError("init_from: starts a new run from a checkpoint's weights, ckpt_path resumes a run: give one")
     if _get(cfg, "init_stats", "data") not in ("checkpoint", "data"):
         raise ConfigError(f"init_stats: must be 'checkpoint' or 'data', got {_get(cfg, 'init_stats')!r}")
+    keep = _get(cfg, "init_keep", 0.0)
+    if isinstance(keep, bool) or not isinstance(keep, (int, float)) or not 0.0 <= keep <= 1.0:
+        raise ConfigError(f"init_keep: must be a number from 0 to 1 (the share of init_from's weights kept), got {keep!r}")
+    if keep > 0 and not _get(cfg, "init_from"):
+        raise ConfigError("init_keep: mixes the trained weights with init_from's: give init_from")
+    if keep > 0 and _get(cfg, "init_stats", "data") != "checkpoint":
+        raise ConfigError("init_keep: the weights of two networks mix only under the same normalisation statistics: "
+                          "set init_stats=checkpoint")
     rep = _get(cfg, "representation", DEFAULT_REPRESENTATION)
     if rep not in REPRESENTATIONS:
         raise ConfigError(f"representation: unknown representation {rep!r}; choose one of {sorted(REPRESENTATIONS)}")

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import lightning as L
+import torch
 import yaml
 from lightning.pytorch.utilities.exceptions import SIGTERMException
 from omegaconf import DictConfig
@@ -13,7 +14,7 @@ from omegaconf import DictConfig
 from inbetweening.atomic import write_text
 from inbetweening.data.datasets import DatasetError
 from inbetweening.evaluation import benchmark as B
-from inbetweening.predictor.checkpoint import CheckpointError, predictor_state, read_checkpoint
+from inbetweening.predictor.checkpoint import CheckpointError, kept_start, predictor_state, read_checkpoint
 from inbetweening.training.builders import make_datamodule, make_module, make_trainer, output_dir
 from inbetweening.training.calibrate import calibrate_module
 from inbetweening.training.callbacks import trim_heap
@@ -59,6 +60,13 @@ def train(cfg: DictConfig) -> dict[str, float]:
         module = load_module(best)
     else:
         best = None
+    if best and float(cfg.get("init_keep") or 0) > 0:  # weight-space ensembling with the start, against forgetting
+        mixed = kept_start(read_checkpoint(best), init, float(cfg.init_keep))
+        best = str(Path(best).with_name("kept_start.ckpt"))
+        if rank_world()[0] == 0:
+            torch.save(mixed, best)
+            print(f"the weights taken {float(cfg.init_keep):g} of the way back to init_from's: {best}")
+        module.load_state_dict(mixed["state_dict"])
     fitted = module.trainable and cfg.trainer.get("max_steps", -1) != 0
     if fitted and cfg.get("calibrate", True) and (best or cfg.get("run_test", True)):
         # every rank fits the same blend; rank 0 writes it
