@@ -121,6 +121,10 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("finetune_levers", "finetune_levers.sh", "levers of the 10-minute fine-tune, the winner picked on "
               "the user's held-out takes and tested once", "about 10 min per lever and 15 min", "<out>/",
               "RESULTS.md 4, fine-tuning on your motions", "<out dir> <folder of takes> NAME='OVERRIDE ...' ...", BN2),
+    Benchmark("finetune_keep", "finetune_keep.sh", "init_keep's trade: a fine-tune mixed with its start at each "
+              "share, scored on the test takes and BN-2's standard split", "about 8 min per share", "<out>/",
+              "RESULTS.md 4, fine-tuning on your motions", "<fine-tune run> <folder of takes> <out dir> KEEP ...",
+              f"{BN2}; a finetune_levers run with init_stats=checkpoint"),
     Benchmark("partial_keys", "partial_keys.sh", "the keyframes protocol's partial-key schedules per checkpoint",
               "about 15 min per checkpoint", "<out>/", "RESULTS.md 8, partial keys", "<out dir> <name>=<checkpoint> ...", BN2),
     Benchmark("researcher_grid", "researcher_grid.sh", "mask / depth / heads / norm, 2 seeds, 200 steps",
