@@ -35,9 +35,9 @@ def _levels(parents: tuple[int, ...]) -> tuple[tuple[np.ndarray, np.ndarray], ..
 def fk(local_q: Array, local_p: Array, parents) -> tuple[Array, Array]:
     """Forward kinematics.  ``(..., J, 4), (..., J, 3) -> global (..., J, 4), (..., J, 3)``.
 
-    Works for numpy arrays and torch tensors alike (autograd flows through the torch path).  numpy arrays go level by
-    level (every joint of one depth in one product: the same arithmetic per joint, bit for bit, with a handful of
-    numpy calls per level instead of per joint); tensors joint by joint.
+    Works for numpy arrays and torch tensors alike (autograd flows through the torch path).  Both go level by level:
+    every joint of one depth in one product, the same arithmetic per joint, bit for bit, as joint by joint, with a
+    handful of operations per level instead of per joint (in an exported ONNX graph, a few hundred nodes fewer).
     """
     if not is_tensor(local_q) and not is_tensor(local_p):
         local_q, local_p = np.asarray(local_q), np.asarray(local_p)
@@ -51,12 +51,20 @@ def fk(local_q: Array, local_p: Array, parents) -> tuple[Array, Array]:
             gp[..., js, :] = qrot(pq, lp[..., js, :]) + gp[..., ps, :]
             gq[..., js, :] = qmul(pq, lq[..., js, :])
         return gq, gp
-    gq, gp = [local_q[..., :1, :]], [local_p[..., :1, :]]
-    for j in range(1, len(parents)):
-        p = parents[j]
-        gp.append(qrot(gq[p], local_p[..., j : j + 1, :]) + gp[p])
-        gq.append(qmul(gq[p], local_q[..., j : j + 1, :]))
-    return _cat_joints(gq), _cat_joints(gp)
+    gq, gp = [local_q[..., :1, :]], [local_p[..., :1, :]]  # per level: the joints of that depth
+    at = {0: 0}  # joint -> its place in its level
+    for js, ps in _levels(tuple(int(p) for p in parents)):
+        up = [at[int(p)] for p in ps]  # the parents, all one level up
+        pq, pp = gq[-1][..., up, :], gp[-1][..., up, :]
+        gp.append(qrot(pq, local_p[..., js.tolist(), :]) + pp)
+        gq.append(qmul(pq, local_q[..., js.tolist(), :]))
+        at.update({int(j): i for i, j in enumerate(js)})
+    order = [0] + [int(j) for js, _ in _levels(tuple(int(p) for p in parents)) for j in js]
+    gq, gp = _cat_joints(gq), _cat_joints(gp)
+    if order != sorted(order):  # back to the joints' order
+        back = np.argsort(order).tolist()
+        gq, gp = gq[..., back, :], gp[..., back, :]
+    return gq, gp
 
 
 def ik(global_q: Array, global_p: Array, parents) -> tuple[Array, Array]:
