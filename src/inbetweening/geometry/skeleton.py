@@ -51,15 +51,16 @@ def fk(local_q: Array, local_p: Array, parents) -> tuple[Array, Array]:
             gp[..., js, :] = qrot(pq, lp[..., js, :]) + gp[..., ps, :]
             gq[..., js, :] = qmul(pq, lq[..., js, :])
         return gq, gp
+    levels = _levels(tuple(int(p) for p in parents))
     gq, gp = [local_q[..., :1, :]], [local_p[..., :1, :]]  # per level: the joints of that depth
     at = {0: 0}  # joint -> its place in its level
-    for js, ps in _levels(tuple(int(p) for p in parents)):
-        up = [at[int(p)] for p in ps]  # the parents, all one level up
+    for js, ps in levels:
+        up, js = [at[int(p)] for p in ps], js.tolist()  # the parents, all one level up
         pq, pp = gq[-1][..., up, :], gp[-1][..., up, :]
-        gp.append(qrot(pq, local_p[..., js.tolist(), :]) + pp)
-        gq.append(qmul(pq, local_q[..., js.tolist(), :]))
-        at.update({int(j): i for i, j in enumerate(js)})
-    order = [0] + [int(j) for js, _ in _levels(tuple(int(p) for p in parents)) for j in js]
+        gp.append(qrot(pq, local_p[..., js, :]) + pp)
+        gq.append(qmul(pq, local_q[..., js, :]))
+        at.update({j: i for i, j in enumerate(js)})
+    order = [0] + [int(j) for js, _ in levels for j in js]
     gq, gp = _cat_joints(gq), _cat_joints(gp)
     if order != sorted(order):  # back to the joints' order
         back = np.argsort(order).tolist()
