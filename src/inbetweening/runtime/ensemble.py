@@ -89,7 +89,8 @@ class EnsembleBackend:
     def predict(self, root, local_q, known, weight, contacts=True):
         """The members' weighted mean (module docstring).  A member with no share in the pose at the window's gap
         length (a calibrated weight of 0) is not run unless its contact is needed (``contacts`` and it predicts
-        one): the result is the same, without its network's time."""
+        one): the result is the same, without its network's time (the rotations are sign-aligned to the first member
+        with a share; where the first member itself has none, the same rotation may come out with the other sign)."""
         self.calls += 1
         a = member_weights([m.info for m in self.members], np.shape(root)[1] - self.info.n_past - 1,
                            self.share_power)
