@@ -125,6 +125,10 @@ BENCHMARKS: tuple[Benchmark, ...] = (
               "share, scored on the test takes and BN-2's standard split", "about 8 min per share", "<out>/",
               "RESULTS.md 4, fine-tuning on your motions", "<fine-tune run> <folder of takes> <out dir> KEEP ...",
               f"{BN2}; a finetune_levers run with init_stats=checkpoint"),
+    Benchmark("nograph_ship", "nograph_ship.sh", "the graph-free candidate fill against the shipped one on a split "
+              "(LAFAN and keys only), for the ship rule", "about 20 min per split", "<out>/ and the table",
+              "RESULTS.md 3.3, the folds protocol", "<out dir> <training run dir> <standard|content>",
+              f"{BN2}; a run of experiment=bn2_best model.graph=none on the split", ("nograph_ship_table.py",)),
     Benchmark("partial_keys", "partial_keys.sh", "the keyframes protocol's partial-key schedules per checkpoint",
               "about 15 min per checkpoint", "<out>/", "RESULTS.md 8, partial keys", "<out dir> <name>=<checkpoint> ...", BN2),
     Benchmark("researcher_grid", "researcher_grid.sh", "mask / depth / heads / norm, 2 seeds, 200 steps",
