@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from inbetweening.api.shipped import SHIPPED_CKPTS
 from inbetweening.data.bvh import BVH, read_bvh
 from inbetweening.data.bvh_writer import write_bvh
 from inbetweening.geometry.quaternion import euler_to_quat_np
@@ -21,7 +22,7 @@ from inbetweening.geometry.quaternion import euler_to_quat_np
 pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parents[1]
-CKPTS = [REPO / "models" / name / "model.ckpt" for name in ("bn2_partial", "bn2_partial_twin", "bn2_v2")]  # bundled
+CKPTS = [REPO / c for c in SHIPPED_CKPTS]  # bundled: the shipped ensemble (test_predict names it)
 CKPT = CKPTS[0]
 BN2 = Path(os.environ.get("BANDAI_NAMCO_PATH", REPO.parent / "shared" / "datasets" / "bandai-namco-2.zip"))
 BN2_CLIP = "Bandai-Namco-Research-Motiondataset-2/data/dataset-2_walk-turn-right_active_026.bvh"
