@@ -4,9 +4,10 @@ of ``benchmarks/nograph_ship.sh``, and the ship rule's verdict.
     python benchmarks/nograph_ship_table.py <out dir> [--copy results/nograph_ship]
 
 Per split and fill: the LAFAN protocol's L2P over interpolation's at 5 / 15 / 30 / 45 frames, and keys only: the
-pooled ratio per schedule (share of clips worse than interpolation by more than 5 %, foot skating in cm/s).  The rule:
-the candidate ships if on the content split it is better than the shipped fill at keys every 15 and 30 and on LAFAN
-at 15 and 30, and on the standard split within 0.02 of it on every LAFAN length and keys-only schedule."""
+pooled ratio per schedule (share of clips worse than interpolation by more than 5 %, foot skating in cm/s).  The
+rule (nograph_ship.sh, fixed before any score): on the standard split and on the content split the candidate is
+within 0.02 of the shipped fill at every LAFAN length and keys-only schedule (the recipe's gain on the folds is
+RESULTS.md 3.3's)."""
 from __future__ import annotations
 
 import argparse
@@ -59,14 +60,14 @@ def verdict(out: Path) -> str:
             for split in ("standard", "content") for fill in ("shipped", "candidate")}
     if any(not a or not b for a, b in figs.values()):
         return "verdict: not every run is there"
-    (cl, ck), (sl, sk) = figs[("content", "candidate")], figs[("content", "shipped")]
-    better = all(ck[s] < sk[s] for s in ("15", "30")) and all(cl[n] < sl[n] for n in ("15", "30"))
-    (tl, tk), (ul, uk) = figs[("standard", "candidate")], figs[("standard", "shipped")]
-    losses = {f"LAFAN@{n}": tl[n] - ul[n] for n in LENGTHS} | {f"keys@{s}": tk[s] - uk[s] for s in SCHEDULES}
-    worst = max(losses, key=losses.get)
-    ok = better and losses[worst] <= TOLERANCE
-    return (f"verdict: {'SHIP' if ok else 'do not ship'}: content split better at 15 and 30: {better}; standard split "
-            f"largest loss {losses[worst]:+.3f} ({worst}, tolerance {TOLERANCE})")
+    parts, ok = [], True
+    for split in ("standard", "content"):
+        (cl, ck), (sl, sk) = figs[(split, "candidate")], figs[(split, "shipped")]
+        losses = {f"LAFAN@{n}": cl[n] - sl[n] for n in LENGTHS} | {f"keys@{s}": ck[s] - sk[s] for s in SCHEDULES}
+        worst, best = max(losses, key=losses.get), min(losses, key=losses.get)
+        ok &= losses[worst] <= TOLERANCE
+        parts.append(f"{split}: largest loss {losses[worst]:+.3f} ({worst}), largest gain {-losses[best]:+.3f} ({best})")
+    return f"verdict: {'SHIP' if ok else 'do not ship'} (tolerance {TOLERANCE}): " + "; ".join(parts)
 
 
 def main() -> None:
