@@ -24,6 +24,15 @@ SCHEDULES = ("5", "15", "30", "45", "random", "extremes")
 WORSE = 1.05
 
 
+def copy_runs(out: Path, dest: Path | None) -> None:
+    """``--copy``: each ``<out>/<run>/benchmark.json`` copied to ``<dest>/<run>.json`` (nothing when ``dest`` is None)."""
+    if dest is None:
+        return
+    dest.mkdir(parents=True, exist_ok=True)
+    for p in sorted(out.glob("*/benchmark.json")):
+        shutil.copy(p, dest / f"{p.parent.name}.json")
+
+
 def rows(out: Path) -> dict[str, dict]:
     found = {}
     for p in sorted(out.glob("*/benchmark.json")):
@@ -85,10 +94,7 @@ def main() -> None:
         for s in SCHEDULES:
             if s in kf and kf[s].get("worst"):
                 print(f"- {name}, keys {s}: {kf[s]['worst']}")
-    if a.copy:
-        a.copy.mkdir(parents=True, exist_ok=True)
-        for p in sorted(a.out.glob("*/benchmark.json")):
-            shutil.copy(p, a.copy / f"{p.parent.name}.json")
+    copy_runs(a.out, a.copy)
 
 
 if __name__ == "__main__":
