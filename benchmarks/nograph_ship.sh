@@ -12,6 +12,7 @@
 # split (fold 1 at the full budget, where the folds saw no gain at 300 steps) as a guard.  About 20 min per split alone; the two splits can run
 # side by side (THREADS=1).  Table: python benchmarks/nograph_ship_table.py <out dir>
 #   bash benchmarks/nograph_ship.sh <out dir> <run dir> <standard|content>
+# (EXTRA: more eval.py overrides for every run, e.g. EXTRA=keyframe_clips=4 for a dry run)
 set -euo pipefail
 OUT=${1:?out dir}
 RUN=${2:?the training run dir of the split}

@@ -64,21 +64,25 @@ def table(out: Path) -> str:
     return "\n".join(lines)
 
 
+def figures(out: Path, split: str, fill: str) -> dict[str, float]:
+    """``{"LAFAN@<n>": ratio, "keys@<schedule>": ratio}`` of the figures found for a fill on a split."""
+    return ({f"LAFAN@{n}": v for n, v in lafan_ratios(out, split, fill).items()}
+            | {f"keys@{s}": r["ratio"] for s, r in keyframes(out, split, fill).items()})
+
+
 def verdict(out: Path) -> str:
     """The ship rule (module docstring) on the figures found, in words: a loss beyond the tolerance decides it even
-    where some runs are missing; otherwise every run must be there."""
+    where some runs are missing; otherwise every figure must be there."""
+    wanted = [f"LAFAN@{n}" for n in LENGTHS] + [f"keys@{s}" for s in SCHEDULES]
     parts, ok, missing = [], True, []
     for split in ("standard", "content"):
-        (cl, sl), (ck, sk) = ((lafan_ratios(out, split, f) for f in ("candidate", "shipped")),
-                              ({s: r["ratio"] for s, r in keyframes(out, split, f).items()} for f in ("candidate", "shipped")))
-        losses = {f"LAFAN@{n}": cl[n] - sl[n] for n in LENGTHS if n in cl and n in sl}
-        losses |= {f"keys@{s}": ck[s] - sk[s] for s in SCHEDULES if s in ck and s in sk}
-        missing += [f"{split} {what}" for what, have in (("LAFAN", cl and sl), ("keys only", ck and sk)) if not have]
-        if not losses:
-            continue
-        worst, best = max(losses, key=losses.get), min(losses, key=losses.get)
-        ok &= losses[worst] <= TOLERANCE
-        parts.append(f"{split}: largest loss {losses[worst]:+.3f} ({worst}), largest gain {-losses[best]:+.3f} ({best})")
+        cand, ship = figures(out, split, "candidate"), figures(out, split, "shipped")
+        losses = {k: cand[k] - ship[k] for k in wanted if k in cand and k in ship}
+        missing += [f"{split} {k}" for k in wanted if k not in losses]
+        if losses:
+            worst, best = max(losses, key=losses.get), min(losses, key=losses.get)
+            ok &= losses[worst] <= TOLERANCE
+            parts.append(f"{split}: largest loss {losses[worst]:+.3f} ({worst}), largest gain {-losses[best]:+.3f} ({best})")
     word = "do not ship" if not ok else ("SHIP" if not missing else "undecided")
     gaps = f" (not measured: {', '.join(missing)})" if missing else ""
     return f"verdict: {word} (tolerance {TOLERANCE}): " + "; ".join(parts) + gaps

@@ -18,11 +18,10 @@ import numpy as np
 import pytest
 import torch
 
-from inbetweening.api.shipped import SHIPPED_CKPTS
 from inbetweening.predictor import masks
 
 REPO = Path(__file__).resolve().parents[1]
-CKPTS = [REPO / c for c in SHIPPED_CKPTS]  # bundled: the shipped ensemble (test_predict names it)
+CKPTS = [REPO / "models" / name / "model.ckpt" for name in ("bn2_partial", "bn2_partial_twin", "bn2_v2")]  # bundled
 CKPT = CKPTS[0]
 EXT = REPO / "src" / "inbetweening" / "blender" / "extension"
 
