@@ -5,20 +5,23 @@
 # `python eval.py ckpt_path=<calibrated or best>.ckpt data=bandai_namco`).  The GPU changes the wall time, not the
 # experiment: same steps, batches, seed and schedule as on the CPU (numerics differ a little).
 #
-# The machine has no network and takes at most 64 MiB per call, so what it lacks travels in the git-ignored .gpu/:
-#   .gpu/whl/*.whl          hydra-core 1.3.8, omegaconf 2.3.1, antlr4-python3-runtime 4.9.3, roma 1.8.0 (pure Python)
-#   .gpu/p1/part1.tar.xz    Bandai-Namco-2's BVH files (all 2,902: the loader refuses a dataset without test
-#                           windows), every other one by name, under Bandai-Namco-Research-Motiondataset-2/data/
-#   .gpu/p2/part2.tar.xz    the others and bn2_manifest.tsv (name, bytes, sha1 of every file of both parts)
-#   (xz -9e; python's tarfile/lzma unpack them; the json files beside the BVH files are not read)
-# Two calls on the same warm machine (/tmp persists between them; it goes back 30 s after a call):
-#   bash benchmarks/v3_gpu.sh part1               carry [.gpu/whl, .gpu/p1]: wheels to /tmp/site, part 1 to /tmp/bn,
-#                                                 GPU check, a speed probe of the recipe on the synthetic data
+# The machine has no network and takes at most 64 MiB per call with the working tree, so what it lacks travels in the
+# git-ignored .gpu/ (made by `python benchmarks/gpu_pack.py`):
+#   .gpu/whl/*.whl          hydra-core 1.3.8, omegaconf 2.3.1, antlr4-python3-runtime 4.9.3, roma 1.8.0 (pure Python;
+#                           `pip wheel --no-deps -w .gpu/whl hydra-core==1.3.8 ...`)
+#   .gpu/c1, c2, ...        pieces of two xz archives of Bandai-Namco-2's BVH files (all 2,902: the loader refuses a
+#                           dataset without test windows; every other one by name in each) and bn2_manifest.tsv (name,
+#                           bytes, sha1 of every file), one piece per call (pieces.txt says how to put them together)
+# Calls on the same warm machine, back to back (/tmp persists between them; it goes back 30 s after a call); every
+# mode first keeps the pieces it was carried in /tmp/pieces and, once it has them all, unpacks the archives to /tmp/bn:
+#   bash benchmarks/v3_gpu.sh part1               carry [.gpu/whl, .gpu/c1]: wheels to /tmp/site, GPU check, a speed
+#                                                 probe of the recipe on the synthetic data (PROBE_STEPS=0: none)
+#   bash benchmarks/v3_gpu.sh take                carry [.gpu/c2] (and so on): the piece kept, nothing else
 #   bash benchmarks/v3_gpu.sh part2 <max_steps> [hydra overrides...]
-#                                                 carry [.gpu/whl, .gpu/p2]: part 2 to /tmp/bn, every file checked
-#                                                 against the manifest, /tmp/bn2.zip rebuilt, the training run in
-#                                                 /tmp/v3run; last.ckpt, the best checkpoint and the log are copied to
-#                                                 $OUT every 20 s (what was reached comes back if the call is stopped)
+#                                                 carry [.gpu/whl, .gpu/c<last>]: every file checked against the
+#                                                 manifest, /tmp/bn2.zip rebuilt, the training run in /tmp/v3run;
+#                                                 last.ckpt, the best checkpoint and the log are copied to $OUT every
+#                                                 20 s (what was reached comes back if the call is stopped)
 # Variables (for a dry run on a CPU machine): PY (python3), TRAINER (gpu), OUT (required), SITE (/tmp/site; SKIP_WHEELS=1
 # skips the install), BN (/tmp/bn), ZIP (/tmp/bn2.zip), RUN (/tmp/v3run; its log $RUN.log), INBETWEENING_CACHE
 # (/tmp/cache), PROBE_STEPS (150), RESUME=1 (part2 on the same warm machine: continue $RUN from its last.ckpt instead of
@@ -34,6 +37,7 @@ SITE=${SITE:-/tmp/site}
 BN=${BN:-/tmp/bn}
 RUN=${RUN:-/tmp/v3run}
 ZIP=${ZIP:-/tmp/bn2.zip}
+PIECES=${PIECES:-/tmp/pieces}
 PROBE_STEPS=${PROBE_STEPS:-150}
 OUT=${OUT:?set OUT to the folder whose files come back}
 G=.gpu
@@ -60,27 +64,49 @@ wheels() {
   echo "wheels: installed into $SITE"
 }
 
-extract() {  # python's tarfile + lzma (standard library): nothing else is certain to be there
+take() {  # keep the pieces this call carries; once all are kept, put the archives together, check and unpack them
   local t0; t0=$(now)
-  "$PY" - "$1" "$BN" <<'EOF'
-import sys, tarfile
-with tarfile.open(sys.argv[1], "r:xz") as t:
-    if hasattr(tarfile, "data_filter"):
-        t.extractall(sys.argv[2], filter="data")
-    else:
-        t.extractall(sys.argv[2])
+  mkdir -p "$PIECES" "$BN"
+  cp -f "$G"/c*/* "$PIECES"/ 2>/dev/null || true
+  "$PY" - "$PIECES" "$BN" <<'EOF'
+import hashlib, os, sys, tarfile
+pieces, bn = sys.argv[1:]
+if not os.path.exists(os.path.join(pieces, "pieces.txt")):
+    sys.exit(f"no pieces in {pieces}: carry .gpu/c1 (python benchmarks/gpu_pack.py makes them)")
+lines = open(os.path.join(pieces, "pieces.txt")).read().split("\n")
+n, archives = int(lines[0]), [line.split("\t") for line in lines[1:] if line]
+have = [k for k in range(1, n + 1) if os.path.exists(os.path.join(pieces, f"bn2.{k}"))]
+if os.path.exists(os.path.join(pieces, "unpacked")):
+    print(f"pieces: all {n} already unpacked into {bn}")
+elif len(have) < n:
+    print(f"pieces: {len(have)} of {n} kept ({have}); carry the others in the next calls")
+else:
+    blob = b"".join(open(os.path.join(pieces, f"bn2.{k}"), "rb").read() for k in range(1, n + 1))
+    at = 0
+    for name, size, sha in archives:
+        part = blob[at:at + int(size)]
+        at += int(size)
+        if hashlib.sha1(part).hexdigest() != sha:
+            sys.exit(f"{name}: put together from the pieces, its sha1 is not the packed one (a piece from another pack?)")
+        path = os.path.join(pieces, name)
+        open(path, "wb").write(part)
+        with tarfile.open(path, "r:xz") as t:  # python's tarfile + lzma: nothing else is certain to be there
+            t.extractall(bn, **({"filter": "data"} if hasattr(tarfile, "data_filter") else {}))
+        os.remove(path)
+    open(os.path.join(pieces, "unpacked"), "w").close()
+    print(f"pieces: {n} put together, {len(archives)} archives checked and unpacked into {bn}")
 EOF
-  echo "extracted $1 into $BN in $(secs "$t0" "$(now)") s ($(ls "$BN/$PFX" | wc -l) files there now)"
+  echo "take: $(secs "$t0" "$(now)") s"
 }
 
 part1() {
   local t0; t0=$(now)
   wheels
-  mkdir -p "$BN"
-  extract "$G/p1/part1.tar.xz"
+  take
   "$PY" -c 'import torch; print("cuda:", torch.cuda.is_available(), torch.cuda.get_device_name() if torch.cuda.is_available() else "-", "torch", torch.__version__)'
   "$PY" -c 'import hydra, omegaconf, roma, lightning, inbetweening; print("imports ok: hydra", hydra.__version__, "from", hydra.__file__, "omegaconf", omegaconf.__version__, "roma", roma.__version__, "lightning", lightning.__version__)'
   echo "setup took $(secs "$t0" "$(now)") s"
+  if ((PROBE_STEPS == 0)); then echo "part1 took $(secs "$t0" "$(now)") s in all (no speed probe)"; return 0; fi
   # speed probe: the same recipe on the synthetic data (generated, no files), one validation at the end
   local p0 p1; p0=$(now)
   set +e
@@ -126,8 +152,8 @@ if bad:
     sys.exit(f"{len(bad)} of {len(rows)} files missing or different (e.g. {bad[0]}): was part1 extracted on this "
              "machine? (a cold machine has lost /tmp/bn: run part1 and part2 again, back to back)")
 with zipfile.ZipFile(dst + ".tmp", "w", zipfile.ZIP_STORED) as z:
-    for name, _, _ in rows:
-        z.write(os.path.join(bn, pfx, name), f"{pfx}/{name}")
+    for name, _, _ in rows:  # a fixed date: the unpacked files may carry none (zip refuses dates before 1980)
+        z.writestr(zipfile.ZipInfo(f"{pfx}/{name}", (1980, 1, 1, 0, 0, 0)), open(os.path.join(bn, pfx, name), "rb").read())
 os.replace(dst + ".tmp", dst)
 print(f"{dst}: {len(rows)} files checked against the manifest, {os.path.getsize(dst)} bytes")
 EOF
@@ -157,9 +183,9 @@ part2() {
   local t0; t0=$(now)
   wheels
   if [[ ${RESUME:-0} == 1 && -f $ZIP ]]; then
-    echo "resume: $ZIP is already there (part 2 need not be carried)"
+    echo "resume: $ZIP is already there (no piece need be carried)"
   else
-    extract "$G/p2/part2.tar.xz"
+    take
     rebuild_zip
   fi
   export BANDAI_NAMCO_PATH=$ZIP
@@ -204,9 +230,65 @@ EOF
   return $rc
 }
 
-mode=${1:?usage: v3_gpu.sh part1 | part2 <max_steps> [hydra overrides...]}; shift
+# Several trainings side by side on the one GPU (each small network leaves it mostly idle, and each process has its own
+# CPU cores): `parallel <max_steps> "<name> <hydra overrides...>" ...`, after part1 on the same warm machine (part 2
+# carried as for part2).  Each run trains in $RUN/<name> (log $RUN/<name>.log) with trainer=gpu run_test=false
+# calibrate=false threads=$THREADS (2); every 20 s what it reached comes back as $OUT/<name>.tar (its checkpoints, log,
+# config and TensorBoard events), so a call stopped at its limit still returns the last checkpoint of each.
+# Issue 54's students, as run:
+#   bash benchmarks/v3_gpu.sh parallel 3600 "s48 experiment=distil model.d_model=48 model.depth=3 model.heads=2 ..." ...
+pack_run() {  # $1 name: the run's files in one tar under $OUT (at most 8 files come back)
+  local d=$RUN/$1
+  [[ -d $d ]] || return 0
+  tar -chf "$OUT/.tmp_$1.tar" -C "$RUN" "$1.log" $(cd "$RUN" && ls -d "$1"/checkpoints "$1"/.hydra "$1"/tensorboard 2>/dev/null) \
+    2>/dev/null || true
+  mv -f "$OUT/.tmp_$1.tar" "$OUT/$1.tar"
+}
+parallel() {
+  local steps=${1:?parallel <max_steps> "<name> <overrides...>" ...}; shift
+  local val=$((steps / 4)); ((val >= 1)) || val=1
+  local t0; t0=$(now)
+  wheels
+  if [[ ${RESUME:-0} == 1 && -f $ZIP ]]; then echo "resume: $ZIP is already there"; else take; rebuild_zip; fi
+  export BANDAI_NAMCO_PATH=$ZIP
+  echo "data ready in $(secs "$t0" "$(now)") s"
+  mkdir -p "$RUN"
+  local pids=() names=() spec name args
+  for spec in "$@"; do
+    name=${spec%% *}; read -ra args <<< "${spec#* }"
+    rm -rf "${RUN:?}/$name"
+    "$PY" train.py "${args[@]}" trainer="$TRAINER" run_test=false calibrate=false threads="${THREADS:-2}" "${PBAR[@]}" \
+      trainer.max_steps="$steps" trainer.val_check_interval="$val" hydra.run.dir="$RUN/$name" > "$RUN/$name.log" 2>&1 &
+    pids+=($!); names+=("$name")
+    echo "started $name (pid $!): ${args[*]} trainer.max_steps=$steps"
+  done
+  local s0 tick=0 alive=1 i; s0=$(now)
+  while ((alive)); do
+    sleep 5; tick=$((tick + 5)); alive=0
+    for i in "${!pids[@]}"; do kill -0 "${pids[$i]}" 2>/dev/null && alive=1; done
+    if ((tick % 20 == 0)); then
+      for i in "${!names[@]}"; do
+        pack_run "${names[$i]}"
+        LOG=$RUN/${names[$i]}.log; echo "[$(secs "$s0" "$(now)") s] ${names[$i]}: $(progress | sed 's/^ *//' | cut -c1-120)"
+      done
+      command -v nvidia-smi >/dev/null && nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader | head -1
+    fi
+  done
+  local rc=0
+  for i in "${!pids[@]}"; do
+    wait "${pids[$i]}" || { rc=$?; echo "${names[$i]} exited with $rc"; }
+    pack_run "${names[$i]}"
+    echo "== ${names[$i]}"; tr '\r' '\n' < "$RUN/${names[$i]}.log" | grep -av 'it/s' | grep -v '^\s*$' | tail -n 8 || true
+  done
+  echo "all done after $(secs "$s0" "$(now)") s"; ls -la "$OUT"
+  return $rc
+}
+
+mode=${1:?usage: v3_gpu.sh part1 | take | part2 <max_steps> [hydra overrides...] | parallel <max_steps> "<name> <overrides>"...}; shift
 case $mode in
   part1) part1 ;;
+  take) take ;;
   part2) part2 "$@" ;;
+  parallel) parallel "$@" ;;
   *) echo "unknown mode $mode" >&2; exit 2 ;;
 esac
