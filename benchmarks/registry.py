@@ -137,8 +137,15 @@ BENCHMARKS: tuple[Benchmark, ...] = (
               "<out>/m_vs_none.md", "RESULTS.md 10.4, M against plain attention", "<out dir>", BN2),
     Benchmark("recipe_ablation", "recipe_ablation.sh", "the recipe levers at a 10-minute budget", "about 4 h",
               "<out>/recipe_ablation.md", "RESULTS.md 10.5, recipe levers", "<out dir> [job name ...]", BN2),
-    Benchmark("v3_gpu", "v3_gpu.sh", "model v3 from scratch on a lent GPU machine", "about 40 min on an H100",
-              "<out>/", "RESULTS.md 2.2 and 10.6", "part1 | part2 <max_steps> [override ...]", f"{BN2}; a GPU"),
+    Benchmark("v3_gpu", "v3_gpu.sh", "trainings on a lent GPU machine (model v3, the students side by side)",
+              "about 40 min on an H100", "<out>/", "RESULTS.md 2.2, 2.3 and 10.6",
+              "part1 | take | part2 <max_steps> [override ...] | parallel <max_steps> '<name> <override ...>' ...",
+              f"{BN2}; a GPU; python benchmarks/gpu_pack.py", ("gpu_pack.py",)),
+    Benchmark("students", "students.sh", "a student distilled from the ensemble, scored as the ensemble is (LAFAN and "
+              "keys only), for issue 54's ship rule", "about 15 min per student", "<out>/ and the table",
+              "RESULTS.md 2.3, one network distilled from the ensemble",
+              "<out dir> <standard|content> <name> <calibrated checkpoint>", f"{BN2}; a student (v3_gpu parallel)",
+              ("students_table.py",)),
 )
 
 BY_NAME = {b.name: b for b in BENCHMARKS}
