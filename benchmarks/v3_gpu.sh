@@ -231,22 +231,44 @@ EOF
 }
 
 # Several trainings side by side on the one GPU (each small network leaves it mostly idle, and each process has its own
-# CPU cores): `parallel <max_steps> "<name> <hydra overrides...>" ...`, after part1 on the same warm machine (part 2
-# carried as for part2).  Each run trains in $RUN/<name> (log $RUN/<name>.log) with trainer=gpu run_test=false
-# calibrate=false threads=$THREADS (2); every 20 s what it reached comes back as $OUT/<name>.tar (its checkpoints, log,
-# config and TensorBoard events), so a call stopped at its limit still returns the last checkpoint of each.
-# Issue 54's students, as run:
-#   bash benchmarks/v3_gpu.sh parallel 3600 "s48 experiment=distil model.d_model=48 model.depth=3 model.heads=2 ..." ...
-pack_run() {  # $1 name: the run's files in one tar under $OUT (at most 8 files come back)
-  local d=$RUN/$1
-  [[ -d $d ]] || return 0
-  tar -chf "$OUT/.tmp_$1.tar" -C "$RUN" "$1.log" $(cd "$RUN" && ls -d "$1"/checkpoints "$1"/.hydra "$1"/tensorboard 2>/dev/null) \
-    2>/dev/null || true
-  mv -f "$OUT/.tmp_$1.tar" "$OUT/$1.tar"
+# CPU cores): `parallel <max_steps | -> "<name> <hydra overrides...>" ...`, after part1 and take on the same warm
+# machine (the last piece carried as for part2).  Each run trains in $RUN/<name> (log $RUN/<name>.log) with
+# trainer=$TRAINER threads=$THREADS (2) $RUN_ARGS (default "run_test=false calibrate=false": trainings whose test runs
+# on the CPU machine afterwards), and trainer.max_steps=<max_steps> with a validation every quarter of it (`-`: the
+# recipe's own steps and validations).  Every 20 s what the runs reached comes back: with at most 7 runs one tar each
+# ($OUT/<name>.tar: the run folder, checkpoints included, and its log), with more one $OUT/runs.tar of every run
+# without its checkpoints (the 8 files of at most 16 MiB a call returns), so a call stopped at its limit still returns
+# what each run reached.
+#   Issue 54's students, as run (RESULTS.md 2.3):
+#     S='experiment=distil model.checkpoint_layers=false representation=global_pos_local_quat_contact model.gate=true
+#        data.keyframes_max=4 data.keyframe_prob=0.5 data.partial_prob=0.5'
+#     THREADS=4 bash benchmarks/v3_gpu.sh parallel 3600 "s48 $S model.d_model=48 model.depth=3 model.heads=2" \
+#       "s64 $S model.d_model=64 model.depth=4 model.heads=4" "c48 $S model.d_model=48 model.depth=3 model.heads=2
+#        data.split=content teacher.checkpoints=[models/bn2_content/model.ckpt,...,models/bn2_v2_content/model.ckpt]"
+#   Issue 51's folds protocol, one lever on the five folds (RESULTS.md 3.3; then, on the CPU machine, the tar unpacked
+#   into <dir> and `python -m inbetweening.collect <dir> --folds`):
+#     RUN_ARGS=" " THREADS=3 bash benchmarks/v3_gpu.sh parallel - "f1 experiment=folds data.split=fold-1 <lever>" ...
+pack_runs() {  # what the runs reached, under $OUT (at most 8 files come back)
+  local n
+  if (($# <= 7)); then
+    for n in "$@"; do
+      [[ -d $RUN/$n ]] || continue
+      tar -chf "$OUT/.tmp_$n.tar" -C "$RUN" "$n.log" "$n" 2>/dev/null || true
+      mv -f "$OUT/.tmp_$n.tar" "$OUT/$n.tar"
+    done
+  else
+    tar -chf "$OUT/.tmp_runs.tar" -C "$RUN" --exclude='*.ckpt' "${@/%/.log}" "$@" 2>/dev/null || true
+    mv -f "$OUT/.tmp_runs.tar" "$OUT/runs.tar"
+  fi
 }
 parallel() {
-  local steps=${1:?parallel <max_steps> "<name> <overrides...>" ...}; shift
-  local val=$((steps / 4)); ((val >= 1)) || val=1
+  local steps=${1:?parallel <max_steps | -> "<name> <overrides...>" ...}; shift
+  local budget=()
+  if [[ $steps != - ]]; then
+    local val=$((steps / 4)); ((val >= 1)) || val=1
+    budget=(trainer.max_steps="$steps" trainer.val_check_interval="$val")
+  fi
+  local fixed; read -ra fixed <<< "${RUN_ARGS-run_test=false calibrate=false}"
   local t0; t0=$(now)
   wheels
   if [[ ${RESUME:-0} == 1 && -f $ZIP ]]; then echo "resume: $ZIP is already there"; else take; rebuild_zip; fi
@@ -257,18 +279,18 @@ parallel() {
   for spec in "$@"; do
     name=${spec%% *}; read -ra args <<< "${spec#* }"
     rm -rf "${RUN:?}/$name"
-    "$PY" train.py "${args[@]}" trainer="$TRAINER" run_test=false calibrate=false threads="${THREADS:-2}" "${PBAR[@]}" \
-      trainer.max_steps="$steps" trainer.val_check_interval="$val" hydra.run.dir="$RUN/$name" > "$RUN/$name.log" 2>&1 &
+    "$PY" train.py "${args[@]}" trainer="$TRAINER" "${fixed[@]}" threads="${THREADS:-2}" "${PBAR[@]}" "${budget[@]}" \
+      hydra.run.dir="$RUN/$name" > "$RUN/$name.log" 2>&1 &
     pids+=($!); names+=("$name")
-    echo "started $name (pid $!): ${args[*]} trainer.max_steps=$steps"
+    echo "started $name (pid $!): ${args[*]} ${fixed[*]} ${budget[*]}"
   done
   local s0 tick=0 alive=1 i; s0=$(now)
   while ((alive)); do
     sleep 5; tick=$((tick + 5)); alive=0
     for i in "${!pids[@]}"; do kill -0 "${pids[$i]}" 2>/dev/null && alive=1; done
     if ((tick % 20 == 0)); then
+      pack_runs "${names[@]}"
       for i in "${!names[@]}"; do
-        pack_run "${names[$i]}"
         LOG=$RUN/${names[$i]}.log; echo "[$(secs "$s0" "$(now)") s] ${names[$i]}: $(progress | sed 's/^ *//' | cut -c1-120)"
       done
       command -v nvidia-smi >/dev/null && nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader | head -1
@@ -277,14 +299,14 @@ parallel() {
   local rc=0
   for i in "${!pids[@]}"; do
     wait "${pids[$i]}" || { rc=$?; echo "${names[$i]} exited with $rc"; }
-    pack_run "${names[$i]}"
     echo "== ${names[$i]}"; tr '\r' '\n' < "$RUN/${names[$i]}.log" | grep -av 'it/s' | grep -v '^\s*$' | tail -n 8 || true
   done
+  pack_runs "${names[@]}"
   echo "all done after $(secs "$s0" "$(now)") s"; ls -la "$OUT"
   return $rc
 }
 
-mode=${1:?usage: v3_gpu.sh part1 | take | part2 <max_steps> [hydra overrides...] | parallel <max_steps> "<name> <overrides>"...}; shift
+mode=${1:?usage: v3_gpu.sh part1 | take | part2 <max_steps> [hydra overrides...] | parallel <max_steps | -> "<name> <overrides>"...}; shift
 case $mode in
   part1) part1 ;;
   take) take ;;
