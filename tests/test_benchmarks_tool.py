@@ -87,3 +87,58 @@ def test_shell_benchmarks_start_and_ask_for_their_arguments(bench):
     assert r.returncode != 0
     first = bench.usage.split()[0].strip("<>")
     assert f"{bench.script}: line" in r.stderr and first.split("|")[0].split("=")[0] in r.stderr, r.stderr[-2000:]
+
+
+def test_gpu_pieces_round_trip(tmp_path):
+    """benchmarks/gpu_pack.py cuts the dataset's two archives into pieces, one per call; v3_gpu.sh's ``take``, called
+    once per piece from a tree holding only that piece (as each call to the GPU machine is), keeps them and, with the
+    last, puts the archives together, checks them and unpacks every BVH file as it was, with the manifest; a piece from
+    another pack is refused."""
+    import hashlib
+    import random
+    import zipfile
+
+    rng = random.Random(0)
+    pfx = "Bandai-Namco-Research-Motiondataset-2/data/"
+    files = {f"dataset-2_walk_normal_{i:03d}.bvh": "".join(rng.choice("0123456789. -\n") for _ in range(3000)).encode()
+             for i in range(5)}
+    src = tmp_path / "bn2.zip"
+    with zipfile.ZipFile(src, "w") as z:
+        for name, data in files.items():
+            z.writestr(pfx + name, data)
+            z.writestr(pfx + name.replace(".bvh", ".json"), b"{}")  # not read by the loader: stays behind
+    pack = tmp_path / "pack"
+    run = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "gpu_pack.py"), "--zip", str(src), "--out", str(pack),
+                          "--piece", "0.004"], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    pieces = sorted(pack.glob("c*"), key=lambda p: int(p.name[1:]))
+    assert len(pieces) >= 2
+    env = {**os.environ, "OUT": str(tmp_path / "out"), "PIECES": str(tmp_path / "kept"), "BN": str(tmp_path / "bn"),
+           "PY": sys.executable}
+    for k, piece in enumerate(pieces):
+        call = tmp_path / f"call{k}"
+        (call / ".gpu").mkdir(parents=True)
+        (call / ".gpu" / piece.name).symlink_to(piece, target_is_directory=True)
+        res = subprocess.run(["bash", str(ROOT / "benchmarks" / "v3_gpu.sh"), "take"], cwd=call, env=env,
+                             capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stdout + res.stderr
+        last = k == len(pieces) - 1
+        assert ("put together, 2 archives checked and unpacked" in res.stdout) == last, res.stdout
+    data = tmp_path / "bn" / pfx
+    assert {p.name: p.read_bytes() for p in data.iterdir()} == files
+    manifest = [line.split("\t") for line in (tmp_path / "bn" / "bn2_manifest.tsv").read_text().splitlines()]
+    assert {n: (int(s), h) for n, s, h in manifest} == {n: (len(d), hashlib.sha1(d).hexdigest()) for n, d in files.items()}
+
+    # a piece changed on the way: the archive it belongs to is refused, nothing claimed unpacked
+    bad = tmp_path / "bad"
+    (bad / ".gpu").mkdir(parents=True)
+    for piece in pieces:
+        (bad / ".gpu" / piece.name).mkdir()
+        for f in piece.iterdir():
+            (bad / ".gpu" / piece.name / f.name).write_bytes(f.read_bytes())
+    blob = bad / ".gpu" / pieces[0].name / f"bn2.{pieces[0].name[1:]}"
+    blob.write_bytes(b"x" + blob.read_bytes()[1:])
+    res = subprocess.run(["bash", str(ROOT / "benchmarks" / "v3_gpu.sh"), "take"], cwd=bad,
+                         env={**env, "PIECES": str(tmp_path / "kept2"), "BN": str(tmp_path / "bn2")},
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode != 0 and "its sha1 is not the packed one" in res.stdout + res.stderr
