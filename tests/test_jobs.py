@@ -137,6 +137,60 @@ def test_init_keep_mixes_the_fitted_weights_with_the_starts_and_calibrates_those
             validate(compose_cfg("train", [*base, *bad], tmp_path / "bad", cache_dir))
 
 
+def test_init_layers_starts_a_shallower_network_from_some_of_the_checkpoints_layers(tmp_path, cache_dir):
+    """``init_layers``: the checkpoint's network with only the layers named, in the order named (checked tensor by
+    tensor against the file), every other weight as there and the depth their number; a layer it does not have, and
+    the settings the option needs, are one line each."""
+    import torch
+
+    from conftest import _tiny_checkpoint, compose_cfg
+    from inbetweening.predictor.checkpoint import CheckpointError
+    from inbetweening.training.builders import make_datamodule, make_module
+    from inbetweening.training.config import ConfigError, validate
+    from inbetweening.training.train import start_from
+
+    tiny_checkpoint = _tiny_checkpoint(tmp_path / "deep", cache_dir, [*TINY_CKPT_OVERRIDES, "model.depth=3"])
+    theirs = torch.load(tiny_checkpoint, map_location="cpu", weights_only=False)
+    depth = theirs["hyper_parameters"]["model"]["depth"]
+    assert depth == 3
+    data = [o for o in TINY_CKPT_OVERRIDES if o.startswith("data.")]
+    base = [*data, f"init_from='{tiny_checkpoint}'"]
+
+    def built(layers):
+        cfg = compose_cfg("train", [*base, f"init_layers={layers}"], tmp_path / "run", cache_dir)
+        validate(cfg)
+        dm = make_datamodule(cfg)
+        init = start_from(str(tiny_checkpoint), dm)
+        dm.setup("fit")
+        return make_module(cfg, dm, init)
+
+    module = built(f"[{depth - 1},0]")
+    assert module.hparams["model"]["depth"] == 2 and len(module.predictor.net.layers) == 2
+    mine = module.predictor.state_dict()
+    old = {k.split("predictor.", 1)[-1]: v for k, v in theirs["state_dict"].items()}
+    renamed = {f"net.layers.{depth - 1}.": "net.layers.0.", "net.layers.0.": "net.layers.1."}
+    checked = 0
+    for k, v in old.items():
+        if not k.startswith("net."):
+            continue
+        if k.startswith("net.layers."):
+            head = ".".join(k.split(".")[:3]) + "."
+            if head not in renamed:
+                continue
+            k = renamed[head] + k[len(head):]
+        assert torch.equal(mine[k], v), k
+        checked += 1
+    assert checked == len(mine)  # every weight of the new network comes from the checkpoint
+
+    with pytest.raises(CheckpointError, match=rf"^init_layers: init_from's network has layers 0-{depth - 1}, not \[{depth}\]"):
+        built(f"[{depth}]")
+    for bad, pattern in ((["init_layers=[0,0]"], "^init_layers: must be a list of distinct layer numbers"),
+                         (["init_layers=3"], "^init_layers: must be a list"),
+                         (["init_from=null", "init_layers=[0]"], "^init_layers: takes layers of init_from's network")):
+        with pytest.raises(ConfigError, match=pattern):
+            validate(compose_cfg("train", [*base, *bad], tmp_path / "bad", cache_dir))
+
+
 def test_init_from_of_another_skeleton_names_both(tmp_path, cache_dir):
     import torch
 

@@ -109,6 +109,30 @@ def kept_start(ckpt: dict, start: dict, keep: float) -> dict:
     return out
 
 
+def some_layers(state: dict, model: dict, layers) -> tuple[dict, dict]:
+    """A shallower network from a predictor's: its state ``state`` (``net.*``, as :func:`predictor_state` gives) and
+    model settings ``model`` cut to the layers ``layers`` (numbers of its ``net.layers.<i>``, in the new order), every
+    other weight as it was (``init_layers``).  Returns the new state and settings (``depth`` = the number of layers).
+    :class:`CheckpointError` for a network without a ``depth`` and a ``layers`` list, or a layer it does not have."""
+    depth = model.get("depth")
+    found = {int(m.group(1)) for k in state if (m := re.match(r"net\.layers\.(\d+)\.", k))}
+    if not isinstance(depth, int) or not found:
+        raise CheckpointError(f"init_layers: init_from's network ({model.get('name')}) has no list of layers to take "
+                              "some of (a depth and net.layers.<i> weights)")
+    missing = [i for i in layers if i not in found]
+    if missing:
+        raise CheckpointError(f"init_layers: init_from's network has layers 0-{depth - 1}, not {missing}")
+    where = {old: new for new, old in enumerate(layers)}
+    out = {}
+    for k, v in state.items():
+        m = re.match(r"net\.layers\.(\d+)\.(.*)", k)
+        if m is None:
+            out[k] = v
+        elif int(m.group(1)) in where:
+            out[f"net.layers.{where[int(m.group(1))]}.{m.group(2)}"] = v
+    return out, {**model, "depth": len(layers)}
+
+
 def upgrade_module_state(state_dict: dict) -> dict:
     """A training module's state dict in today's layout: older ``net.*`` keys become ``predictor.net.*``."""
     return {(PREDICTOR_PREFIX + k if k.startswith("net.") else k): v for k, v in state_dict.items()}

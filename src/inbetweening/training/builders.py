@@ -11,7 +11,7 @@ import lightning as L
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
-from inbetweening.predictor.checkpoint import predictor_state
+from inbetweening.predictor.checkpoint import predictor_state, some_layers
 from inbetweening.predictor.predictor import upgrade_hparams
 from inbetweening.training.callbacks import AtomicCheckpointIO, InterruptCheckpoint, NonFiniteGuard, ResumeState, TrimHeap
 from inbetweening.training.datamodule import InbetweenDataModule
@@ -56,7 +56,7 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule, init: dict | None = No
     (``init_from``): its network (``model``, ``representation``, ``centre``, ``mask``: the settings its weights belong
     to, whatever the config's groups say) with its weights; the normalisation statistics are the data's, estimated as
     for a new run, unless ``init_stats: checkpoint`` keeps the checkpoint's; the loss, optimiser and data come from
-    the config."""
+    the config; ``init_layers`` keeps some of its layers (:func:`~inbetweening.predictor.checkpoint.some_layers`)."""
     kw = dm.model_kwargs()
     teacher = _plain(cfg.teacher) if cfg.get("teacher") else None  # distillation (conf/teacher/)
     if init is None:
@@ -65,10 +65,13 @@ def make_module(cfg: DictConfig, dm: InbetweenDataModule, init: dict | None = No
                                teacher=teacher, **kw)
     hp = upgrade_hparams(init["hyper_parameters"])
     network = {k: hp[k] for k in ("model", "representation", "centre", "mask", "joint_mask") if hp.get(k) is not None}
+    state = predictor_state(init["state_dict"])
+    if cfg.get("init_layers") is not None:  # a shallower network from some of its layers
+        state, network["model"] = some_layers(state, dict(network["model"]), list(cfg.init_layers))
     if cfg.get("init_stats", "data") == "checkpoint":
         kw.update(pos_mean=list(hp["pos_mean"]), pos_std=list(hp["pos_std"]))
     module = InbetweenModule(loss=_plain(cfg.loss), optim=_plain(cfg.optim), teacher=teacher, **network, **kw)
-    module.predictor.load_state_dict(predictor_state(init["state_dict"]))
+    module.predictor.load_state_dict(state)
     return module
 
 

@@ -342,6 +342,15 @@ def validate(cfg: DictConfig) -> None:
     if keep > 0 and _get(cfg, "init_stats", "data") != "checkpoint":
         raise ConfigError("init_keep: the weights of two networks mix only under the same normalisation statistics: "
                           "set init_stats=checkpoint")
+    layers = _get(cfg, "init_layers")
+    if layers is not None:
+        if not _get(cfg, "init_from"):
+            raise ConfigError("init_layers: takes layers of init_from's network: give init_from")
+        if (isinstance(layers, (str, bytes)) or not hasattr(layers, "__len__") or not len(layers)
+                or any(isinstance(i, bool) or not isinstance(i, int) or i < 0 for i in layers)
+                or len(set(layers)) != len(layers)):
+            raise ConfigError(f"init_layers: must be a list of distinct layer numbers of init_from's network (0 = its "
+                              f"first), e.g. [0,2,4], got {layers!r}")
     rep = _get(cfg, "representation", DEFAULT_REPRESENTATION)
     if rep not in REPRESENTATIONS:
         raise ConfigError(f"representation: unknown representation {rep!r}; choose one of {sorted(REPRESENTATIONS)}")

@@ -40,7 +40,7 @@ ALWAYS = ("calibrate", "representation")
 #: The config groups and top-level keys every session records in full (so that a key swept by any sweep has a value in
 #: every run's row); the paths, the data's generator settings and values interpolated from elsewhere are left out.
 RECORDED = ("model", "data", "mask", "optim", "loss", "trainer", "fill", "centre", "representation", "calibrate",
-            "calibrate_windows", "seed", "init_from", "init_stats", "compile", "test_keyframes", "foot_lock",
+            "calibrate_windows", "seed", "init_from", "init_stats", "init_layers", "compile", "test_keyframes", "foot_lock",
             "self_check", "keyframe_clips", "task_name")
 _NOT_RECORDED = re.compile(r"^(data/(path|cache_dir|synthetic|mask|seed|download)|trainer/(_target_|callbacks|logger|"
                            r"plugins|default_root_dir|enable_\w+|log_every_n_steps)|model/_target_|fill/_target_|"
