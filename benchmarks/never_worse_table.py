@@ -24,6 +24,14 @@ SCHEDULES = ("5", "15", "30", "45", "random", "extremes")
 WORSE = 1.05
 
 
+def out_and_copy(description: str) -> argparse.Namespace:
+    """The tables' command line: ``out`` (the runs' folder) and ``--copy`` (:func:`copy_runs`)."""
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--copy", type=Path, default=None, help="also copy each run's benchmark.json there as <run>.json")
+    return ap.parse_args()
+
+
 def copy_runs(out: Path, dest: Path | None) -> None:
     """``--copy``: each ``<out>/<run>/benchmark.json`` copied to ``<dest>/<run>.json`` (nothing when ``dest`` is None)."""
     if dest is None:
@@ -68,10 +76,7 @@ def pooled(runs: dict[str, dict], variant: str) -> dict[str, dict]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("out", type=Path)
-    ap.add_argument("--copy", type=Path)
-    a = ap.parse_args()
+    a = out_and_copy(__doc__.splitlines()[0])
     runs = rows(a.out)
     variants = sorted({n.rsplit("_", 1)[1] for n in runs if n.rsplit("_", 1)[0] in BN_CONTENTS})
     table = dict(runs)

@@ -18,7 +18,6 @@ OUT=${1:?out dir}
 RUN=${2:?the training run dir of the split}
 SPLIT=${3:?standard or content}
 PY=${PYTHON:-python}
-SCHEDULES='keyframe_intervals=[5,15,30,45,random,extremes]'
 if [ "$SPLIT" = standard ]; then
   NAME=bn2_nograph
   SHIPPED="[models/bn2_partial/model.ckpt,models/bn2_partial_twin/model.ckpt,models/bn2_v2/model.ckpt]"
@@ -34,16 +33,5 @@ if [ ! -f "models/$NAME/model.ckpt" ]; then
   "$PY" -m inbetweening.export ckpt_path="$RUN/checkpoints/calibrated.ckpt" format=ckpt output="models/$NAME/model.ckpt"
   cp "$RUN/.hydra/config.yaml" "models/$NAME/config.yaml"
 fi
-runs=("candidate $CANDIDATE" "nograph models/$NAME/model.ckpt" "shipped $SHIPPED" "interpolation -")
-for r in "${runs[@]}"; do
-  set -- $r; name=$1; ckpt=$2
-  model=(); [ "$ckpt" = - ] && model=(model=interpolation) || model=("ckpt_path=$ckpt")
-  for protocol in lafan keyframes; do
-    [ "$ckpt" = - ] && [ $protocol = keyframes ] && continue  # the keyframes protocol scores interpolation itself
-    dir="$OUT/${SPLIT}_${name}_$protocol"
-    [ -f "$dir/benchmark.json" ] && continue
-    extra=(); [ $protocol = keyframes ] && extra=("$SCHEDULES")
-    "$PY" eval.py "${model[@]}" data=bandai_namco data.split=$SPLIT protocol=$protocol "${extra[@]}" \
-      "threads=${THREADS:-2}" ${EXTRA:-} hydra.run.dir="$dir" > "$dir.log" 2>&1
-  done
-done
+bash "$(dirname "$0")/score_fills.sh" "$OUT" "$SPLIT" "candidate $CANDIDATE" "nograph models/$NAME/model.ckpt" \
+  "shipped $SHIPPED" "interpolation -"   # benchmarks/score_fills.sh

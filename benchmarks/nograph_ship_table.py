@@ -10,11 +10,10 @@ within 0.02 of the shipped fill at every LAFAN length and keys-only schedule (th
 RESULTS.md 3.3's)."""
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
-from never_worse_table import SCHEDULES, cell, copy_runs  # benchmarks/ helper
+from never_worse_table import SCHEDULES, cell, copy_runs, out_and_copy  # benchmarks/ helper
 
 LENGTHS = ("5", "15", "30", "45")
 FILLS = ("shipped", "candidate", "nograph")
@@ -89,10 +88,7 @@ def verdict(out: Path) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("out", type=Path)
-    ap.add_argument("--copy", type=Path, default=None, help="also copy each run's benchmark.json there as <run>.json")
-    a = ap.parse_args()
+    a = out_and_copy(__doc__.splitlines()[0])
     print(table(a.out))
     print()
     print(verdict(a.out))

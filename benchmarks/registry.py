@@ -128,7 +128,8 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("nograph_ship", "nograph_ship.sh", "the graph-free candidate fill against the shipped one on a split "
               "(LAFAN and keys only), for the ship rule", "about 20 min per split", "<out>/ and the table",
               "RESULTS.md 3.3, the folds protocol", "<out dir> <training run dir> <standard|content>",
-              f"{BN2}; a run of experiment=bn2_best model.graph=none on the split", ("nograph_ship_table.py",)),
+              f"{BN2}; a run of experiment=bn2_best model.graph=none on the split",
+              ("nograph_ship_table.py", "score_fills.sh")),
     Benchmark("partial_keys", "partial_keys.sh", "the keyframes protocol's partial-key schedules per checkpoint",
               "about 15 min per checkpoint", "<out>/", "RESULTS.md 8, partial keys", "<out dir> <name>=<checkpoint> ...", BN2),
     Benchmark("researcher_grid", "researcher_grid.sh", "mask / depth / heads / norm, 2 seeds, 200 steps",
@@ -145,7 +146,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
               "keys only), for issue 54's ship rule", "about 15 min per student", "<out>/ and the table",
               "RESULTS.md 2.3, one network distilled from the ensemble",
               "<out dir> <standard|content> <name> <calibrated checkpoint>", f"{BN2}; a student (v3_gpu parallel)",
-              ("students_table.py",)),
+              ("students_table.py", "score_fills.sh")),
 )
 
 BY_NAME = {b.name: b for b in BENCHMARKS}

@@ -11,17 +11,4 @@ OUT=${1:?out dir}
 SPLIT=${2:?standard or content}
 NAME=${3:?a name for the student}
 CKPT=${4:?its calibrated checkpoint}
-PY=${PYTHON:-python}
-mkdir -p "$OUT"
-for r in "$NAME $CKPT" "interpolation -"; do
-  set -- $r; name=$1; ckpt=$2
-  model=(); [ "$ckpt" = - ] && model=(model=interpolation) || model=("ckpt_path=$ckpt")
-  for protocol in lafan keyframes; do
-    [ "$ckpt" = - ] && [ $protocol = keyframes ] && continue  # the keyframes protocol scores interpolation itself
-    dir="$OUT/${SPLIT}_${name}_$protocol"
-    [ -f "$dir/benchmark.json" ] && continue
-    extra=(); [ $protocol = keyframes ] && extra=('keyframe_intervals=[5,15,30,45,random,extremes]')
-    "$PY" eval.py "${model[@]}" data=bandai_namco data.split=$SPLIT protocol=$protocol "${extra[@]}" \
-      "threads=${THREADS:-2}" ${EXTRA:-} hydra.run.dir="$dir" > "$dir.log" 2>&1
-  done
-done
+bash "$(dirname "$0")/score_fills.sh" "$OUT" "$SPLIT" "$NAME $CKPT" "interpolation -"   # benchmarks/score_fills.sh

@@ -11,10 +11,9 @@ contents (the folds, RESULTS.md 3.3) need a teacher ensemble per fold and are no
 splits is reported "undecided" until they are."""
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from never_worse_table import SCHEDULES, cell, copy_runs  # benchmarks/ helpers
+from never_worse_table import SCHEDULES, cell, copy_runs, out_and_copy  # benchmarks/ helpers
 from nograph_ship_table import LENGTHS, figures, keyframes, lafan_ratios
 
 TOLERANCE = {"standard": 0.01, "content": 0.0}
@@ -66,10 +65,7 @@ def verdict(out: Path, split: str, name: str) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("out", type=Path)
-    ap.add_argument("--copy", type=Path, default=None, help="also copy each run's benchmark.json there as <run>.json")
-    a = ap.parse_args()
+    a = out_and_copy(__doc__.splitlines()[0])
     print(table(a.out))
     print()
     for split, names in students(a.out).items():
