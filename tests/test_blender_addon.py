@@ -540,10 +540,11 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     stays muted) and undo restores the curves.  The deform bones
     the FK controls turn take the runtime's own ``fill_rig`` of the keys read from Blender (PyTorch here, ONNX there)
     within 0.05 degrees, the hips' and the legs' heads within 0.1 cm (the solve's tolerance); Rigify's spine bends its
-    own way between the hips and the chest (the chest's head within 1 cm, the head's within 2 cm).  Limbs in IK (left
-    so, or switched to IK inside the range) are refused, nothing changed."""
+    own way between the hips and the chest (the chest's head within 1 cm, the head's within 2 cm).  The fill runs with
+    the rig in pose mode and leaves it so, active, and no object or armature behind (the solve's pruned copy).  Limbs
+    in IK (left so, or switched to IK inside the range) are refused, nothing changed."""
     zip_path = next(built.glob("*-linux-x64.zip"))
-    scenarios = [{"name": "fk", "undo": True, "panel": True},
+    scenarios = [{"name": "fk", "undo": True, "panel": True, "pose_mode": True},
                  {"name": "legs_ik", "ik": ["thigh_parent.L", "thigh_parent.R"]},
                  {"name": "arm_ik_keyed", "ik_keyed": ["upper_arm_parent.L"]}]
     res = run_humanoid(bpy_exe, zip_path, scenarios, tmp_path, script=RIGIFY_SCRIPT)
@@ -556,6 +557,8 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     assert r["result"] == ["FINISHED"] and r["fill"]["rigify"] and r["fill"]["movers"] == ["DEF-spine"]
     assert r["fill"]["keyed_bones"] == RIGIFY_FK + ["torso"]
     assert r["n_lost_keys"] == 0 and r["max_change_outside"] == 0.0 and r["undo_equal"] and r["frame_after"] == 1
+    # the solve's pruned copy of the rig (RigProxy) is gone, the rig back in pose mode and active
+    assert r["datablocks_as_they_were"] and r["mode_after"] == "POSE" and r["active_after"]
     between = [f for f in range(2, 61) if f != 31]
     written = {f'pose.bones["{c}"].{p}[{i}]' for c in RIGIFY_FK + ["torso"]
                for p, n in ((("rotation_euler", 3) if c.startswith("shoulder") else ("rotation_quaternion", 4)),)

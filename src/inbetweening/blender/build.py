@@ -22,7 +22,7 @@ from pathlib import Path
 from inbetweening.api.shipped import SHIPPED_CKPTS
 
 EXTENSION_FILES = ("__init__.py", "operators.py", "model.py", "curves.py", "rig.py", "humanoid.py", "rigify.py",
-                   "rigify_solve.py", "bone_map_panel.py", "record.py", "loop.py")
+                   "rigify_solve.py", "rig_proxy.py", "bone_map_panel.py", "record.py", "loop.py")
 RUNTIME = "inbetweening.runtime"  # bundled with every module of the package it imports
 DCC = "inbetweening.dcc"  # the DCC core the extension fills through (numpy and the runtime only), bundled the same
 BUNDLED = (RUNTIME, DCC)

@@ -30,6 +30,7 @@ from inbetweening.runtime import ModelInfo
 from .curves import ArmatureCurves, OnArmature, bone_path
 from .humanoid import VIRTUAL_ROOT
 from .rig import RigError, _to_np, rot_path, rotation_channels, rotation_quats
+from .rig_proxy import RigProxy
 from .rigify_solve import ControlSolve, rot, stands_for
 
 FK_CONTROLS = {"Hips": ("hips",), "Chest": ("chest",), "Neck": ("neck",), "Head": ("head",)}
@@ -138,31 +139,6 @@ class RigifyRig(OnArmature, dcc.MappedRig):
         self.movers = [self.hips]
         self.residual, self.passes = (0.0, 0.0), 0
 
-    def needed_bones(self) -> set[str]:
-        """The bones whose evaluation poses the bones the solve reads and writes: those, their parents, their
-        constraints' targets and the bones their drivers read, and so on up."""
-        pose, obj = self.obj.pose.bones, self.obj
-        drivers: dict = {}
-        for d in (obj.animation_data.drivers if obj.animation_data else ()):
-            if d.data_path.startswith('pose.bones["'):
-                drivers.setdefault(d.data_path.split('"')[1], []).append(d)
-        need: set = set()
-        stack = [pb.name for pb in self.seen if pb is not None] + [pb.name for pb in self.pbones]
-        while stack:
-            name = stack.pop()
-            if name in need or name not in pose:
-                continue
-            need.add(name)
-            pb = pose[name]
-            stack += [pb.parent.name] if pb.parent is not None else []
-            for c in pb.constraints:
-                stack += [getattr(c, "subtarget", "") or ""] + [t.subtarget for t in getattr(c, "targets", ())
-                                                                 if getattr(t, "target", None) == obj]
-                stack += [getattr(c, "pole_subtarget", "") or ""]
-            for d in drivers.get(name, ()):
-                stack += [t.bone_target for v in d.driver.variables for t in v.targets if t.id == obj and t.bone_target]
-        return need
-
     def key_channels(self) -> list:
         """The rotation and location curves of the written controls (``torso`` included): their keys are the fill's."""
         return self.curves.bone_channels(self.controls)
@@ -242,51 +218,34 @@ class RigifyRig(OnArmature, dcc.MappedRig):
     # ------------------------------------------------------------------ writing
     def basis_values(self, frames, local_q, local_p, raw_prev):
         """Channel values ``{(control, path, index): array over frames}`` of :meth:`channels` that pose the deform
-        bones as the BVH-convention ``local_q``, ``local_p`` at ``frames`` (each frame solved against Blender's
-        evaluated pose; the controls' channels and the scene's frame restored after)."""
+        bones as the BVH-convention ``local_q``, ``local_p`` at ``frames``: each frame solved against Blender's
+        evaluation of the rig's :class:`~.rig_proxy.RigProxy` (the bones the solve reads and what poses them); the rig,
+        its channels and the scene's frame are not touched."""
         from inbetweening.geometry.skeleton import fk
 
         gq, gp = fk(np.asarray(local_q, np.float64), np.asarray(local_p, np.float64), self.parents)
         target_q = qmul(gq, self.r[None])
-        scene = bpy.context.scene
-        at = (scene.frame_current, scene.frame_subframe)
-        saved = [(pb, path, list(getattr(pb, path))) for pb in self.pbones
-                 for path in (rot_path(pb)[0], "location")]
         curves = {(path, i): self.fcurve(path, i) for _, path, i in self.channels()}
-        muted = [(fc, fc.mute) for fc in curves.values() if fc is not None]
-        qb = np.zeros((len(frames), len(self.pbones), 4))
+        raw = [[] for _ in self.pbones]  # each control's rotation channel values, frame by frame
         loc = np.zeros((len(frames), 3))
-        worst, solve = [0.0, 0.0], ControlSolve(self)
-        need = self.needed_bones()  # the rest of the rig's constraints are switched off while it solves
-        quiet = [c for pb in self.obj.pose.bones if pb.name not in need for c in pb.constraints if not c.mute]
-        try:
-            for c in quiet:
-                c.mute = True
-            for fc, _ in muted:  # the scene's frame then sets every other channel, the solve these
-                fc.mute = True
+        worst = [0.0, 0.0]
+        with RigProxy(self.obj, ControlSolve.bones(self), skip=curves) as px:  # the rig itself is never evaluated
+            solve = ControlSolve(self, px.obj)
             for t, fr in enumerate(frames):
                 if t and frames[t - 1] == fr - 1:  # start from one pass against the frame before's solved pose
                     solve.solve(target_q[t], gp[t], evaluated=False)
                 else:  # from the curves
                     for (path, i), fc in curves.items():
                         if fc is not None:
-                            pb = self.obj.path_resolve(path.rsplit(".", 1)[0])
+                            pb = px.obj.path_resolve(path.rsplit(".", 1)[0])
                             getattr(pb, path.rsplit(".", 1)[1])[i] = fc.evaluate(fr)
-                scene.frame_set(int(fr))
+                px.set_frame(fr)
                 res = solve.solve(target_q[t], gp[t])
                 worst = [max(worst[0], res[0]), max(worst[1], res[1])]
-                for k, pb in enumerate(self.pbones):
-                    path, _ = rot_path(pb)
-                    qb[t, k] = rotation_quats(pb.rotation_mode, np.array([list(getattr(pb, path))]))[0]
-                loc[t] = self.pbones[-1].location
-        finally:
-            for c in quiet:
-                c.mute = False
-            for fc, mute in muted:
-                fc.mute = mute
-            for pb, path, values in saved:
-                setattr(pb, path, values)
-            scene.frame_set(at[0], subframe=at[1])
+                for k, pb in enumerate(solve.pbones):
+                    raw[k].append(tuple(getattr(pb, rot_path(pb)[0])))
+                loc[t] = solve.pbones[-1].location
+            qb = np.stack([rotation_quats(pb.rotation_mode, np.array(raw[k])) for k, pb in enumerate(solve.pbones)], 1)
         self.residual, self.passes = (worst[0], worst[1]), solve.passes
         out = rotation_channels(self.pbones, qb, frames, raw_prev)
         for i in range(3):

@@ -33,7 +33,7 @@ from mathutils import Matrix, Quaternion, Vector
 
 MAX_PASSES = 12  # passes of the solve per generated frame, at most (a scene evaluation each)
 TOLERANCE = 5e-4  # radians; and the hips' place, in units of the hips' height
-TORSO_TOLERANCE = 2e-3  # radians: the torso's turn (Rigify's spine deviates from the fill's by degrees anyway)
+TORSO_TOLERANCE = 5e-3  # radians (0.29 degrees): the torso's turn; Rigify's spine deviates from the fill's by degrees anyway
 
 
 def rot(m) -> Quaternion:
@@ -79,20 +79,40 @@ def stands_for(name: str) -> str:
 class ControlSolve:
     """The solve for a :class:`~.rigify.RigifyRig` (``rig.pbones``: its controls, ``torso`` last; ``rig.owned[k]``:
     the joint control ``k`` turns, the torso's the Spine bone; ``rig.seen[j] @ rig.rel[j]``: joint ``j``'s evaluated
-    pose).  ``passes``: the scene evaluations it asked for."""
+    pose).  ``obj``: the armature it poses and reads (the rig, or its :class:`~.rig_proxy.RigProxy`'s copy: the
+    same bone names); ``passes``: the evaluations it asked for."""
 
-    def __init__(self, rig):
+    def __init__(self, rig, obj=None):
         self.rig, self.passes = rig, 0
+        self.obj = obj = rig.obj if obj is None else obj  # the armature evaluated: the rig or its proxy (same names)
+        pose = obj.pose.bones
+        self.chest = rig.names.index(rig.map.slots["Chest"])
+        self.between = rig.parents[self.chest]  # the bone between the Spine and the Chest bones (Rigify's spine.002)
+        self.pbones = [pose[pb.name] for pb in rig.pbones]
+        self.seen = {j: pose[name] for j, name in self.reads(rig).items()}
+        self.between_bone = pose[rig.dbones[self.between].name]
         self.up = [self._upstream(k) for k in range(len(rig.pbones))]
         self.order: list[int] = []
         for k in range(len(rig.pbones)):
             self._visit(k)
         self.torso = len(rig.pbones) - 1
         self.hips_k = rig.owned.index(rig.hips)
-        self.chest = rig.names.index(rig.map.slots["Chest"])
-        self.between = rig.parents[self.chest]  # the bone between the Spine and the Chest bones (Rigify's spine.002)
         self.scale = max(rig.dbones[rig.hips].bone.head_local.length, 1e-6)
         self.jac, self.sent, self.sent_spin = Matrix.Identity(3) * 0.5, None, None  # see _torso_turn
+
+    @staticmethod
+    def reads(rig) -> dict:
+        """``{joint: pose bone name}``: the bones the solve reads the pose of (the controls' joints, the Chest's and
+        the bone between the Spine and the Chest bones)."""
+        chest = rig.names.index(rig.map.slots["Chest"])
+        return {j: rig.seen[j].name for j in [*rig.owned, chest, rig.parents[chest]]}
+
+    @staticmethod
+    def bones(rig) -> list[str]:
+        """Every pose bone the solve reads or writes (a :class:`~.rig_proxy.RigProxy`'s ``reads``)."""
+        chest = rig.names.index(rig.map.slots["Chest"])
+        return ([pb.name for pb in rig.pbones] + list(ControlSolve.reads(rig).values())
+                + [rig.dbones[rig.parents[chest]].name])
 
     def _upstream(self, k: int) -> list[tuple[int, float]]:
         """``[(control, share)]``: the controls whose turns carry control ``k``'s parent, and the share of each turn it
@@ -101,21 +121,21 @@ class ControlSolve:
         follow the torso's rotation), which carry ``f`` of theirs."""
         rig = self.rig
         owner = {rig.names[j]: i for i, j in enumerate(rig.owned[:-1])}
-        index = {pb.name: i for i, pb in enumerate(rig.pbones)}
+        index = {pb.name: i for i, pb in enumerate(self.pbones)}
 
         def control(name):
             hit = index.get(name, owner.get(stands_for(name)))
             return hit if hit != k else None
 
         out, share = [], 1.0
-        p = rig.pbones[k].parent
+        p = self.pbones[k].parent
         while p is not None and share > 0.0:
             hit = control(p.name)
             if hit is not None:
                 return out + [(hit, share)]
             for c in p.constraints:
                 if c.type in ("COPY_ROTATION", "COPY_TRANSFORMS") and not c.mute and c.influence > 0:
-                    source = control(getattr(c, "subtarget", "")) if c.target == rig.obj else None
+                    source = control(getattr(c, "subtarget", "")) if c.target == self.obj else None
                     if source is not None:
                         out.append((source, share * c.influence))
                     share *= 1.0 - c.influence
@@ -130,7 +150,7 @@ class ControlSolve:
         self.order.append(k)
 
     def _pose(self, j: int) -> Matrix:
-        return self.rig.seen[j].matrix @ self.rig.rel[j]
+        return self.seen[j].matrix @ self.rig.rel[j]
 
     def solve(self, target_q: np.ndarray, target_p: np.ndarray, evaluated: bool = True) -> tuple[float, float]:
         """Pose the controls at the current frame for the armature-space rotations ``target_q (J, 4)`` and heads
@@ -147,7 +167,7 @@ class ControlSolve:
             res = self._pass(target, at, between_q, check=True)
             if res is not None:
                 return res
-            bpy.context.view_layer.update()
+            bpy.context.view_layer.update()  # the proxy's alone: nothing else changed
             self.passes += 1
         return self._residual(target, at, [self._pose(j) for j in self.rig.owned])
 
@@ -177,13 +197,13 @@ class ControlSolve:
     def _pass(self, target, at, between_q, check: bool = False):
         """One pass: read the evaluated pose, turn every control by what its bone lacks (``check``: unless every bone
         is within the tolerance already; then the residual is returned and nothing moves)."""
-        rig, obj, torso = self.rig, self.rig.obj, self.torso
+        rig, obj, torso, pbones = self.rig, self.obj, self.torso, self.pbones
         hips_at, chest_at, spine_at = at
         z, one = Vector((0.0, 0.0, 1.0)), Quaternion()
-        mats = [pb.matrix.copy() for pb in rig.pbones]
+        mats = [pb.matrix.copy() for pb in pbones]
         deform = [self._pose(j) for j in rig.owned]
         spin = align(self._pose(self.chest).translation - deform[torso].translation,
-                     rot(rig.dbones[self.between].matrix) @ z, chest_at - spine_at, between_q @ z)
+                     rot(self.between_bone.matrix) @ z, chest_at - spine_at, between_q @ z)
         if check:
             res = self._residual(target, at, deform)
             if max(res) < TOLERANCE and angle(spin, one) < TORSO_TOLERANCE:
@@ -198,12 +218,12 @@ class ControlSolve:
                      .to_matrix().to_4x4()) @ w
             turn = self._torso_turn(spin) if k == torso else target[k] @ rot(deform[k]).inverted()
             new = Matrix.LocRotScale((w @ m).translation, turn @ rot(m), m.to_scale())
-            basis = obj.convert_space(pose_bone=rig.pbones[k], matrix=w.inverted() @ new, from_space="POSE",
+            basis = obj.convert_space(pose_bone=pbones[k], matrix=w.inverted() @ new, from_space="POSE",
                                       to_space="LOCAL")
-            set_rotation(rig.pbones[k], basis.to_quaternion())
+            set_rotation(pbones[k], basis.to_quaternion())
             moved[k] = new @ m.inverted()
         m = moved[torso] @ mats[torso]  # the torso's place: what is left of the hips'
         m.translation = m.translation + hips_at - moved[self.hips_k] @ deform[self.hips_k].translation
-        rig.pbones[torso].location = obj.convert_space(pose_bone=rig.pbones[torso], matrix=m, from_space="POSE",
-                                                       to_space="LOCAL").translation
+        pbones[torso].location = obj.convert_space(pose_bone=pbones[torso], matrix=m, from_space="POSE",
+                                                   to_space="LOCAL").translation
         return None
