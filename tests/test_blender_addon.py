@@ -546,8 +546,16 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     zip_path = next(built.glob("*-linux-x64.zip"))
     scenarios = [{"name": "fk", "undo": True, "panel": True, "pose_mode": True},
                  {"name": "legs_ik", "ik": ["thigh_parent.L", "thigh_parent.R"]},
-                 {"name": "arm_ik_keyed", "ik_keyed": ["upper_arm_parent.L"]}]
+                 {"name": "arm_ik_keyed", "ik_keyed": ["upper_arm_parent.L"]}, {"name": "proxy"}]
     res = run_humanoid(bpy_exe, zip_path, scenarios, tmp_path, script=RIGIFY_SCRIPT)
+
+    # the solve's pruned copy poses the bones it reads exactly as the rig does (animated channels, an IK/FK blend
+    # between keys and hand-turned controls included), and is gone after
+    px = res["proxy"]
+    assert px["reads_in_proxy"] and 60 < px["proxy_bones"] < px["bones"] / 2, px
+    assert 'pose.bones["spine_fk.001"].rotation_quaternion' in px["proxy_curves"]
+    assert 'pose.bones["upper_arm_parent.L"]["IK_FK"]' in px["proxy_curves"] and 0.6 < px["ik_fk_between"] < 1.0
+    assert max(px["max_matrix_diff"]) < 1e-6 and px["proxy_gone"], px
 
     r = res["fk"]
     assert r["bones"] == 706 and r["detect_error"] is None and len(r["detected"]) == 21

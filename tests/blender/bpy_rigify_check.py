@@ -21,6 +21,7 @@ import traceback
 
 import bpy
 import numpy as np
+from mathutils import Quaternion
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bpy_fill_check import install, run_fill, snapshot  # noqa: E402
@@ -61,7 +62,53 @@ def deform_pose(obj, frames):
     return rr, lq, lp
 
 
+def proxy_scenario() -> dict:
+    """The solve's pruned copy (``RigProxy``) against the rig: the bones it reads, as Blender evaluates each, at a key
+    and between keys (the copy's animated channels, ``spine_fk.001``'s and a keyed ``IK_FK``'s, set by ``set_frame``;
+    the rig's by the scene's frame), with the written controls turned by hand on both."""
+    fresh()
+    obj = generated()
+    for name in SWITCHES:
+        obj.pose.bones[name]["IK_FK"] = 1.0
+    key_poses(obj, FK_POSES, loc_bone="torso")
+    pb = obj.pose.bones["upper_arm_parent.L"]
+    for frame, value in ((KEYS[0], 1.0), (KEYS[-1], 0.6)):  # a blend inside the range: the copy must follow it too
+        pb["IK_FK"] = value
+        pb.keyframe_insert('["IK_FK"]', frame=frame)
+    mod = ext_module()
+    rr = rigify_module().RigifyRig(obj, mod.load_model("").info)
+    solve_mod = importlib.import_module("bl_ext.user_default.inbetweening.rigify_solve")
+    proxy_mod = importlib.import_module("bl_ext.user_default.inbetweening.rig_proxy")
+    written = {(path, i) for _, path, i in rr.channels()}
+    reads = solve_mod.ControlSolve.bones(rr)
+    out = {"bones": len(obj.pose.bones)}
+    with proxy_mod.RigProxy(obj, reads, skip=written) as px:
+        out["proxy_bones"] = len(px.obj.pose.bones)
+        out["proxy_curves"] = sorted({fc.data_path for fc in px.curves})
+        out["reads_in_proxy"] = all(n in px.obj.pose.bones for n in reads)
+        diffs = []
+        for frame, turn in ((KEYS[1], 0.0), (KEYS[0] + 7, 0.2), (KEYS[1] + 11, -0.3)):
+            bpy.context.scene.frame_set(frame)
+            for k, name in enumerate(rr.controls):  # the written controls: the rig's values turned by hand, on both
+                q = obj.pose.bones[name].matrix_basis.to_quaternion()
+                q.rotate(Quaternion((1.0, 0.0, 0.0), turn * ((k % 3) - 1)))
+                for o in (obj, px.obj):
+                    solve_mod.set_rotation(o.pose.bones[name], q)
+            px.bone("torso").location = obj.pose.bones["torso"].location
+            bpy.context.view_layer.update()
+            px.set_frame(frame)
+            diffs.append(max(abs(a - b) for n in reads for ra, rb in zip(obj.pose.bones[n].matrix, px.bone(n).matrix)
+                             for a, b in zip(ra, rb)))
+        out["max_matrix_diff"] = diffs
+        out["ik_fk_between"] = px.obj.pose.bones["upper_arm_parent.L"]["IK_FK"]
+        out["proxy_name"] = px.obj.name
+    out["proxy_gone"] = out["proxy_name"] not in bpy.data.objects and out["proxy_name"] not in bpy.data.armatures
+    return out
+
+
 def scenario(sc: dict, out_dir: str) -> dict:
+    if sc["name"] == "proxy":
+        return {"name": "proxy", **proxy_scenario()}
     fresh()
     obj = generated()
     mod = ext_module()

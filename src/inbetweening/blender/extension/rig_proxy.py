@@ -95,11 +95,14 @@ class RigProxy:
     def __enter__(self) -> RigProxy:
         src = self.source
         mode, active = src.mode, bpy.context.view_layer.objects.active
-        self.obj = obj = src.copy()
-        obj.data = src.data.copy()
-        obj.name = obj.data.name = f"{src.name} (fill solve)"
-        bpy.context.scene.collection.objects.link(obj)
         try:
+            if mode != "OBJECT":  # pruning the copy needs edit mode, which needs every other armature out of its mode
+                with bpy.context.temp_override(active_object=src, object=src):
+                    bpy.ops.object.mode_set(mode="OBJECT")
+            self.obj = obj = src.copy()
+            obj.data = src.data.copy()
+            obj.name = obj.data.name = f"{src.name} (fill solve)"
+            bpy.context.scene.collection.objects.link(obj)
             if obj.animation_data is not None:
                 obj.animation_data.action = None
                 for d in [d for d in obj.animation_data.drivers
@@ -107,26 +110,22 @@ class RigProxy:
                     obj.animation_data.drivers.remove(d)
             if obj.data.animation_data is not None:  # the armature's own drivers (B-bone ease): none of the bones gone
                 obj.data.animation_data_clear()
-            if mode != "OBJECT":
-                with bpy.context.temp_override(active_object=src, object=src):
-                    bpy.ops.object.mode_set(mode="OBJECT")
-            try:
-                with bpy.context.temp_override(active_object=obj, object=obj, selected_objects=[obj],
-                                               selected_editable_objects=[obj]):
-                    bpy.ops.object.mode_set(mode="EDIT")
-                    edit = obj.data.edit_bones
-                    for b in [b for b in edit if b.name not in self.keep]:
-                        edit.remove(b)
-                    bpy.ops.object.mode_set(mode="OBJECT")
-            finally:
-                if mode != "OBJECT":
-                    with bpy.context.temp_override(active_object=src, object=src):
-                        bpy.ops.object.mode_set(mode=mode)
-                bpy.context.view_layer.objects.active = active
+            with bpy.context.temp_override(active_object=obj, object=obj, selected_objects=[obj],
+                                           selected_editable_objects=[obj]):
+                bpy.ops.object.mode_set(mode="EDIT")
+                edit = obj.data.edit_bones
+                for b in [b for b in edit if b.name not in self.keep]:
+                    edit.remove(b)
+                bpy.ops.object.mode_set(mode="OBJECT")
             self.update()
         except BaseException:
             self._remove()
             raise
+        finally:
+            if mode != "OBJECT":
+                with bpy.context.temp_override(active_object=src, object=src):
+                    bpy.ops.object.mode_set(mode=mode)
+            bpy.context.view_layer.objects.active = active
         return self
 
     def __exit__(self, *exc) -> None:
