@@ -9,7 +9,8 @@ deform bones' evaluated pose, the fill written to the FK controls an animator ke
 - **Written**: the rotation channels of the FK control of each mapped bone (:data:`FK_CONTROLS`: ``hips``, ``chest``,
   ``neck``, ``head``, ``shoulder.L``, ``upper_arm_fk.L``, ``forearm_fk.L``, ``hand_fk.L``, ``thigh_fk.L``,
   ``shin_fk.L``, ``foot_fk.L``, ``toe_fk.L`` and the ``.R`` ones), and the rotation and location of ``torso``,
-  solved frame by frame against Blender's evaluated pose (:mod:`.rigify_solve`).  The other controls (``root``,
+  solved frame by frame against Blender's evaluation of a pruned copy of the rig (:mod:`.rigify_solve`,
+  :mod:`.rig_proxy`).  The other controls (``root``,
   ``spine_fk*``, tweaks, fingers, face, IK controls, the switches) keep their curves; the solve works through them.
 - **IK**: a limb whose IK/FK switch (``IK_FK`` on ``upper_arm_parent.L``, ``thigh_parent.L``, ...) is not 1 (FK)
   everywhere between the first and the last key is refused (:meth:`RigifyRig.check`): its deform bones follow the
