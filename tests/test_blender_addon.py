@@ -536,17 +536,19 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     at frames 1, 31, 61 (``torso``, ``hips``, ``chest``, ``neck``, ``head``, shoulders, FK arms and legs, a toe;
     ``spine_fk.001`` and a finger too, which the fill does not write): the motion is read from the deform bones, the
     in-betweens are keyed on the FK controls' rotations and ``torso``'s rotation and location only, every key is kept,
-    nothing outside the keys changes, the scene's frame and every constraint's switch are restored (one the user muted
-    stays muted) and undo restores the curves.  The deform bones
+    nothing outside the keys changes, the scene's frame and every constraint's switch are as they were (one the user
+    muted stays muted) and undo restores the curves.  The deform bones
     the FK controls turn take the runtime's own ``fill_rig`` of the keys read from Blender (PyTorch here, ONNX there)
     within 0.05 degrees, the hips' and the legs' heads within 0.1 cm (the solve's tolerance); Rigify's spine bends its
     own way between the hips and the chest (the chest's head within 1 cm, the head's within 2 cm).  The fill runs with
     the rig in pose mode and leaves it so, active, and no object or armature behind (the solve's pruned copy).  Limbs
-    in IK (left so, or switched to IK inside the range) are refused, nothing changed."""
+    in IK (left so, or switched to IK inside the range) and a rig in Edit Mode (Blender does not pose it there) are
+    refused, nothing changed."""
     zip_path = next(built.glob("*-linux-x64.zip"))
     scenarios = [{"name": "fk", "undo": True, "panel": True, "pose_mode": True},
                  {"name": "legs_ik", "ik": ["thigh_parent.L", "thigh_parent.R"]},
-                 {"name": "arm_ik_keyed", "ik_keyed": ["upper_arm_parent.L"]}, {"name": "proxy"}]
+                 {"name": "arm_ik_keyed", "ik_keyed": ["upper_arm_parent.L"]}, {"name": "proxy"},
+                 {"name": "edit_mode", "edit_mode": True}]
     res = run_humanoid(bpy_exe, zip_path, scenarios, tmp_path, script=RIGIFY_SCRIPT)
 
     # the solve's pruned copy poses the bones it reads exactly as the rig does (animated channels, an IK/FK blend
@@ -577,7 +579,7 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
     assert not bad, bad
     assert set(r["changed_curves"]) <= written and len(r["changed_curves"]) > 60
     assert r["fill"]["solve_residual_deg"] < 0.05 and r["fill"]["solve_residual_hips"] < 1e-3
-    # the solve switches off the constraints it does not need, and back: one the user muted stays muted
+    # every constraint's switch as it was (the solve works on its pruned copy): one the user muted stays muted
     assert r["constraints_as_they_were"] and r["constraints_muted_before"] >= 1
     # the deform bones as Blender poses them after the fill against the runtime's fill_rig of the keys it read
     from inbetweening.api.inbetweener import Inbetweener
@@ -609,7 +611,8 @@ def test_fill_generated_rigify_rig_in_blender(bpy_exe, built, tmp_path):
 
     for name, needle in (("legs_ik", "limbs in IK are not filled (thigh_parent.L, thigh_parent.R: IK_FK below 1 "
                                      "between frames 1 and 61); switch them to FK"),
-                         ("arm_ik_keyed", "limbs in IK are not filled (upper_arm_parent.L: IK_FK below 1")):
+                         ("arm_ik_keyed", "limbs in IK are not filled (upper_arm_parent.L: IK_FK below 1"),
+                         ("edit_mode", "armature 'rig' is in Edit Mode: switch to Pose or Object Mode to fill")):
         e = res[name]
         assert e["result"] == ["CANCELLED"] and needle in e["error"], (name, e["error"])
         assert e["n_lost_keys"] == 0 and not e["changed_curves"] and not e["gained"] and e["frame_after"] == 1, name

@@ -5,7 +5,7 @@ through its FK controls, and refuses limbs in IK.  Driven by tests/test_blender_
 
 CONFIG: {"zip": path, "out": folder, "scenarios": [{"name", "ik": [limb switch bones left in IK], "ik_keyed":
 [switch bones keyed from FK at the first key to IK at the last], "undo": bool, "panel": bool, "pose_mode": bool (the
-fill run with the rig in pose mode, as an animator works)}]}.  Writes
+fill run with the rig in pose mode, as an animator works), "edit_mode": bool (run in edit mode: refused)}]}.  Writes
 ``out/results.json`` and, for a filled scenario, ``out/<name>_deform.npz``: the deform skeleton (names, parents,
 offsets) and its BVH-convention pose read from Blender's evaluated pose before the fill (``lq``, ``lp``: the context
 frames and the keys, the rest unread) and after it (``lq_after``, ``lp_after``: every frame).
@@ -145,8 +145,8 @@ def scenario(sc: dict, out_dir: str) -> dict:
     before = snapshot(obj)
     grid = np.arange(KEYS[0] - 3, KEYS[-1] + 3.01, 0.5)
     values_before = {k: np.array([v[2].evaluate(f) for f in grid]) for k, v in before.items()}
-    if sc.get("pose_mode"):
-        bpy.ops.object.mode_set(mode="POSE")
+    if sc.get("pose_mode") or sc.get("edit_mode"):
+        bpy.ops.object.mode_set(mode="POSE" if sc.get("pose_mode") else "EDIT")
     datablocks = sorted(o.name for o in bpy.data.objects), sorted(a.name for a in bpy.data.armatures)
     bpy.ops.ed.undo_push(message="before fill")
     mod.LAST_FILL.clear()
@@ -155,7 +155,7 @@ def scenario(sc: dict, out_dir: str) -> dict:
                 "mode_after": obj.mode, "active_after": bpy.context.view_layer.objects.active.name == obj.name,
                 "datablocks_as_they_were": datablocks == (sorted(o.name for o in bpy.data.objects),
                                                           sorted(a.name for a in bpy.data.armatures))})
-    if sc.get("pose_mode"):
+    if sc.get("pose_mode") or sc.get("edit_mode"):
         bpy.ops.object.mode_set(mode="OBJECT")
     info = dict(mod.LAST_FILL)
     res["fill"] = {k: info.get(k) for k in ("rigify", "keyed_bones", "movers", "bone_map", "how", "frames", "keys",

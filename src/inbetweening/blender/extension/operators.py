@@ -33,6 +33,8 @@ def make_rig(obj, info):
     detected, with the override saved on the armature; ``BoneMapError`` when it is no humanoid)."""
     if obj is None or obj.type != "ARMATURE":
         raise rig.RigError("select an armature (the active object is not one)")
+    if obj.mode == "EDIT":  # Blender does not evaluate the pose there: what the fill reads would not be your pose
+        raise rig.RigError(f"armature '{obj.name}' is in Edit Mode: switch to Pose or Object Mode to fill")
     if humanoid.is_model_skeleton(obj, info):
         return rig.Rig(obj, info)
     if rigify.is_generated(obj):
