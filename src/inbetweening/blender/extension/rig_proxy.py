@@ -1,17 +1,17 @@
 """A pruned, temporary copy of an armature that Blender evaluates in its place (:class:`RigProxy`): only the bones some
-reads depend on, so one evaluation of a big rig costs a fraction (a rig Rigify generates: 706 bones, 2.9 ms per
-evaluation; its proxy for the FK-control solve, 134 bones, 1.4 ms; `python -m benchmarks run blender_rigify --rig
-generated`).
+reads depend on, so one evaluation of a big rig costs a fraction (a rig Rigify generates, 706 bones: 4.0-5.5 ms per
+evaluation; its copy for the FK-control solve, 130 bones: 2.3-2.6 ms; BENCHMARKS.md, "Blender extension").
 
 - **Which bones** (:func:`needed_bones`): the bones read, their parents, their constraints' targets, the bones their
   drivers read (a bone target or a ``pose.bones["X"]`` in a property path), and so on up: everything that poses them,
   so the proxy poses them exactly as the armature does.
-- **Its channels**: the armature's pose at the moment the proxy is made; the animated channels of its bones (the
-  armature's action, but for ``skip``: the channels the caller sets itself) are set at each frame by
-  :meth:`RigProxy.set_frame`, and only the proxy is evaluated (``view_layer.update()``), never the scene's frame.
-- **Nothing left behind**: the copy, its armature data and the object mode the armature was in are restored when the
-  ``with`` block ends, also on an error (the proxy is pruned in edit mode, which needs the armature out of pose mode
-  for the moment).
+- **Its channels**: the armature's pose at the moment the proxy is made; the animated channels of its bones and the
+  object's own custom properties (the armature's action, but for ``skip``: the channels the caller sets itself) are
+  set at each frame by :meth:`RigProxy.set_frame`, and only the proxy is evaluated (``view_layer.update()``), never
+  the scene's frame.
+- **Nothing left behind**: the copy and its armature data are removed when the ``with`` block ends, also on an error;
+  the armature's mode (pruning the copy needs edit mode, which needs the armature out of its mode for the moment) and
+  the active object are restored as soon as the copy is made.
 """
 from __future__ import annotations
 
@@ -87,9 +87,9 @@ class RigProxy:
         self.source, self.keep = obj, needed_bones(obj, reads)
         skip = set(skip)
         bag = channelbag(obj)
-        self.curves = [fc for fc in (bag.fcurves if bag is not None else ())
+        self.curves = [fc for fc in (bag.fcurves if bag is not None else ())  # its bones' and its own custom ones
                        if (fc.data_path, fc.array_index) not in skip and not fc.mute
-                       and (m := _BONE.match(fc.data_path)) and m.group(1) in self.keep]
+                       and ((m := _BONE.match(fc.data_path)) and m.group(1) in self.keep or fc.data_path.startswith('["'))]
         self.obj = None
 
     def __enter__(self) -> RigProxy:
