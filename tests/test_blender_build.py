@@ -123,7 +123,7 @@ def test_extension_sources_need_no_torch():
 
     bundled = set(runtime_modules())
     allowed = {"numpy", "onnxruntime", "bpy", "mathutils", "bpy_extras", "__future__", "os", "json", "math",
-               "itertools", "time", "importlib", "hashlib", "inbetweening"}  # inbetweening: the runtime wheel
+               "itertools", "time", "importlib", "hashlib", "re", "inbetweening"}  # inbetweening: the runtime wheel
     for f in EXT.glob("*.py"):
         for node in ast.walk(ast.parse(f.read_text())):
             if isinstance(node, ast.Import):
