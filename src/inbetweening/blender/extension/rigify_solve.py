@@ -80,6 +80,11 @@ def stands_for(name: str) -> str:
     return "DEF-" + name.replace("_fk", "")
 
 
+def _chest(rig) -> int:
+    """The joint of the Chest slot."""
+    return rig.names.index(rig.map.slots["Chest"])
+
+
 class ControlSolve:
     """The solve for a :class:`~.rigify.RigifyRig` (``rig.pbones``: its controls, ``torso`` last; ``rig.owned[k]``:
     the joint control ``k`` turns, the torso's the Spine bone; ``rig.seen[j] @ rig.rel[j]``: joint ``j``'s evaluated
@@ -90,7 +95,7 @@ class ControlSolve:
         self.rig, self.passes = rig, 0
         self.obj = obj = rig.obj if obj is None else obj  # the armature evaluated: the rig or its proxy (same names)
         pose = obj.pose.bones
-        self.chest = rig.names.index(rig.map.slots["Chest"])
+        self.chest = _chest(rig)
         self.between = rig.parents[self.chest]  # the bone between the Spine and the Chest bones (Rigify's spine.002)
         self.pbones = [pose[pb.name] for pb in rig.pbones]
         self.seen = {j: pose[name] for j, name in self.reads(rig).items()}
@@ -108,15 +113,14 @@ class ControlSolve:
     def reads(rig) -> dict:
         """``{joint: pose bone name}``: the bones the solve reads the pose of (the controls' joints, the Chest's and
         the bone between the Spine and the Chest bones)."""
-        chest = rig.names.index(rig.map.slots["Chest"])
+        chest = _chest(rig)
         return {j: rig.seen[j].name for j in [*rig.owned, chest, rig.parents[chest]]}
 
     @staticmethod
     def bones(rig) -> list[str]:
         """Every pose bone the solve reads or writes (a :class:`~.rig_proxy.RigProxy`'s ``reads``)."""
-        chest = rig.names.index(rig.map.slots["Chest"])
         return ([pb.name for pb in rig.pbones] + list(ControlSolve.reads(rig).values())
-                + [rig.dbones[rig.parents[chest]].name])
+                + [rig.dbones[rig.parents[_chest(rig)]].name])
 
     def _upstream(self, k: int) -> list[tuple[int, float]]:
         """``[(control, share)]``: the controls whose turns carry control ``k``'s parent, and the share of each turn it
