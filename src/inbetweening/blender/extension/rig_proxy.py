@@ -22,20 +22,23 @@ import bpy
 from .curves import channelbag
 
 _BONE = re.compile(r'pose\.bones\["((?:[^"\\]|\\.)*)"\]')
+_DATA_BONE = re.compile(r'bones\["((?:[^"\\]|\\.)*)"\]')  # a path on the armature data (B-bone ease, ...)
 
 
 def _drivers(obj) -> dict:
+    """``{bone name: [driver]}``: the object's drivers of its pose bones and the armature's of its bones."""
     out: dict = {}
-    for d in (obj.animation_data.drivers if obj.animation_data else ()):
-        m = _BONE.match(d.data_path)
-        if m:
-            out.setdefault(m.group(1), []).append(d)
+    for owner, pattern in ((obj.animation_data, _BONE), (obj.data.animation_data, _DATA_BONE)):
+        for d in (owner.drivers if owner is not None else ()):
+            m = pattern.match(d.data_path)
+            if m:
+                out.setdefault(m.group(1), []).append(d)
     return out
 
 
 def needed_bones(obj, start) -> set[str]:
     """The pose bones of ``obj`` whose evaluation poses the bones ``start``: those, their parents, their constraints'
-    targets (in ``obj``) and the bones their drivers read, and so on up."""
+    targets (in ``obj``) and the bones their drivers (the object's and the armature's) read, and so on up."""
     pose, drivers = obj.pose.bones, _drivers(obj)
     need: set = set()
     stack = list(start)
@@ -53,8 +56,8 @@ def needed_bones(obj, start) -> set[str]:
         for d in drivers.get(name, ()):
             for v in d.driver.variables:
                 for t in v.targets:
-                    if t.id == obj:
-                        stack += [t.bone_target] + _BONE.findall(t.data_path or "")
+                    if t.id == obj or t.id == obj.data:
+                        stack += [t.bone_target] + _BONE.findall(t.data_path or "") + _DATA_BONE.findall(t.data_path or "")
     return need
 
 
@@ -105,11 +108,10 @@ class RigProxy:
             bpy.context.scene.collection.objects.link(obj)
             if obj.animation_data is not None:
                 obj.animation_data.action = None
-                for d in [d for d in obj.animation_data.drivers
-                          if (m := _BONE.match(d.data_path)) and m.group(1) not in self.keep]:
-                    obj.animation_data.drivers.remove(d)
-            if obj.data.animation_data is not None:  # the armature's own drivers (B-bone ease): none of the bones gone
-                obj.data.animation_data_clear()
+            for owner, pattern in ((obj.animation_data, _BONE), (obj.data.animation_data, _DATA_BONE)):
+                for d in [d for d in (owner.drivers if owner is not None else ())  # the drivers of the bones gone
+                          if (m := pattern.match(d.data_path)) and m.group(1) not in self.keep]:
+                    owner.drivers.remove(d)
             with bpy.context.temp_override(active_object=obj, object=obj, selected_objects=[obj],
                                            selected_editable_objects=[obj]):
                 bpy.ops.object.mode_set(mode="EDIT")
