@@ -57,11 +57,11 @@ def needed_bones(obj, start) -> set[str]:
             for v in d.driver.variables:
                 for t in v.targets:
                     if t.id == obj or t.id == obj.data:
-                        stack += [t.bone_target] + _BONE.findall(t.data_path or "") + _DATA_BONE.findall(t.data_path or "")
+                        stack += [t.bone_target] + _DATA_BONE.findall(t.data_path or "")  # also in pose.bones["X"]
     return need
 
 
-def _set(owner, path: str, index: int, value: float) -> None:
+def set_channel(owner, path: str, index: int, value: float) -> None:
     """Set channel ``(path, index)`` of ``owner`` (an RNA property, an array's element or a custom property)."""
     if path.endswith('"]'):  # a custom property: owner["name"]
         head, key = path[: path.rindex('["')], path[path.rindex('["') + 2: -2]
@@ -148,5 +148,5 @@ class RigProxy:
 
     def set_frame(self, frame: float) -> None:
         for fc in self.curves:
-            _set(self.obj, fc.data_path, fc.array_index, fc.evaluate(frame))
+            set_channel(self.obj, fc.data_path, fc.array_index, fc.evaluate(frame))
         self.update()

@@ -31,7 +31,7 @@ from inbetweening.runtime import ModelInfo
 from .curves import ArmatureCurves, OnArmature, bone_path
 from .humanoid import VIRTUAL_ROOT
 from .rig import RigError, _to_np, rot_path, rotation_channels, rotation_quats
-from .rig_proxy import RigProxy
+from .rig_proxy import RigProxy, set_channel
 from .rigify_solve import ControlSolve, rot, stands_for
 
 FK_CONTROLS = {"Hips": ("hips",), "Chest": ("chest",), "Neck": ("neck",), "Head": ("head",)}
@@ -238,8 +238,7 @@ class RigifyRig(OnArmature, dcc.MappedRig):
                 else:  # from the curves
                     for (path, i), fc in curves.items():
                         if fc is not None:
-                            pb = px.obj.path_resolve(path.rsplit(".", 1)[0])
-                            getattr(pb, path.rsplit(".", 1)[1])[i] = fc.evaluate(fr)
+                            set_channel(px.obj, path, i, fc.evaluate(fr))
                 px.set_frame(fr)
                 res = solve.solve(target_q[t], gp[t])
                 worst = [max(worst[0], res[0]), max(worst[1], res[1])]
