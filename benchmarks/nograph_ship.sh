@@ -12,18 +12,21 @@
 # split (fold 1 at the full budget, where the folds saw no gain at 300 steps) as a guard.  About 20 min per split alone; the two splits can run
 # side by side (THREADS=1).  Table: python benchmarks/nograph_ship_table.py <out dir>
 #   bash benchmarks/nograph_ship.sh <out dir> <run dir> <standard|content>
+# (NAME: the exported model's name, bn2_nograph by default, "_content" added on the content split; another graph-free
+# run is scored the same way, e.g. NAME=bn2_gnv for the run with velocity inputs as well)
 # (EXTRA: more eval.py overrides for every run, e.g. EXTRA=keyframe_clips=4 for a dry run)
 set -euo pipefail
 OUT=${1:?out dir}
 RUN=${2:?the training run dir of the split}
 SPLIT=${3:?standard or content}
 PY=${PYTHON:-python}
+BASE=${NAME:-bn2_nograph}
 if [ "$SPLIT" = standard ]; then
-  NAME=bn2_nograph
+  NAME=$BASE
   SHIPPED="[models/bn2_partial/model.ckpt,models/bn2_partial_twin/model.ckpt,models/bn2_v2/model.ckpt]"
   CANDIDATE="[models/bn2_partial/model.ckpt,models/$NAME/model.ckpt,models/bn2_v2/model.ckpt]"
 else
-  NAME=bn2_nograph_content
+  NAME=${BASE}_content
   SHIPPED="[models/bn2_content/model.ckpt,models/bn2_twin_content/model.ckpt,models/bn2_v2_content/model.ckpt]"
   CANDIDATE="[models/bn2_content/model.ckpt,models/$NAME/model.ckpt,models/bn2_v2_content/model.ckpt]"
 fi

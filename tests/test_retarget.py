@@ -236,3 +236,29 @@ def test_the_rigs_world_orientation_does_not_matter(backend, motion, axis, degre
     turn = np.broadcast_to(rt.world, truth.shape[:-1] + (4,))  # rig world -> model world: a turn about Y at most
     assert np.abs(qrot(turn, qrot(np.broadcast_to(w, truth.shape[:-1] + (4,)), truth)) - sk.pose(*b)[1]).max() < 1e-6
     assert abs(abs(qmul(rt.world, w)[0]) - 1.0) < 1e-9 or abs(qrot(qmul(rt.world, w), np.array([0.0, 1.0, 0.0]))[1] - 1) < 1e-9
+
+
+def test_the_models_side_is_built_once_and_never_changed(backend, motion):
+    """The model's side of a ``Retarget`` (its T-pose, basis, rest) is built once per model and natural pose: a
+    ``Retarget`` built after others, with another model pose between them, carries the motion exactly as one built
+    with the cache emptied, and the shared arrays cannot be written to."""
+    from inbetweening.runtime.retarget import ModelSide
+
+    sk = backend.info.skeleton
+    rig, slots = character(sk, *motion, **VARIANTS["proportions"])
+    lq, lp = rig.local_rotations(), rig.channel_positions()
+
+    def build(**kw):
+        return Retarget(rig.skeleton(), sk, types.SimpleNamespace(slots=slots), reference=lq[0], poses=lq[::15], **kw)
+
+    ModelSide._cache.clear()
+    fresh = build().to_model(lq, lp)
+    identity = np.tile([1.0, 0.0, 0.0, 0.0], (sk.num_joints, 1))
+    other = build(model_pose=identity).to_model(lq, lp)  # another natural pose: another side, another result
+    assert len(ModelSide._cache) == 2 and not np.allclose(other[1], fresh[1])
+    again = build()
+    for a, b in zip(again.to_model(lq, lp), fresh):
+        np.testing.assert_array_equal(a, b)
+    assert not again.t_model.flags.writeable
+    with pytest.raises(ValueError):
+        again.t_model[0, 0] = 2.0

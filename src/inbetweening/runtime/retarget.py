@@ -45,9 +45,43 @@ from .tpose import (
 if TYPE_CHECKING:
     from .bone_map import BoneMap
 
-__all__ = ["EULER_ORDER", "MODEL_ANKLE", "Retarget", "euler_sign", "rig_plan"]
+__all__ = ["EULER_ORDER", "MODEL_ANKLE", "ModelSide", "Retarget", "euler_sign", "rig_plan"]
 
 EULER_ORDER = "zxy"  # the rotation channels of the shipped models' training files (Bandai-Namco-2)
+
+
+class ModelSide:
+    """What a :class:`Retarget` needs of the model's skeleton alone, for one natural pose ``start``: its slots, basis,
+    T-pose, hip height, rest positions, FK of ``start`` and chains.  Built once per model and pose (:meth:`of`): every
+    fill of every rig builds a ``Retarget``, the model's side never changes."""
+
+    _cache: dict = {}
+
+    def __init__(self, model: Skeleton, start: np.ndarray | None):
+        self.slot = {s: model.names.index(s) for s in model.names}
+        self.start = start
+        self.basis = body_basis(model, self.slot, UP, start=start)  # the project's world: Y up
+        self.tpose = tpose(model, self.slot, self.basis, start=start)
+        self.height = hip_height(model, self.tpose, self.slot, UP)
+        self.rest = rest_pose(model, self.slot)[1]
+        self.global_start = None if start is None else fk(np.asarray(start, np.float64), model.offsets, model.parents)[0]
+        self.chains = chains(model.parents, self.slot)
+        for a in (self.start, self.basis, self.tpose, self.rest, self.global_start):
+            if a is not None:
+                a.flags.writeable = False
+
+    @classmethod
+    def of(cls, model: Skeleton, model_pose: np.ndarray | None) -> ModelSide:
+        start = model_pose if model_pose is not None else model_natural_pose(model)
+        start = None if start is None else np.asarray(start, dtype=np.float64)
+        key = (tuple(model.names), tuple(model.parents), np.asarray(model.offsets, np.float64).tobytes(),
+               None if start is None else start.tobytes())
+        side = cls._cache.get(key)
+        if side is None:
+            if len(cls._cache) > 8:
+                cls._cache.clear()
+            side = cls._cache[key] = cls(model, start)
+        return side
 
 
 def euler_sign(q: np.ndarray, order: str = EULER_ORDER) -> np.ndarray:
@@ -123,7 +157,8 @@ class Retarget:
                  translations: np.ndarray | None = None):
         self.rig, self.model, self.map = rig, model, bone_map
         self.rig_slot = {s: rig.names.index(b) for s, b in bone_map.slots.items()}
-        self.model_slot = {s: model.names.index(s) for s in model.names}
+        self._m = m_side = ModelSide.of(model, model_pose)
+        self.model_slot = m_side.slot
         rest = rest_pose(rig, self.rig_slot, reference)[1]
         slot = self.rig_slot
         size = float(np.ptp(rest, axis=0).max())
@@ -137,9 +172,9 @@ class Retarget:
             up = world_up(rig, self.rig_slot, keyed)
         elif not (np.shape(up) == (3,) and np.isfinite(up).all() and np.linalg.norm(up) > 0):
             raise InbetweenError(f"{where}: up must be a direction (x, y, z), got {up!r}")
-        m_start = model_pose if model_pose is not None else model_natural_pose(model)
-        self.m_basis = m_basis = body_basis(model, self.model_slot, UP, start=m_start)  # the project's world: Y up
-        self.t_model = tpose(model, self.model_slot, m_basis, start=m_start)
+        m_start = m_side.start
+        self.m_basis = m_basis = m_side.basis
+        self.t_model = m_side.tpose
         start = self._rig_start(keyed, m_start, reference, up)
         self.basis = basis = body_basis(rig, self.rig_slot, up, reference, start)
         self.world = qmul(basis_quat(m_basis), qinv(basis_quat(basis)))  # rig world -> model world
@@ -149,7 +184,7 @@ class Retarget:
         if not rig_height > 1e-3 * size:
             raise InbetweenError(f"{where}: its scale cannot be found: in its T-pose the hips are not above the ankles "
                                  f"(hip height {rig_height:.3g}, the rig {size:.3g} across)")
-        self.scale = hip_height(model, self.t_model, self.model_slot, UP) / rig_height
+        self.scale = m_side.height / rig_height
         self.lift = 0.0  # model lengths the rig's motion is raised by on the model's side: its floor onto the model's
         if translations is not None and not self.same and model_natural_pose(model) is not None:
             q = np.asarray(keyed, dtype=np.float64).reshape(-1, rig.num_joints, 4)
@@ -171,11 +206,11 @@ class Retarget:
         if same and m_start is not None:
             rq, rest = rest_pose(self.rig, self.rig_slot, reference)
             a = rest[mine] - rest[self.rig_slot["Hips"]]
-            m_rest = rest_pose(self.model, self.model_slot)[1]
+            m_rest = self._m.rest
             b = m_rest[theirs] - m_rest[self.model_slot["Hips"]]
             u, _, vt = np.linalg.svd(a.T @ b)  # the turn taking the rig's rest onto the model's (Kabsch)
             turn = basis_quat(vt.T @ np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u.T))]) @ u.T)
-            g_model = fk(np.asarray(m_start, np.float64), self.model.offsets, self.model.parents)[0]
+            g_model = self._m.global_start
             source = {b_: self.model_slot[s] for s, b_ in self.rig_slot.items()}
             g = np.zeros((self.rig.num_joints, 4))
             for j, p in enumerate(self.rig.parents):
@@ -226,8 +261,7 @@ class Retarget:
         next mapped joint along its chain (``rig_aims``: ``(rig bone, rig joint, model joint, model joint, the
         direction to that joint in the bone's T-pose frame)``: the bones in between move with it, as in the T-pose)."""
         m, r = self.model, self.rig
-        m_ch = chains(m.parents, self.model_slot)
-        m_rest = rest_pose(m, self.model_slot)[1]
+        m_ch, m_rest = self._m.chains, self._m.rest
         rq, rest = rest_pose(r, self.rig_slot, reference)
         tiny = 1e-6 * max(float(np.ptp(rest, axis=0).max()), 1e-9)
         model_aims = []
