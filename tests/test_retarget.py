@@ -256,6 +256,7 @@ def test_the_models_side_is_built_once_and_never_changed(backend, motion):
     identity = np.tile([1.0, 0.0, 0.0, 0.0], (sk.num_joints, 1))
     other = build(model_pose=identity).to_model(lq, lp)  # another natural pose: another side, another result
     assert len(ModelSide._cache) == 2 and not np.allclose(other[1], fresh[1])
+    assert identity.flags.writeable  # the caller's pose is copied, not frozen
     again = build()
     for a, b in zip(again.to_model(lq, lp), fresh):
         np.testing.assert_array_equal(a, b)

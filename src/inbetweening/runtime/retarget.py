@@ -73,7 +73,7 @@ class ModelSide:
     @classmethod
     def of(cls, model: Skeleton, model_pose: np.ndarray | None) -> ModelSide:
         start = model_pose if model_pose is not None else model_natural_pose(model)
-        start = None if start is None else np.asarray(start, dtype=np.float64)
+        start = None if start is None else np.array(start, dtype=np.float64)  # its own copy: made read-only below
         key = (tuple(model.names), tuple(model.parents), np.asarray(model.offsets, np.float64).tobytes(),
                None if start is None else start.tobytes())
         side = cls._cache.get(key)
