@@ -642,3 +642,22 @@ def test_partial_keys_in_blender(bpy_exe, built, tmp_path):
     assert r["noop"]["result"] == ["CANCELLED"] and r["noop_same"]
     assert r["refill"]["result"] == ["FINISHED"] and r["refill"]["refilled"] == [[61, 91]]
     assert r["left_gaps_same"] and r["own_gap_changed"] and r["undo_restores"]
+
+
+def test_curve_values_are_what_blender_evaluates(bpy_exe, built, tmp_path):
+    """How the fill reads a channel (keys' own values, the end keys' values outside a constantly extrapolated curve,
+    Blender's evaluation elsewhere) gives exactly ``FCurve.evaluate`` at every frame: before, between and after the
+    keys, with linear extrapolation, a Cycles modifier, one key and a muted curve."""
+    out = tmp_path / "curves"
+    out.mkdir()
+    (out / "cfg.json").write_text(json.dumps({"zip": str(next(built.glob("*-linux-x64.zip"))), "out": str(out)}))
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(out / "user"), "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run([str(bpy_exe), str(REPO / "tests" / "blender" / "bpy_curves_check.py"),
+                           str(out / "cfg.json")], capture_output=True, text=True, env=env, timeout=900)
+    assert proc.returncode == 0, (proc.stdout[-3000:], proc.stderr[-3000:])
+    r = json.loads((out / "curves.json").read_text())
+    assert "crash" not in r, r["crash"]
+    assert len(r) == 9 and {c["extrapolation"] for c in r.values()} == {"CONSTANT", "LINEAR"}
+    assert r["location[1]"]["varies_outside"]  # the linear one really differs from its end keys outside them
+    bad = {k: c["max_diff"] for k, c in r.items() if not c["equal"]}
+    assert not bad, bad

@@ -65,9 +65,10 @@ def scan(fc) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 
 
 def curve_values(fc, default: float, frames) -> np.ndarray:
-    """``(F,)``: an F-curve's values at ``frames``: a key's own value where the curve has a key at the frame (what
-    Blender evaluates there), else the curve evaluated; ``default`` (the property's value) without a curve or with a
-    muted one."""
+    """``(F,)``: an F-curve's values at ``frames``: a key's own value where the curve has a key at the frame, and
+    before its first or after its last key the end key's value where the curve extrapolates constantly (what Blender
+    evaluates there), else the curve evaluated; ``default`` (the property's value) without a curve or with a muted
+    one."""
     frames = np.asarray(frames, dtype=np.float64)
     if fc is None or fc.mute:
         return np.full(len(frames), float(default))
@@ -81,6 +82,8 @@ def curve_values(fc, default: float, frames) -> np.ndarray:
         i = np.clip(np.searchsorted(x, frames), 0, n - 1)
         hit = x[i] == frames
         out[hit] = y[i[hit]]
+        if fc.extrapolation == "CONSTANT":  # outside the keys (the frames before a clip's first key, read as context)
+            out[frames < x[0]], out[frames > x[-1]] = y[0], y[-1]
     miss = np.flatnonzero(np.isnan(out))
     out[miss] = [fc.evaluate(float(frames[t])) for t in miss]
     return out
