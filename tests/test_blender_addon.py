@@ -647,7 +647,8 @@ def test_partial_keys_in_blender(bpy_exe, built, tmp_path):
 def test_curve_values_are_what_blender_evaluates(bpy_exe, built, tmp_path):
     """How the fill reads a channel (keys' own values, the end keys' values outside a constantly extrapolated curve,
     Blender's evaluation elsewhere) gives exactly ``FCurve.evaluate`` at every frame: before, between and after the
-    keys, with linear extrapolation, a Cycles modifier, one key and a muted curve."""
+    keys, with linear extrapolation, a Cycles modifier, one key, a muted curve and keys of one value (a constant curve,
+    and two that are not: a tilted handle, an elastic key)."""
     out = tmp_path / "curves"
     out.mkdir()
     (out / "cfg.json").write_text(json.dumps({"zip": str(next(built.glob("*-linux-x64.zip"))), "out": str(out)}))
@@ -657,7 +658,8 @@ def test_curve_values_are_what_blender_evaluates(bpy_exe, built, tmp_path):
     assert proc.returncode == 0, (proc.stdout[-3000:], proc.stderr[-3000:])
     r = json.loads((out / "curves.json").read_text())
     assert "crash" not in r, r["crash"]
-    assert len(r) == 9 and {c["extrapolation"] for c in r.values()} == {"CONSTANT", "LINEAR"}
+    assert len(r) == 12 and {c["extrapolation"] for c in r.values()} == {"CONSTANT", "LINEAR"}
     assert r["location[1]"]["varies_outside"]  # the linear one really differs from its end keys outside them
+    assert not r["scale[0]"]["varies"] and r["scale[1]"]["varies"] and r["scale[2]"]["varies"]  # one value, not flat
     bad = {k: c["max_diff"] for k, c in r.items() if not c["equal"]}
     assert not bad, bad

@@ -64,11 +64,29 @@ def scan(fc) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     return co[0::2], co[1::2], typ, sel.astype(bool)
 
 
+def _flat(kp, y: np.ndarray) -> bool:
+    """Whether keys of one value ``y`` with level handles and Bezier, linear or constant interpolation make a curve
+    that is that value everywhere: Blender's evaluation between and beyond such keys is the key value exactly."""
+    if np.ptp(y):
+        return False
+    n = len(kp)
+    ipo = np.zeros(n, np.int32)
+    kp.foreach_get("interpolation", ipo)
+    if not np.isin(ipo, [_enum_index("interpolation", m) for m in ("BEZIER", "LINEAR", "CONSTANT")]).all():
+        return False
+    for name in ("handle_left", "handle_right"):
+        h = np.zeros(2 * n, np.float32)
+        kp.foreach_get(name, h)
+        if (h[1::2] != y[0]).any():
+            return False
+    return True
+
+
 def curve_values(fc, default: float, frames) -> np.ndarray:
-    """``(F,)``: an F-curve's values at ``frames``: a key's own value where the curve has a key at the frame, and
-    before its first or after its last key the end key's value where the curve extrapolates constantly (what Blender
-    evaluates there), else the curve evaluated; ``default`` (the property's value) without a curve or with a muted
-    one."""
+    """``(F,)``: an F-curve's values at ``frames``: a key's own value where the curve has a key at the frame, before
+    its first or after its last key the end key's value where the curve extrapolates constantly, the value of a
+    constant curve (:func:`_flat`) anywhere (what Blender evaluates there), else the curve evaluated; ``default`` (the
+    property's value) without a curve or with a muted one."""
     frames = np.asarray(frames, dtype=np.float64)
     if fc is None or fc.mute:
         return np.full(len(frames), float(default))
@@ -84,6 +102,8 @@ def curve_values(fc, default: float, frames) -> np.ndarray:
         out[hit] = y[i[hit]]
         if fc.extrapolation == "CONSTANT":  # outside the keys (the frames before a clip's first key, read as context)
             out[frames < x[0]], out[frames > x[-1]] = y[0], y[-1]
+        if np.isnan(out).any() and _flat(fc.keyframe_points, y):  # a constant curve (a BVH's unused bone offsets)
+            out[:] = y[0]
     miss = np.flatnonzero(np.isnan(out))
     out[miss] = [fc.evaluate(float(frames[t])) for t in miss]
     return out
