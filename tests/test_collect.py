@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from inbetweening.evaluation.collect import collect, main, to_markdown
+from inbetweening.evaluation.collect import by_contents, collect, main, to_markdown
 
 
 def _run(root: Path, name: str, l2p: float, split: str | None = None) -> None:
@@ -111,3 +111,28 @@ def test_the_network_alone_is_a_column_beside_the_blended_fill(tmp_path):
     row = collect(tmp_path)[0]
     assert row["l2p_ratio@15"] == 0.5 and row["net_l2p@15"] == 3.0 and row["net_l2p_ratio@15"] == 0.75
     assert to_markdown([row]).splitlines()[0] == "| config | model | L2P@15 | L2P_RATIO@15 | NET_L2P@15 | NET_L2P_RATIO@15 |"
+
+
+def test_contents_split_a_pooled_result_by_the_clips_motion(tmp_path, capsys):
+    """Per content: the median of its clips' ratios and the share worse than interpolation by more than 5 %, read from
+    the clip names (a Bandai-Namco name's content, anything else under "(other)")."""
+    ratios = {"dataset-2_run_active_001": 0.7, "dataset-2_run_elderly_002": 0.9, "dataset-2_run_active_003": 1.2,
+              "dataset-2_wave-both-hands_normal_001": 1.1, "dataset-2_wave-both-hands_normal_002": 1.0,
+              "my_take": 0.5}
+    res = {"keyframes": {"15": {"ratio": 0.9, "clip_ratios": ratios},
+                         "30": {"ratio": 0.8, "clip_ratios": {k: v / 2 for k, v in ratios.items()}}}}
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "benchmark.json").write_text(json.dumps(res))
+    (tmp_path / "lafan.json").write_text(json.dumps({"metrics": {"l2p@15": 1.0}}))  # no clips: not a row
+    rows = {r["content"]: r for r in by_contents(tmp_path)}
+    assert set(rows) == {"run", "wave-both-hands", "(other)"}
+    assert rows["run"]["clips"] == 3 and rows["run"]["15"] == 0.9 and abs(rows["run"]["worse@15"] - 1 / 3) < 1e-12
+    assert rows["wave-both-hands"]["15"] == 1.05 and rows["wave-both-hands"]["worse@15"] == 0.5
+    assert rows["run"]["30"] == 0.45 and rows["run"]["worse@30"] == 0.0
+    assert rows["(other)"]["15"] == 0.5
+    assert main([str(tmp_path), "--contents"]) == 0
+    assert "| a | run | 3 | 0.900 (33.3 %) | 0.450 (0.0 %) |" in capsys.readouterr().out
+    assert main([str(tmp_path / "a" / "benchmark.json"), "--contents"]) == 0  # one file: the table beside it
+    assert "| a | run | 3 |" in (tmp_path / "a" / "contents.md").read_text() and (tmp_path / "a" / "contents.csv").exists()
+    assert main([str(tmp_path / "lafan.json"), "--contents"]) == 2
+    assert "no keys-only benchmark with per-clip ratios" in capsys.readouterr().err

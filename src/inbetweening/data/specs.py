@@ -41,8 +41,8 @@ Reader = Callable[["DatasetSpec", Path], Iterable[tuple[str, Clip, Skeleton, "fl
 DEFAULT_SPLIT = "standard"
 
 __all__ = [
-    "BN_CONTENTS", "BN_FOLDS", "BN_TEST_CONTENTS", "DATASETS", "DEFAULT_SPLIT", "DatasetSpec", "bandai_namco_content_split",
-    "bandai_namco_fold_splits", "bandai_namco_split", "get_spec", "lafan_split", "register",
+    "BN_CONTENTS", "BN_FOLDS", "BN_TEST_CONTENTS", "DATASETS", "DEFAULT_SPLIT", "DatasetSpec", "bandai_namco_content",
+    "bandai_namco_content_split", "bandai_namco_fold_splits", "bandai_namco_split", "get_spec", "lafan_split", "register",
 ]
 
 
@@ -131,7 +131,7 @@ class DatasetSpec:
 # Split rules
 # ------------------------------------------------------------------------------------------
 _LAFAN_RE = re.compile(r"^(?P<seq>.+)_(?P<subject>subject\d+)\.bvh$", re.IGNORECASE)
-_BN_RE = re.compile(r"^dataset-(?P<ds>[12])_(?P<content>.+?)_(?P<style>[^_]+)_(?P<take>\d{3})\.bvh$", re.IGNORECASE)
+_BN_RE = re.compile(r"^dataset-(?P<ds>[12])_(?P<content>.+?)_(?P<style>[^_]+)_(?P<take>\d+)\.bvh$", re.IGNORECASE)
 
 
 def lafan_split(fname: str, train_subjects=("subject1", "subject2", "subject3", "subject4"), test_subjects=("subject5",)):
@@ -157,13 +157,20 @@ BN_CONTENTS = ("raise-up-both-hands", "raise-up-left-hand", "raise-up-right-hand
                "walk-turn-right", "wave-both-hands", "wave-left-hand", "wave-right-hand")
 
 
+def bandai_namco_content(name: str) -> str | None:
+    """The content of a Bandai-Namco file or clip name ``dataset-N_<content>_<style>_<take>[.bvh]`` (lower case);
+    ``None`` for other names."""
+    m = _BN_RE.match(name if name.lower().endswith(".bvh") else f"{name}.bvh")
+    return m.group("content").lower() if m else None
+
+
 def bandai_namco_content_split(fname: str, test_contents=BN_TEST_CONTENTS):
     """``dataset-N_<content>_<style>_<take>.bvh``: test when the content is one of ``test_contents`` (every take
     and style of it), train otherwise: the test motions are never seen in training or validation."""
-    m = _BN_RE.match(fname)
-    if not m:
+    content = bandai_namco_content(fname) if fname.lower().endswith(".bvh") else None
+    if content is None:
         return None
-    return "test" if m.group("content").lower() in test_contents else "train"
+    return "test" if content in test_contents else "train"
 
 
 def bandai_namco_holdout_splits() -> dict[str, SplitRule]:

@@ -15,6 +15,10 @@ get a ``split`` column; older files without it leave that cell empty.  Runs of `
 fold and one pooled over the folds (errors summed over every clip's frames, clips worse than interpolation by more than
 5 % counted over every clip, foot skating over the ground truth's), keys-only figures; with several seeds, the pooled
 row per seed and their mean ± std.
+
+``--contents``: keys-only results per motion content (every ``*.json`` under the folder, or one file, that records its
+clips' ratios): the median clip ratio per schedule and the share of the content's clips worse than interpolation by
+more than 5 %, so a pooled figure that hides one content's loss behind another's gain shows it.
 """
 from __future__ import annotations
 
@@ -24,7 +28,11 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import yaml
+
+from inbetweening.data.specs import bandai_namco_content
+from inbetweening.evaluation.keyframes import WORSE
 
 METRIC_ORDER = ("l2q", "l2p", "l2p_ratio", "net_l2p", "net_l2p_ratio", "npss", "kf_model_cm", "kf_interp_cm", "kf_ratio",
                 "kf_skate_model", "kf_skate_interp", "kf_skate_gt")
@@ -169,6 +177,53 @@ def write_folds_csv(rows: list[dict], path: Path) -> None:
         w.writerows(rows)
 
 
+def by_contents(sweep_dir: str | Path) -> list[dict]:
+    """The per-content rows (``--contents``) of every keys-only ``benchmark.json`` under ``sweep_dir`` that records
+    its clips' ratios: ``{"run", "config", "content", "clips", "<K>", "worse@<K>"}``, ``<K>`` the median clip ratio at
+    that schedule and ``worse@<K>`` the share of the content's clips worse than interpolation by more than 5 %
+    (Bandai-Namco contents by clip name; other clips under ``"(other)"``)."""
+    root = Path(sweep_dir)
+    if not root.exists():
+        raise FileNotFoundError(f"{root} does not exist")
+    files = [root] if root.is_file() else sorted(root.rglob("*.json"))
+    rows = []
+    for f in files:
+        try:
+            res = json.loads(f.read_text())
+        except (OSError, ValueError):
+            continue
+        kf = res.get("keyframes") if isinstance(res, dict) else None
+        if not isinstance(kf, dict) or not any(isinstance(v, dict) and v.get("clip_ratios") for v in kf.values()):
+            continue
+        groups: dict[str, dict[str, list[float]]] = {}
+        for k, v in kf.items():
+            for clip, r in (v.get("clip_ratios") or {}).items():
+                groups.setdefault(bandai_namco_content(clip) or "(other)", {}).setdefault(k, []).append(r)
+        run = f.parent if f.name == "benchmark.json" else f.with_suffix("")
+        for content, per in sorted(groups.items()):
+            row = {"run": str(run.relative_to(root)) if root.is_dir() and run != root else run.name,
+                   "config": run_label(run) if run.is_dir() else run.name, "content": content,
+                   "clips": max(len(v) for v in per.values())}
+            for k, ratios in per.items():
+                row[k] = float(np.median(ratios))
+                row[f"worse@{k}"] = float(np.mean(np.asarray(ratios) > WORSE))
+            rows.append(row)
+    if not rows:
+        raise FileNotFoundError(f"no keys-only benchmark with per-clip ratios (clip_ratios) under {root}")
+    return rows
+
+
+def contents_markdown(rows: list[dict]) -> str:
+    """The per-content table: the median clip ratio per schedule (share of clips worse by > 5 %)."""
+    ks = [k for k in FOLD_SCHEDULES if any(k in r for r in rows)]
+    lines = ["| run | content | clips | " + " | ".join(f"keys {k}" for k in ks) + " |",
+             "|---|---|---:|" + "---:|" * len(ks)]
+    for r in rows:
+        cells = [f"{r[k]:.3f} ({100 * r[f'worse@{k}']:.1f} %)" if k in r else "–" for k in ks]
+        lines.append(f"| {r['run']} | {r['content']} | {r['clips']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def ratio_columns(res: dict) -> dict[str, float]:
     """``{"l2p_ratio@<n>": model / interpolation}`` where the file records the interpolation baseline; for a run
     whose figures are a blended fill's and that records the network alone too (``network``), ``net_l2p@<n>`` and
@@ -259,10 +314,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=None, help="output path without extension (default <sweep_dir>/results)")
     ap.add_argument("--seeds", action="store_true", help="one row per configuration: mean ± std over its seeds")
     ap.add_argument("--folds", action="store_true", help="the generalisation folds: per fold and pooled")
+    ap.add_argument("--contents", action="store_true",
+                    help="keys-only results per content: the median clip ratio and the share of clips worse")
     args = ap.parse_args(argv)
     try:
         if args.folds:
             rows, name, markdown, table = by_folds(args.sweep_dir), "folds", folds_markdown, write_folds_csv
+        elif args.contents:
+            rows, name, markdown, table = by_contents(args.sweep_dir), "contents", contents_markdown, write_folds_csv
         else:
             rows, name, markdown, table = collect(args.sweep_dir, args.sort), "results", to_markdown, write_csv
             if args.seeds:
@@ -271,7 +330,8 @@ def main(argv: list[str] | None = None) -> int:
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    out = Path(args.out) if args.out else Path(args.sweep_dir) / name
+    src = Path(args.sweep_dir)
+    out = Path(args.out) if args.out else (src.parent if src.is_file() else src) / name
     md = markdown(rows)
     out.with_suffix(".md").write_text(md + "\n")
     table(rows, out.with_suffix(".csv"))

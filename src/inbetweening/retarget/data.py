@@ -15,6 +15,7 @@ from torch.utils.data import DataLoader, TensorDataset
 
 from inbetweening.data.clips import Clip
 from inbetweening.data.errors import DatasetError
+from inbetweening.data.specs import bandai_namco_content
 
 from .rig import TargetRig
 
@@ -35,8 +36,7 @@ class Pair:
 
 def content_of(name: str) -> str:
     """The content of a Bandai-Namco clip name ``dataset-N_<content>_<style>_<take>`` (the whole name otherwise)."""
-    parts = name.split("_")
-    return parts[1] if len(parts) >= 4 else name
+    return bandai_namco_content(name) or name
 
 
 def select(clips: Sequence[Clip], contents: Sequence[str] | None) -> list[Clip]:
