@@ -291,19 +291,21 @@ def test_foot_locking_in_blender_gives_the_clis_poses(bpy_exe, built, tmp_path):
     assert any(c.isdigit() for line in feet for c in line.split("L ", 1)[1]), feet  # a walk: some foot is planted
 
 
-LOOP_SCRIPT = REPO / "tests" / "blender" / "bpy_loop_check.py"
+def run_check(bpy_exe, script: str, out: Path, result: str, **cfg) -> dict:
+    """One check script of ``tests/blender`` run in Blender with ``cfg`` (``out`` added): its result file's dict."""
+    out.mkdir(exist_ok=True)
+    (out / "cfg.json").write_text(json.dumps({"out": str(out), **cfg}))
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(out / "user"), "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run([str(bpy_exe), str(REPO / "tests" / "blender" / script), str(out / "cfg.json")],
+                          capture_output=True, text=True, env=env, timeout=900)
+    assert proc.returncode == 0, (proc.stdout[-3000:], proc.stderr[-3000:])
+    res = json.loads((out / result).read_text())
+    assert "crash" not in res, res["crash"]
+    return res
 
 
 def run_loop(bpy_exe, zip_path, bvh_path, out: Path, **cfg) -> dict:
-    out.mkdir(exist_ok=True)
-    (out / "cfg.json").write_text(json.dumps({"zip": str(zip_path), "bvh": str(bvh_path), "out": str(out), **cfg}))
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(out / "user"), "OMP_NUM_THREADS": "1"}
-    proc = subprocess.run([str(bpy_exe), str(LOOP_SCRIPT), str(out / "cfg.json")], capture_output=True, text=True,
-                          env=env, timeout=900)
-    assert proc.returncode == 0, (proc.stdout[-3000:], proc.stderr[-3000:])
-    res = json.loads((out / "loop.json").read_text())
-    assert "crash" not in res, res["crash"]
-    return res
+    return run_check(bpy_exe, "bpy_loop_check.py", out, "loop.json", zip=str(zip_path), bvh=str(bvh_path), **cfg)
 
 
 def test_animator_loop_in_blender(bpy_exe, built, tmp_path):
@@ -623,16 +625,8 @@ def test_partial_keys_in_blender(bpy_exe, built, tmp_path):
     exactly, the frame's other bones get generated keys (not keys frozen at their curves); a second fill writes
     nothing; the arm key changed re-fills its own gap only (the gaps before it bit for bit); undo restores."""
     model_skeleton_bvh(tmp_path / "clip.bvh", frames=91)
-    out = tmp_path / "partial"
-    out.mkdir()
-    (out / "cfg.json").write_text(json.dumps({"zip": str(next(built.glob("*-linux-x64.zip"))),
-                                              "bvh": str(tmp_path / "clip.bvh"), "out": str(out)}))
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(out / "user"), "OMP_NUM_THREADS": "1"}
-    proc = subprocess.run([str(bpy_exe), str(REPO / "tests" / "blender" / "bpy_partial_check.py"),
-                           str(out / "cfg.json")], capture_output=True, text=True, env=env, timeout=900)
-    assert proc.returncode == 0, (proc.stdout[-3000:], proc.stderr[-3000:])
-    r = json.loads((out / "partial.json").read_text())
-    assert "crash" not in r, r["crash"]
+    r = run_check(bpy_exe, "bpy_partial_check.py", tmp_path / "partial", "partial.json",
+                  zip=str(next(built.glob("*-linux-x64.zip"))), bvh=str(tmp_path / "clip.bvh"))
     assert r["whole"]["result"] == ["FINISHED"] and r["whole"]["gaps"] == 3 and r["whole_undone"]
     assert r["fill"]["result"] == ["FINISHED"] and r["fill"]["gaps"] == 3 and r["partial_keys"] == 1
     assert r["arm_keys_kept"] and r["arm_types"] == [r["key_type"]]
@@ -649,15 +643,8 @@ def test_curve_values_are_what_blender_evaluates(bpy_exe, built, tmp_path):
     Blender's evaluation elsewhere) gives exactly ``FCurve.evaluate`` at every frame: before, between and after the
     keys, with linear extrapolation, a Cycles modifier, one key, a muted curve and keys of one value (a constant curve,
     and two that are not: a tilted handle, an elastic key)."""
-    out = tmp_path / "curves"
-    out.mkdir()
-    (out / "cfg.json").write_text(json.dumps({"zip": str(next(built.glob("*-linux-x64.zip"))), "out": str(out)}))
-    env = {**os.environ, "BLENDER_USER_RESOURCES": str(out / "user"), "OMP_NUM_THREADS": "1"}
-    proc = subprocess.run([str(bpy_exe), str(REPO / "tests" / "blender" / "bpy_curves_check.py"),
-                           str(out / "cfg.json")], capture_output=True, text=True, env=env, timeout=900)
-    assert proc.returncode == 0, (proc.stdout[-3000:], proc.stderr[-3000:])
-    r = json.loads((out / "curves.json").read_text())
-    assert "crash" not in r, r["crash"]
+    r = run_check(bpy_exe, "bpy_curves_check.py", tmp_path / "curves", "curves.json",
+                  zip=str(next(built.glob("*-linux-x64.zip"))))
     assert len(r) == 12 and {c["extrapolation"] for c in r.values()} == {"CONSTANT", "LINEAR"}
     assert r["location[1]"]["varies_outside"]  # the linear one really differs from its end keys outside them
     assert not r["scale[0]"]["varies"] and r["scale[1]"]["varies"] and r["scale[2]"]["varies"]  # one value, not flat
