@@ -116,6 +116,9 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("folds", "folds.sh", "a lever's overrides on the five held-out-content folds (the protocol)",
               "about 45 min per configuration", "<out>/<name>/ and the table", "RESULTS.md 3, motions it never saw",
               "<out dir> <name> [override ...]", BN2),
+    Benchmark("content_speeds", "content_speeds.py", "the hip's speed per content: which held-out motions leave the "
+              "training contents' range", "about 10 s", "prints", "RESULTS.md 3.3, the folds protocol", "[zip or folder]",
+              BN2),
     Benchmark("finetune_unseen", "finetune_unseen.sh", "10 minutes of fine-tuning on motions never seen",
               "about 1 h", "<out>/", "RESULTS.md 4, fine-tuning on your motions", "<out dir> [<folder of takes>]", BN2),
     Benchmark("finetune_levers", "finetune_levers.sh", "levers of the 10-minute fine-tune, the winner picked on "
