@@ -178,10 +178,10 @@ def write_folds_csv(rows: list[dict], path: Path) -> None:
 
 
 def by_contents(sweep_dir: str | Path) -> list[dict]:
-    """The per-content rows (``--contents``) of every keys-only ``benchmark.json`` under ``sweep_dir`` that records
-    its clips' ratios: ``{"run", "config", "content", "clips", "<K>", "worse@<K>"}``, ``<K>`` the median clip ratio at
-    that schedule and ``worse@<K>`` the share of the content's clips worse than interpolation by more than 5 %
-    (Bandai-Namco contents by clip name; other clips under ``"(other)"``)."""
+    """The per-content rows (``--contents``) of every keys-only result (``*.json``) under ``sweep_dir``, or of that
+    one file, that records its clips' ratios: ``{"run", "config", "content", "clips", "<K>", "worse@<K>"}``, ``<K>``
+    the median clip ratio at that schedule and ``worse@<K>`` the share of the content's clips worse than interpolation
+    by more than 5 % (Bandai-Namco contents by clip name; other clips under ``"(other)"``)."""
     root = Path(sweep_dir)
     if not root.exists():
         raise FileNotFoundError(f"{root} does not exist")
