@@ -168,8 +168,8 @@ def folds_markdown(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def write_folds_csv(rows: list[dict], path: Path) -> None:
-    """The folds table's rows (:func:`by_folds`) as CSV, every figure a column."""
+def write_rows_csv(rows: list[dict], path: Path) -> None:
+    """A table's rows (:func:`by_folds`, :func:`by_contents`) as CSV, every figure a column."""
     cols = sorted({c for r in rows for c in r}, key=lambda c: (c not in ("config", "fold", "seeds", "folds"), c))
     with open(path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=cols)
@@ -319,9 +319,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     try:
         if args.folds:
-            rows, name, markdown, table = by_folds(args.sweep_dir), "folds", folds_markdown, write_folds_csv
+            rows, name, markdown, table = by_folds(args.sweep_dir), "folds", folds_markdown, write_rows_csv
         elif args.contents:
-            rows, name, markdown, table = by_contents(args.sweep_dir), "contents", contents_markdown, write_folds_csv
+            rows, name, markdown, table = by_contents(args.sweep_dir), "contents", contents_markdown, write_rows_csv
         else:
             rows, name, markdown, table = collect(args.sweep_dir, args.sort), "results", to_markdown, write_csv
             if args.seeds:
