@@ -17,6 +17,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from inbetweening.data.specs import bandai_namco_content  # noqa: E402
 from inbetweening.datasets import load_dataset  # noqa: E402
+from inbetweening.evaluation.keyframes import horizontal_speed  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -27,9 +28,8 @@ def main(argv: list[str] | None = None) -> int:
     fps = data.fps
     speeds: dict[str, list[np.ndarray]] = {}
     for clip in list(data.train) + list(data.test):
-        root = np.asarray(clip.root_pos)  # (T, 3), Y up
         speeds.setdefault(bandai_namco_content(clip.name) or "(other)", []).append(
-            np.linalg.norm(np.diff(root[:, [0, 2]], axis=0), axis=-1) * fps)
+            horizontal_speed(np.asarray(clip.root_pos)[:, None], fps)[:, 0])
     print(f"hip speed over the floor, cm/s, every frame of every take ({fps:.0f} fps)\n")
     print("| content | takes | median | 90th | 99th | max |\n|---|---:|---:|---:|---:|---:|")
     for content, parts in sorted(speeds.items()):
