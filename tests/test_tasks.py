@@ -96,18 +96,44 @@ def test_partial_keys_know_one_body_part_or_the_rest_and_only_on_keyframes():
 
 
 def test_body_part_mixing_takes_another_windows_upper_body_and_keeps_the_legs():
-    from inbetweening.training.tasks import mix_upper_body, upper_body
+    from inbetweening.training.tasks import mix_body_parts, upper_body
 
     # hips 0; legs 1-2 (foot 2) and 3-4 (foot 4); spine 5 with head 6 and arm 7-8
     parents = [-1, 0, 1, 0, 3, 0, 5, 5, 7]
     upper = upper_body(parents, [2, 4])
     assert upper.tolist() == [False, False, False, False, False, True, True, True, True]
     q = torch.randn(6, 4, 9, 4, generator=torch.Generator().manual_seed(1))
-    out = mix_upper_body(torch.Generator().manual_seed(0), q, upper, prob=1.0)
+    out = mix_body_parts(torch.Generator().manual_seed(0), q, [upper], prob=1.0)
     assert torch.equal(out[:, :, ~upper], q[:, :, ~upper])  # root and legs: each window its own
     for b in range(6):  # the upper body: another window's, whole
         donors = [d for d in range(6) if d != b and torch.equal(out[b][:, upper], q[d][:, upper])]
         assert len(donors) == 1
-    assert torch.equal(mix_upper_body(None, q, upper, prob=0.0), q)
+    assert torch.equal(mix_body_parts(None, q, [upper], prob=0.0), q)
     with pytest.raises(ValueError, match="data.mix_parts: no joint under the root without a foot"):
         upper_body([-1, 0, 1], [2])
+
+
+def test_limb_mixing_takes_each_arm_and_the_head_from_its_own_donor():
+    from inbetweening.training.tasks import mix_body_parts, upper_body, upper_limbs
+
+    # hips 0; legs 1-2 (foot 2), 3-4 (foot 4); spine 5, chest 6 with neck 7 -> head 8, arm 9-10, arm 11-12
+    parents = [-1, 0, 1, 0, 3, 0, 5, 6, 7, 6, 9, 6, 11]
+    limbs = upper_limbs(parents, upper_body(parents, [2, 4]))
+    want = [[7, 8], [9, 10], [11, 12]]  # written out by hand, not derived
+    assert [torch.nonzero(m).flatten().tolist() for m in limbs] == want
+    assert len(upper_limbs([-1, 0, 1, 0, 3], upper_body([-1, 0, 1, 0, 3], [2]))) == 1  # no branch: one part, whole
+    b = 64
+    q = torch.randn(b, 3, 13, 4, generator=torch.Generator().manual_seed(2))
+    out = mix_body_parts(torch.Generator().manual_seed(5), q, limbs)
+    assert torch.equal(out[:, :, :7], q[:, :, :7])  # root, legs, spine, chest: the window's own
+    sources = []
+    for w in range(b):
+        src = []
+        for joints in want:  # each limb whole from one window of the batch
+            hits = [d for d in range(b) if torch.equal(out[w][:, joints], q[d][:, joints])]
+            assert len(hits) == 1
+            src.append(hits[0])
+        sources.append(src)
+    left_right = [(s[1] != w, s[2] != w) for w, s in enumerate(sources)]
+    assert (True, False) in left_right and (False, True) in left_right  # the arms are drawn apart
+    assert any(s[1] != w and s[2] != w and s[1] != s[2] for w, s in enumerate(sources))  # two donors, one window

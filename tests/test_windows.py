@@ -180,7 +180,8 @@ def test_config_rejects_bad_task_options(tmp_path, cache_dir):
                          (["data.keyframe_prob=1.5"], "data.keyframe_prob"),
                          (["data.speed=[0.1,1.0]"], r"data.speed: need 0.25 <= lo"),
                          (["data.speed_vary=yes"], "data.speed_vary: must be true or false"),
-                         (["data.mix_parts=1"], "data.mix_parts: must be true or false"),
+                         (["data.mix_parts=1"], "data.mix_parts: must be false, true"),
+                         (["data.mix_parts=legs"], "data.mix_parts: must be false, true"),
                          (["data.extra_repeat=0"], "data.extra_repeat: must be an integer >= 1"),
                          (["data.speed=fast"], "data.speed: must be null or"),
                          (["centre=middle"], "centre")]:
@@ -196,3 +197,13 @@ def test_data_module_varying_warp_and_part_mixing_are_seeded(tmp_path, cache_dir
     assert all(torch.equal(batch[k], again[k]) for k in batch)  # a pure function of seed, epoch, batch
     other = next(iter(plain.train_dataloader()))
     assert torch.isfinite(batch["q"]).all() and not torch.equal(batch["q"], other["q"])
+
+
+def test_data_module_limb_mixing_is_seeded_and_differs_from_upper_body_mixing(tmp_path, cache_dir):
+    limbs, upper, plain = (_dm(tmp_path, cache_dir, *extra) for extra in
+                           (["data.mix_parts=limbs"], ["data.mix_parts=upper"], []))
+    assert len(limbs.parts) > 1 and len(upper.parts) == 1
+    assert torch.equal(sum(p.int() for p in limbs.parts) <= upper.parts[0].int(), torch.ones_like(upper.parts[0]))
+    a, b, c = (next(iter(m.train_dataloader())) for m in (limbs, upper, plain))
+    assert torch.equal(a["q"], next(iter(limbs.train_dataloader()))["q"])  # seeded
+    assert not torch.equal(a["q"], c["q"]) and not torch.equal(a["q"], b["q"])

@@ -388,9 +388,11 @@ def _check_task(cfg: DictConfig) -> None:
     repeat = _get(cfg, "data.extra_repeat", 1)
     if not (isinstance(repeat, int) and not isinstance(repeat, bool) and repeat >= 1):
         raise ConfigError(f"data.extra_repeat: must be an integer >= 1, got {repeat!r}")
-    for key in ("speed_vary", "mix_parts"):
-        if not isinstance(_get(cfg, f"data.{key}", False), bool):
-            raise ConfigError(f"data.{key}: must be true or false, got {_get(cfg, f'data.{key}')!r}")
+    if not isinstance(_get(cfg, "data.speed_vary", False), bool):
+        raise ConfigError(f"data.speed_vary: must be true or false, got {_get(cfg, 'data.speed_vary')!r}")
+    mix = _get(cfg, "data.mix_parts", False)
+    if not (isinstance(mix, bool) or mix in ("upper", "limbs")):
+        raise ConfigError(f"data.mix_parts: must be false, true (the upper body), upper or limbs, got {mix!r}")
     speed = _get(cfg, "data.speed", None)
     if speed is not None:
         try:

@@ -30,7 +30,7 @@ from inbetweening.training.sampling import (
     mix_seed,
     rank_world,
 )
-from inbetweening.training.tasks import draw_task, mix_upper_body, partial_keys, task_window, upper_body
+from inbetweening.training.tasks import draw_task, mix_body_parts, partial_keys, task_window, upper_body, upper_limbs
 
 
 def _plain(v):
@@ -93,8 +93,10 @@ class InbetweenDataModule(L.LightningDataModule):
             and slower versions of the training motions; slowed where the clip ends); ``None``: off.
         speed_vary: with ``speed``, draw two speeds per window, the play-back speed changing linearly from one to
             the other across it (a time warp that varies within the motion).
-        mix_parts: body-part mixing: half the training windows take the upper body of another window of the batch
-            (:func:`~inbetweening.training.tasks.mix_upper_body`; the legs and root, the feet on the ground, stay).
+        mix_parts: body-part mixing (:func:`~inbetweening.training.tasks.mix_body_parts`; the legs and root, the feet
+            on the ground, stay): ``true`` or ``"upper"``, half the training windows take the upper body of another
+            window of the batch; ``"limbs"``, each limb of the upper body (head, each arm) is taken from its own
+            donor in half the windows, so one-handed motions compose two-handed ones; ``false``: off.
         val_lengths, test_lengths: transition lengths the validation and test benchmarks score (passed on to
             the LightningModule by :meth:`model_kwargs`).
         max_train_windows, max_eval_windows, max_val_windows: caps for quick runs (``None``: all windows;
@@ -142,7 +144,7 @@ class InbetweenDataModule(L.LightningDataModule):
         mirror: bool,
         speed: list[float] | None,
         speed_vary: bool,
-        mix_parts: bool,
+        mix_parts: bool | str,
         val_lengths: list[int],
         test_lengths: list[int],
         max_train_windows: int | None,
@@ -157,7 +159,7 @@ class InbetweenDataModule(L.LightningDataModule):
         self.joint_gaps = JointGaps.from_config(mask)
         self.data: MotionData | None = None
         self.clip_windows: W.ClipWindows | None = None
-        self.upper = None
+        self.parts = None
 
     # ------------------------------------------------------------------ setup
     def load_data(self) -> MotionData:
@@ -202,10 +204,11 @@ class InbetweenDataModule(L.LightningDataModule):
         if len(cw) == 0:
             raise ValueError(f"data: no training window of {h.train_window} frames in dataset {h.name!r}")
         self.clip_windows = cw
-        self.upper = None  # data.mix_parts: the upper body's joints, found once
+        self.parts = None  # data.mix_parts: the joints mixed together, found once
         if h.mix_parts:
             feet = list(data.contact.indices(sk.names)) or self._feet_guess()
-            self.upper = upper_body(sk.parents, feet)
+            upper = upper_body(sk.parents, feet)
+            self.parts = upper_limbs(sk.parents, upper) if h.mix_parts == "limbs" else [upper]
         vX, vQ = W.prepare_windows(val_clips or train_clips[:1], sk, W.TEST_WINDOW, W.TEST_OFFSET, axis)
         vlim = h.max_val_windows or h.max_eval_windows
         self.val_set = _Windows(vX[:vlim], vQ[:vlim])
@@ -249,8 +252,8 @@ class InbetweenDataModule(L.LightningDataModule):
         else:
             gen, idx = None, list(items)
         root, q = self._train_windows(idx, gen)
-        if self.upper is not None:
-            q = mix_upper_body(gen, q, self.upper)
+        if self.parts is not None:
+            q = mix_body_parts(gen, q, self.parts)
         b, w, j, _ = q.shape
         if self.mask_name == "joints":
             known = self.joint_gaps.known(b, w, j, generator=gen)

@@ -13,7 +13,7 @@ import torch
 from inbetweening.data.windows import N_PAST
 from inbetweening.predictor.masks import transition_known
 
-__all__ = ["draw_task", "mix_upper_body", "partial_keys", "subtrees", "task_window", "upper_body"]
+__all__ = ["draw_task", "mix_body_parts", "partial_keys", "subtrees", "task_window", "upper_body", "upper_limbs"]
 
 
 def draw_task(gen: torch.Generator | None, batch: int, transition: tuple[int, int], per_sample: bool,
@@ -69,16 +69,32 @@ def upper_body(parents, feet: list[int]) -> torch.Tensor:
     return below[max(tops, key=lambda c: int(below[c].sum()))]
 
 
-def mix_upper_body(gen: torch.Generator | None, q: torch.Tensor, upper: torch.Tensor, prob: float = 0.5) -> torch.Tensor:
-    """Body-part mixing: each window of ``q (B, W, J, 4)`` (local rotations), with probability ``prob``, takes the
-    upper body's local rotations (``upper (J,)``) of another window of the batch; its root, hips and legs -- its
-    feet on the ground -- stay its own."""
+def upper_limbs(parents, upper: torch.Tensor) -> list[torch.Tensor]:
+    """The upper body's limbs, ``(J,)`` bool each: the subtrees under its first joint with more than one child (the
+    chest's neck and head, each arm).  An upper body that never branches is one limb, itself."""
+    below = subtrees(parents)
+    j = len(parents)
+    for top in (int(i) for i in torch.nonzero(upper).flatten()):  # parents before children: the first branch
+        children = [c for c in range(j) if int(parents[c]) == top]
+        if len(children) > 1:
+            return [below[c] for c in children]
+    return [upper]
+
+
+def mix_body_parts(gen: torch.Generator | None, q: torch.Tensor, parts: list[torch.Tensor],
+                   prob: float = 0.5) -> torch.Tensor:
+    """Body-part mixing: for each part (``(J,)`` bool) in turn, each window of ``q (B, W, J, 4)`` (local rotations),
+    with probability ``prob``, takes that part's local rotations of another window of the batch, a donor drawn per
+    part; the joints of no part -- root, hips, legs, the feet on the ground -- stay its own.  One part (the upper
+    body) mixes whole; several (:func:`upper_limbs`) compose new motions, a left arm's wave with a right arm's."""
     b = q.shape[0]
     if b < 2:
         return q
-    donor = (torch.arange(b) + torch.randint(1, b, (b,), generator=gen)) % b  # never the window itself
-    take = torch.rand(b, generator=gen) < prob
-    return torch.where(take[:, None, None, None] & upper[None, None, :, None], q[donor], q)
+    for part in parts:
+        donor = (torch.arange(b) + torch.randint(1, b, (b,), generator=gen)) % b  # never the window itself
+        take = torch.rand(b, generator=gen) < prob
+        q = torch.where(take[:, None, None, None] & part[None, None, :, None], q[donor], q)
+    return q
 
 
 def partial_keys(gen: torch.Generator | None, keyframes: torch.Tensor, parents, prob: float) -> torch.Tensor:
