@@ -142,3 +142,19 @@ def test_gpu_pieces_round_trip(tmp_path):
                          env={**env, "PIECES": str(tmp_path / "kept2"), "BN": str(tmp_path / "bn2")},
                          capture_output=True, text=True, timeout=300)
     assert res.returncode != 0 and "its sha1 is not the packed one" in res.stdout + res.stderr
+
+
+def test_body_parts_split_a_humanoid_into_legs_arms_and_trunk():
+    """``body_parts``' grouping on Bandai-Namco-2's joints, the expected groups written out by name."""
+    from types import SimpleNamespace
+
+    from benchmarks.body_parts import body_parts
+
+    names = ("Hips Spine Chest Neck Head Shoulder_L UpperArm_L LowerArm_L Hand_L Shoulder_R UpperArm_R LowerArm_R Hand_R "
+             "UpperLeg_L LowerLeg_L Foot_L Toes_L UpperLeg_R LowerLeg_R Foot_R Toes_R").split()
+    parents = [-1, 0, 1, 2, 3, 2, 5, 6, 7, 2, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19]
+    parts = body_parts(SimpleNamespace(names=names, parents=parents), [15, 16, 19, 20])
+    got = {k: {names[i] for i in v} for k, v in parts.items()}
+    assert got["legs"] == {n for n in names if "Leg" in n or "Foot" in n or "Toes" in n}
+    assert got["arms"] == {n for n in names if "Arm" in n or "Hand" in n or "Shoulder" in n}
+    assert got["trunk and head"] == {"Hips", "Spine", "Chest", "Neck", "Head"}

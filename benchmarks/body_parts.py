@@ -1,0 +1,95 @@
+"""Where a fill's error goes, per content and body part: the mean joint-position error (cm) of the fill and of
+interpolation on the generated frames of Bandai-Namco-2 test clips filled from keys alone, split into the legs (the
+root's subtrees that hold a foot), the arms (the upper body's limbs with a side), and the trunk and head (the rest).
+It tells a network that cannot fill a motion from one that spoils what interpolation already gets right (a still
+body's legs).
+
+    python -m benchmarks run body_parts <checkpoint> [--split standard] [--keys 15] [--clips N] [--defaults]
+
+Without ``--defaults`` the checkpoint fills as it is (its blend if calibrated; no self-check, no foot locking): give an
+uncalibrated checkpoint for the network alone.  ``--defaults``: the fill a user gets (self-check, feet locked).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "src"))
+
+from inbetweening.data.mirror import side_of  # noqa: E402
+from inbetweening.data.specs import bandai_namco_content  # noqa: E402
+from inbetweening.datasets import load_dataset  # noqa: E402
+from inbetweening.evaluation.keyframes import generated_frames  # noqa: E402
+from inbetweening.evaluation.schedules import schedule_keyframes  # noqa: E402
+from inbetweening.geometry.interp import interpolate_keyframes  # noqa: E402
+from inbetweening.training.evaluate import animator_fill  # noqa: E402
+from inbetweening.training.tasks import upper_body, upper_limbs  # noqa: E402
+
+
+def body_parts(skeleton, feet: list[int]) -> dict[str, np.ndarray]:
+    """``{"legs", "arms", "trunk and head"}`` -> joint indices of ``skeleton``."""
+    upper = upper_body(skeleton.parents, feet)
+    arms = np.zeros(len(upper), bool)
+    for limb in upper_limbs(skeleton.parents, upper):
+        top = int(limb.nonzero()[0][0])
+        if side_of(skeleton.names[top]):
+            arms |= limb.numpy()
+    legs = ~upper.numpy()
+    legs[0] = False  # the root (hips) goes with the trunk
+    return {"legs": np.flatnonzero(legs), "arms": np.flatnonzero(arms), "trunk and head": np.flatnonzero(~legs & ~arms)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("ckpt")
+    ap.add_argument("--split", default="standard")
+    ap.add_argument("--keys", type=int, default=15, help="a key every this many frames")
+    ap.add_argument("--clips", type=int, default=None, help="score this many test clips, evenly spaced (default: all)")
+    ap.add_argument("--defaults", action="store_true", help="the fill's defaults: self-check and feet locked")
+    ap.add_argument("--data", default=str(ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip"))
+    args = ap.parse_args(argv)
+    data = load_dataset("bandai_namco", path=args.data, split=args.split)
+    sk = data.skeleton
+    parts = body_parts(sk, list(data.contact.indices(sk.names)))
+    fill, _ = animator_fill(args.ckpt, foot_lock=args.defaults, self_check=args.defaults)
+    clips = list(data.test)
+    if args.clips and args.clips < len(clips):
+        clips = [clips[i] for i in np.linspace(0, len(clips) - 1, args.clips).round().astype(int)]
+    sums: dict[tuple[str, str, str], float] = {}
+    counts: dict[str, int] = {}
+    for clip in clips:
+        content = bandai_namco_content(clip.name) or "(other)"
+        keys = schedule_keyframes(args.keys, len(clip.root_pos), np.random.default_rng(0), None)
+        if not keys:
+            continue
+        n = keys[-1] + 1
+        root, q = np.asarray(clip.root_pos[:n], np.float64), np.asarray(clip.local_q[:n], np.float64)
+        gen = generated_frames(n, keys)
+        root_in, q_in = root.copy(), q.copy()
+        root_in[gen], q_in[gen] = np.nan, np.nan
+        truth = sk.pose(root, q)[1][gen]
+        for who, (r, lq) in (("fill", fill(root_in, q_in, keys)), ("interpolation", interpolate_keyframes(root_in, q_in, keys))):
+            err = np.linalg.norm(sk.pose(np.asarray(r, np.float64), np.asarray(lq, np.float64))[1][gen] - truth, axis=-1)
+            for part, joints in parts.items():
+                sums[content, part, who] = sums.get((content, part, who), 0.0) + float(err[:, joints].mean() * len(err))
+        counts[content] = counts.get(content, 0) + int(gen.sum())
+    mode = "the fill's defaults" if args.defaults else "as the checkpoint fills, no self-check, feet free"
+    print(f"keys every {args.keys}, {len(clips)} test clips of split {args.split}, {mode}: {args.ckpt}\n"
+          f"per body part, fill / interpolation cm (ratio), mean over generated frames and the part's joints\n")
+    names = list(parts)
+    print("| content | frames | " + " | ".join(names) + " |\n|---|---:|" + "---|" * len(names))
+    for content in sorted(counts):
+        cells = []
+        for part in names:
+            f, i = (sums[content, part, w] / counts[content] for w in ("fill", "interpolation"))
+            cells.append(f"{f:.2f} / {i:.2f} ({f / i:.2f})")
+        print(f"| {content} | {counts[content]} | " + " | ".join(cells) + " |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
