@@ -4,15 +4,17 @@ root's subtrees that hold a foot), the arms (the upper body's limbs with a side)
 It tells a network that cannot fill a motion from one that spoils what interpolation already gets right (a still
 body's legs).
 
-    python -m benchmarks run body_parts <checkpoint> [--split standard] [--keys 15] [--clips N] [--defaults]
+    python -m benchmarks run body_parts <checkpoint> [--split standard] [--keys 15] [--clips N] [--defaults | --network-alone]
 
-Without ``--defaults`` the checkpoint fills as it is (its blend if calibrated; no self-check, no foot locking): give an
-uncalibrated checkpoint for the network alone.  ``--defaults``: the fill a user gets (self-check, feet locked).
+By default the checkpoint fills as it is (its blend if calibrated; no self-check, no foot locking).  ``--network-alone``:
+the same without its blend (a copy of the checkpoint whose blend is removed, in a temporary folder).  ``--defaults``: the
+fill a user gets (self-check, feet locked).
 """
 from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +28,7 @@ from inbetweening.datasets import load_dataset  # noqa: E402
 from inbetweening.evaluation.keyframes import generated_frames  # noqa: E402
 from inbetweening.evaluation.schedules import schedule_keyframes  # noqa: E402
 from inbetweening.geometry.interp import interpolate_keyframes  # noqa: E402
+from inbetweening.predictor.checkpoint import read_checkpoint  # noqa: E402
 from inbetweening.training.evaluate import animator_fill  # noqa: E402
 from inbetweening.training.tasks import upper_body, upper_limbs  # noqa: E402
 
@@ -49,13 +52,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--split", default="standard")
     ap.add_argument("--keys", type=int, default=15, help="a key every this many frames")
     ap.add_argument("--clips", type=int, default=None, help="score this many test clips, evenly spaced (default: all)")
-    ap.add_argument("--defaults", action="store_true", help="the fill's defaults: self-check and feet locked")
+    how = ap.add_mutually_exclusive_group()
+    how.add_argument("--defaults", action="store_true", help="the fill's defaults: self-check and feet locked")
+    how.add_argument("--network-alone", action="store_true", help="the checkpoint without its do-no-harm blend")
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "datasets" / "bandai-namco-2.zip"))
     args = ap.parse_args(argv)
     data = load_dataset("bandai_namco", path=args.data, split=args.split)
     sk = data.skeleton
     parts = body_parts(sk, list(data.contact.indices(sk.names)))
-    fill, _ = animator_fill(args.ckpt, foot_lock=args.defaults, self_check=args.defaults)
+    ckpt = args.ckpt
+    if args.network_alone:
+        import torch
+
+        raw = read_checkpoint(ckpt)
+        raw["hyper_parameters"] = {**raw["hyper_parameters"], "blend": None}
+        ckpt = str(Path(tempfile.mkdtemp()) / "network_alone.ckpt")
+        torch.save(raw, ckpt)
+    fill, _ = animator_fill(ckpt, foot_lock=args.defaults, self_check=args.defaults)
     clips = list(data.test)
     if args.clips and args.clips < len(clips):
         clips = [clips[i] for i in np.linspace(0, len(clips) - 1, args.clips).round().astype(int)]
@@ -77,7 +90,8 @@ def main(argv: list[str] | None = None) -> int:
             for part, joints in parts.items():
                 sums[content, part, who] = sums.get((content, part, who), 0.0) + float(err[:, joints].mean() * len(err))
         counts[content] = counts.get(content, 0) + int(gen.sum())
-    mode = "the fill's defaults" if args.defaults else "as the checkpoint fills, no self-check, feet free"
+    mode = ("the fill's defaults" if args.defaults else "the network alone, no blend" if args.network_alone
+            else "as the checkpoint fills") + ("" if args.defaults else ", no self-check, feet free")
     print(f"keys every {args.keys}, {len(clips)} test clips of split {args.split}, {mode}: {args.ckpt}\n"
           f"per body part, fill / interpolation cm (ratio), mean over generated frames and the part's joints\n")
     names = list(parts)
