@@ -91,6 +91,14 @@ def run_blender(bpy_exe, zip_path, bvh_path, scenarios, out: Path) -> dict:
     return results
 
 
+# Blender's fill against the API's on the same keys: the extension runs the exported graphs on its bundled ONNX Runtime,
+# the API the checkpoints on PyTorch, and their float32 arithmetic differs with the CPU (on 2026-12-07's machine the
+# export's sinusoidal time table differed from the committed graph's by 3.8e-6 and the two fills of a BN-2 clip by
+# 1.015e-3 cm at most).  "The same fill" is within 0.005 cm (0.05 mm); a real difference (a gap filled otherwise, a
+# bone read or written wrong) moves joints by millimetres to centimetres.
+SAME_FILL_CM = 5e-3
+
+
 def fitted_error(ours: np.ndarray, theirs: np.ndarray, key_idx) -> float:
     """Largest joint distance (model units: cm) after mapping Blender's heads to the model's world with the
     similarity fitted on the key frames (identical poses by construction)."""
@@ -180,7 +188,7 @@ def test_fill_in_blender(bpy_exe, built, tmp_path):
         assert heads.shape == ref.shape
         key_idx = [k - r["in_range_keys"][0] for k in r["in_range_keys"]]
         err = fitted_error(ref, heads, key_idx)
-        assert err <= 1e-3, (name, err)
+        assert err <= SAME_FILL_CM, (name, err)
     assert res["quaternion"]["rotation_mode"] == "QUATERNION" and res["xyz"]["rotation_mode"] == "XYZ"
 
     s = res["selected"]
@@ -221,7 +229,7 @@ def test_fill_real_bandai_namco_clip(bpy_exe, built, tmp_path):
     heads = np.load(tmp_path / "bn2_heads.npy")
     ref = inbetweener_positions(tmp_path / "clip.bvh", r["in_range_keys"])
     err = fitted_error(ref, heads, [k - r["in_range_keys"][0] for k in r["in_range_keys"]])
-    assert err <= 1e-3, err
+    assert err <= SAME_FILL_CM, err
 
 
 @pytest.mark.skipif(not BN2.is_file(), reason="Bandai-Namco-2 zip not available")
@@ -279,7 +287,7 @@ def test_foot_locking_in_blender_gives_the_clis_poses(bpy_exe, built, tmp_path):
         ref = inbetweener_positions(tmp_path / "clip.bvh", r["in_range_keys"], v2, foot_lock=lock)
         key_idx = [k - r["in_range_keys"][0] for k in r["in_range_keys"]]
         err = fitted_error(ref, heads[name], key_idx)
-        assert err <= 1e-3, (name, err)
+        assert err <= SAME_FILL_CM, (name, err)
     assert np.abs(heads["locked"] - heads["unlocked"]).max() > 0.5  # the lock moved the legs
     # the Last Fill panel: per gap the network's share and the frames each foot is planted
     panel = run_loop(bpy_exe, zip_path, tmp_path / "clip.bvh", tmp_path / "loop", model_path=model, every=30,
