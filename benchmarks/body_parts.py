@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT / "src"))
 from inbetweening.data.mirror import side_of  # noqa: E402
 from inbetweening.data.specs import bandai_namco_content  # noqa: E402
 from inbetweening.datasets import load_dataset  # noqa: E402
-from inbetweening.evaluation.keyframes import generated_frames  # noqa: E402
+from inbetweening.evaluation.keyframes import generated_frames, position_error  # noqa: E402
 from inbetweening.evaluation.schedules import schedule_keyframes  # noqa: E402
 from inbetweening.geometry.interp import interpolate_keyframes  # noqa: E402
 from inbetweening.predictor.checkpoint import read_checkpoint  # noqa: E402
@@ -60,19 +60,19 @@ def main(argv: list[str] | None = None) -> int:
     data = load_dataset("bandai_namco", path=args.data, split=args.split)
     sk = data.skeleton
     parts = body_parts(sk, list(data.contact.indices(sk.names)))
-    ckpt = args.ckpt
+    ckpt, tmp = args.ckpt, tempfile.TemporaryDirectory()
     if args.network_alone:
         import torch
 
         raw = read_checkpoint(ckpt)
         raw["hyper_parameters"] = {**raw["hyper_parameters"], "blend": None}
-        ckpt = str(Path(tempfile.mkdtemp()) / "network_alone.ckpt")
+        ckpt = str(Path(tmp.name) / "network_alone.ckpt")
         torch.save(raw, ckpt)
     fill, _ = animator_fill(ckpt, foot_lock=args.defaults, self_check=args.defaults)
     clips = list(data.test)
     if args.clips and args.clips < len(clips):
         clips = [clips[i] for i in np.linspace(0, len(clips) - 1, args.clips).round().astype(int)]
-    sums: dict[tuple[str, str, str], float] = {}
+    sums: dict[tuple[str, str, str], list[float]] = {}  # (content, part, fill or interpolation) -> [error sum, count]
     counts: dict[str, int] = {}
     for clip in clips:
         content = bandai_namco_content(clip.name) or "(other)"
@@ -84,11 +84,14 @@ def main(argv: list[str] | None = None) -> int:
         gen = generated_frames(n, keys)
         root_in, q_in = root.copy(), q.copy()
         root_in[gen], q_in[gen] = np.nan, np.nan
-        truth = sk.pose(root, q)[1][gen]
+        truth = sk.pose(root, q)[1]
         for who, (r, lq) in (("fill", fill(root_in, q_in, keys)), ("interpolation", interpolate_keyframes(root_in, q_in, keys))):
-            err = np.linalg.norm(sk.pose(np.asarray(r, np.float64), np.asarray(lq, np.float64))[1][gen] - truth, axis=-1)
+            pos = sk.pose(np.asarray(r, np.float64), np.asarray(lq, np.float64))[1]
             for part, joints in parts.items():
-                sums[content, part, who] = sums.get((content, part, who), 0.0) + float(err[:, joints].mean() * len(err))
+                total, n = position_error(pos[:, joints], truth[:, joints], gen)
+                acc = sums.setdefault((content, part, who), [0.0, 0])
+                acc[0] += total
+                acc[1] += n
         counts[content] = counts.get(content, 0) + int(gen.sum())
     mode = ("the fill's defaults" if args.defaults else "the network alone, no blend" if args.network_alone
             else "as the checkpoint fills") + ("" if args.defaults else ", no self-check, feet free")
@@ -99,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     for content in sorted(counts):
         cells = []
         for part in names:
-            f, i = (sums[content, part, w] / counts[content] for w in ("fill", "interpolation"))
+            f, i = (sums[content, part, w][0] / sums[content, part, w][1] for w in ("fill", "interpolation"))
             cells.append(f"{f:.2f} / {i:.2f} ({f / i:.2f})")
         print(f"| {content} | {counts[content]} | " + " | ".join(cells) + " |")
     return 0

@@ -121,7 +121,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
               BN2),
     Benchmark("body_parts", "body_parts.py", "a fill's error per content and body part (legs, arms, trunk) against "
               "interpolation's", "about 1 min per 100 clips", "prints", "RESULTS.md 3.3, the folds protocol",
-              "<checkpoint> [--split standard] [--keys 15] [--clips N] [--defaults]", BN2),
+              "<checkpoint> [--split standard] [--keys 15] [--clips N] [--defaults | --network-alone]", BN2),
     Benchmark("finetune_unseen", "finetune_unseen.sh", "10 minutes of fine-tuning on motions never seen",
               "about 1 h", "<out>/", "RESULTS.md 4, fine-tuning on your motions", "<out dir> [<folder of takes>]", BN2),
     Benchmark("finetune_levers", "finetune_levers.sh", "levers of the 10-minute fine-tune, the winner picked on "
