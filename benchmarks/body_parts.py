@@ -60,12 +60,13 @@ def main(argv: list[str] | None = None) -> int:
     data = load_dataset("bandai_namco", path=args.data, split=args.split)
     sk = data.skeleton
     parts = body_parts(sk, list(data.contact.indices(sk.names)))
-    ckpt, tmp = args.ckpt, tempfile.TemporaryDirectory()
+    ckpt, tmp = args.ckpt, None  # tmp: the network-alone copy's folder, removed when main returns
     if args.network_alone:
         import torch
 
         raw = read_checkpoint(ckpt)
         raw["hyper_parameters"] = {**raw["hyper_parameters"], "blend": None}
+        tmp = tempfile.TemporaryDirectory()
         ckpt = str(Path(tmp.name) / "network_alone.ckpt")
         torch.save(raw, ckpt)
     fill, _ = animator_fill(ckpt, foot_lock=args.defaults, self_check=args.defaults)
