@@ -122,6 +122,10 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("body_parts", "body_parts.py", "a fill's error per content and body part (legs, arms, trunk) against "
               "interpolation's", "about 1 min per 100 clips", "prints", "RESULTS.md 3.3, the folds protocol",
               "<checkpoint> [--split standard] [--keys 15] [--clips N] [--defaults | --network-alone]", BN2),
+    Benchmark("check_windows", "check_windows.py", "the self-check's error ratio against the fill's own on validation "
+              "clips at two schedules, and the long-window thresholds that follow", "about 2 min per checkpoint",
+              "prints [--json]", "RESULTS.md 3.5, long gaps", "--ckpt fold-1=<ckpt> ... [--keys 15 30] [--clips 30]",
+              f"{BN2}; the folds' checkpoints (benchmarks/folds.sh)"),
     Benchmark("finetune_unseen", "finetune_unseen.sh", "10 minutes of fine-tuning on motions never seen",
               "about 1 h", "<out>/", "RESULTS.md 4, fine-tuning on your motions", "<out dir> [<folder of takes>]", BN2),
     Benchmark("finetune_levers", "finetune_levers.sh", "levers of the 10-minute fine-tune, the winner picked on "

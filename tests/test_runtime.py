@@ -204,6 +204,26 @@ def test_trust_of_the_self_checks():
     assert w[(10, 40)] == (trust_of(4.0 / 4.0), 1.0)  # a long gap pools every check within reach of it
 
 
+def test_checks_near_the_trained_gap_take_the_long_thresholds():
+    """``long_check``: checks whose windows average over that share of the trained gap are judged by the long pair;
+    shorter ones, and every check when it is 1 (the default), by the regular pair."""
+    from inbetweening.runtime.settings import FillSettings
+    from inbetweening.runtime.trust import Check, gap_weights, is_long, trust_of
+
+    s = FillSettings(long_check=0.8, long_x_full=0.9, long_x_none=1.3)
+    x = 1.1  # past the regular x_none (no trust), half-way in the long pair
+    near = [Check(0, 30, 60, x, 1.0)]  # a 59-frame window
+    assert is_long(near, 59, s) and not is_long(near, 80, s) and not is_long(near, None, s)
+    assert not is_long(near, 59, FillSettings())  # off by default
+    assert trust_of(x, 29, s) == 0.0 and abs(trust_of(x, 29, s, long=True) - 0.5) < 1e-12
+    keys = [0, 30, 60]
+    long_w = gap_weights([(0, 30), (30, 60)], keys, near, lambda n: None, s, trained_gap=59)
+    short_w = gap_weights([(0, 30), (30, 60)], keys, near, lambda n: None, s, trained_gap=100)
+    assert abs(long_w[(0, 30)][0] - 0.5) < 1e-12 and short_w[(0, 30)] == (0.0, x)
+    with pytest.raises(InbetweenError, match="fill.long_x_full"):
+        FillSettings(long_x_full=1.2, long_x_none=1.1)
+
+
 class Lift:
     """A backend that predicts the interpolation with the root lifted by up to ``lift`` cm mid-gap: better than the
     interpolation at keys above it, worse below (the self-check's trust between none and full)."""

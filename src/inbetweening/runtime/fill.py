@@ -327,7 +327,8 @@ class FillRuntime:
         for c in work:
             if check and self.settings.adapt_steps > 0:
                 c.backend, c.adaptation = adapt_clip(self, bases[id(c)], c.checks)
-            weights = gap_weights(c.plan.segments, c.keys, c.checks, self.info.blend_weight, self.settings)
+            weights = gap_weights(c.plan.segments, c.keys, c.checks, self.info.blend_weight, self.settings,
+                                  self.info.trained_gap)
             c.weights = {k: w for k, (w, _) in weights.items()}
 
     def _choose(self, c: _Clip) -> None:

@@ -55,6 +55,17 @@ class FillSettings:
     dense_x_none: float = _setting(
         0.95, "self-check in gaps under dense_gap frames: not trusted at all above this error ratio",
         "RESULTS.md 5.2, dense keys (with dense_x_full)", 0.0)
+    long_check: float = _setting(
+        1.0, "self-checks whose windows are on average longer than this share of the model's trained gap are judged "
+        "by long_x_full / long_x_none (1: never)",
+        "issue 51: a network judged on windows near the longest it trained on is judged where it is weakest "
+        "(RESULTS.md 3.5); off by default", 0.0, 1.0)
+    long_x_full: float = _setting(
+        0.65, "self-check with windows over long_check of the trained gap: fully trusted below this error ratio",
+        "issue 51 (with long_check); the default is x_full's", 0.0)
+    long_x_none: float = _setting(
+        1.05, "self-check with windows over long_check of the trained gap: not trusted at all above this error ratio",
+        "issue 51 (with long_check); the default is x_none's", 0.0)
     reach: int = _setting(
         3, "checked keys within this many gaps (of the gap's own length) either side of a gap decide its trust",
         "set by hand with the self-check (RESULTS.md 5.2); not swept", 0)
@@ -110,7 +121,7 @@ class FillSettings:
                 span = f">= {low}" if high is None else f"in [{low}, {high}]"
                 raise InbetweenError(f"fill.{f.name}: must be {span}, got {value!r}")
             object.__setattr__(self, f.name, int(value) if integer else float(value))
-        for full, none in (("x_full", "x_none"), ("dense_x_full", "dense_x_none")):
+        for full, none in (("x_full", "x_none"), ("dense_x_full", "dense_x_none"), ("long_x_full", "long_x_none")):
             if getattr(self, full) >= getattr(self, none):
                 raise InbetweenError(f"fill.{full}: must be below fill.{none} ({getattr(self, none)}), "
                                      f"got {getattr(self, full)}")

@@ -14,7 +14,9 @@ one weight ``w`` in [0, 1] per gap, the product of two pieces of evidence:
   keys are ground truth the user gave: a motion the model does not know shows there first).  Gaps under
   ``dense_gap`` frames are judged more strictly (``dense_x_full``, ``dense_x_none``): with
   dense keys the hidden key lies mid-way in a window twice as long as the gaps filled, where the network gains more
-  over interpolation than in the gaps themselves, so the check overrates it there (RESULTS.md section 5.2).
+  over interpolation than in the gaps themselves, so the check overrates it there (RESULTS.md section 5.2).  Checks
+  whose windows are near the longest gap the model trained on (over ``long_check`` of it) can take their own pair
+  (``long_x_full``, ``long_x_none``): there the network is judged where it is weakest (RESULTS.md section 3.5).
 
 A gap with no checked key near it (two keys only; keys so far apart that the check's window is longer than the
 model's trained gap) keeps the calibrated weight.  RESULTS.md section 5.2 measures the rule against its alternatives.
@@ -33,7 +35,7 @@ from inbetweening.geometry.skeleton import Skeleton
 
 from .settings import DEFAULT_SETTINGS, FillSettings
 
-__all__ = ["blend", "Check", "checks_of", "gap_share", "gap_weights", "trust_of"]
+__all__ = ["blend", "Check", "checks_of", "gap_share", "gap_weights", "is_long", "trust_of"]
 
 
 def blend(interp_root: np.ndarray, interp_q: np.ndarray, net_root: np.ndarray, net_q: np.ndarray,
@@ -72,20 +74,31 @@ def scored(check: Check, skeleton: Skeleton, root: np.ndarray, q: np.ndarray, pr
     return Check(a, k, b, float(err[0]), float(err[1]))
 
 
-def trust_of(x: float, gap: int | None = None, settings: FillSettings = DEFAULT_SETTINGS) -> float:
+def trust_of(x: float, gap: int | None = None, settings: FillSettings = DEFAULT_SETTINGS, long: bool = False) -> float:
     """The self-check's trust for an error ratio ``x`` in a gap of ``gap`` frames (module docstring; ``None``: a gap
-    of ``settings.dense_gap`` frames or more)."""
+    of ``settings.dense_gap`` frames or more); ``long``: checked on windows over ``settings.long_check`` of the
+    trained gap (:func:`is_long`)."""
     s = settings
     full, none = ((s.dense_x_full, s.dense_x_none) if gap is not None and gap < s.dense_gap
-                  else (s.x_full, s.x_none))
+                  else (s.long_x_full, s.long_x_none) if long else (s.x_full, s.x_none))
     return float(np.clip((none - x) / (none - full), 0.0, 1.0))
 
 
+def is_long(checks: Sequence[Check], trained_gap: int | None, settings: FillSettings = DEFAULT_SETTINGS) -> bool:
+    """Whether ``checks``' windows (``b - a - 1`` frames) are on average longer than ``settings.long_check`` of
+    ``trained_gap`` (``None``: never): near the longest gap the network trained on it is judged where it is
+    weakest, so such checks take their own thresholds (RESULTS.md 3.5)."""
+    if trained_gap is None or not checks or settings.long_check >= 1.0:
+        return False
+    return float(np.mean([c.b - c.a - 1 for c in checks])) > settings.long_check * trained_gap
+
+
 def gap_weights(segments: Sequence[tuple[int, int]], keys: Sequence[int], checks: Sequence[Check],
-                prior, settings: FillSettings = DEFAULT_SETTINGS) -> dict[tuple[int, int], tuple[float, float | None]]:
+                prior, settings: FillSettings = DEFAULT_SETTINGS,
+                trained_gap: int | None = None) -> dict[tuple[int, int], tuple[float, float | None]]:
     """``{(a, b): (weight, x)}`` for each generated window ``(a, b)`` of a clip: the calibrated ``prior(gap length)``
     (``None``: 1) times the trust of the self-checks near the key gap the window lies in (``x``: their pooled error
-    ratio, ``None`` where there is none)."""
+    ratio, ``None`` where there is none; ``trained_gap``: the model's, for :func:`is_long`)."""
     keys = list(keys)
     out = {}
     for a, b in segments:
@@ -99,7 +112,7 @@ def gap_weights(segments: Sequence[tuple[int, int]], keys: Sequence[int], checks
             out[(a, b)] = (p, None)
             continue
         x = sum(c.net for c in near) / sum(c.interp for c in near)
-        out[(a, b)] = (p * trust_of(x, b - a - 1, settings), float(x))
+        out[(a, b)] = (p * trust_of(x, b - a - 1, settings, is_long(near, trained_gap, settings)), float(x))
     return out
 
 
