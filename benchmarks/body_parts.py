@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT / "src"))
 from inbetweening.data.mirror import side_of  # noqa: E402
 from inbetweening.data.specs import bandai_namco_content  # noqa: E402
 from inbetweening.datasets import load_dataset  # noqa: E402
-from inbetweening.evaluation.keyframes import generated_frames, position_error  # noqa: E402
+from inbetweening.evaluation.keyframes import keyed_clip, position_error  # noqa: E402
 from inbetweening.evaluation.schedules import schedule_keyframes  # noqa: E402
 from inbetweening.geometry.interp import interpolate_keyframes  # noqa: E402
 from inbetweening.predictor.checkpoint import read_checkpoint  # noqa: E402
@@ -80,11 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         keys = schedule_keyframes(args.keys, len(clip.root_pos), np.random.default_rng(0), None)
         if not keys:
             continue
-        n = keys[-1] + 1
-        root, q = np.asarray(clip.root_pos[:n], np.float64), np.asarray(clip.local_q[:n], np.float64)
-        gen = generated_frames(n, keys)
-        root_in, q_in = root.copy(), q.copy()
-        root_in[gen], q_in[gen] = np.nan, np.nan
+        (root, q), (root_in, q_in), gen = keyed_clip(clip.root_pos, clip.local_q, keys)
         truth = sk.pose(root, q)[1]
         for who, (r, lq) in (("fill", fill(root_in, q_in, keys)), ("interpolation", interpolate_keyframes(root_in, q_in, keys))):
             pos = sk.pose(np.asarray(r, np.float64), np.asarray(lq, np.float64))[1]

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))
 
 from inbetweening.datasets import load_dataset  # noqa: E402
-from inbetweening.evaluation.keyframes import generated_frames, position_error  # noqa: E402
+from inbetweening.evaluation.keyframes import keyed_clip, position_error  # noqa: E402
 from inbetweening.evaluation.schedules import schedule_keyframes  # noqa: E402
 from inbetweening.geometry.interp import interpolate_keyframes  # noqa: E402
 from inbetweening.runtime import FillRuntime  # noqa: E402
@@ -52,11 +52,7 @@ def measure(ckpt: str, split: str, keys_every: list[int], n_clips: int, data_pat
             keys = schedule_keyframes(k, len(clip.root_pos), np.random.default_rng(0), None)
             if len(keys) < 3:
                 continue
-            n = keys[-1] + 1
-            root, q = np.asarray(clip.root_pos[:n], np.float64), np.asarray(clip.local_q[:n], np.float64)
-            gen = generated_frames(n, keys)
-            root_in, q_in = root.copy(), q.copy()
-            root_in[gen], q_in[gen] = np.nan, np.nan
+            (root, q), (root_in, q_in), gen = keyed_clip(clip.root_pos, clip.local_q, keys)
             checks = [c for c in checking.fill(root_in, q_in, keys).checks if c.interp > 0]
             if not checks:
                 continue

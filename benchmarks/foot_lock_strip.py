@@ -26,9 +26,7 @@ def fill_both(ib, root: np.ndarray, q: np.ndarray, keys: list[int]) -> dict[str,
     the caller applies the data's rule)."""
     from inbetweening.evaluation import keyframes as KF
 
-    gen = KF.generated_frames(len(root), keys)
-    root_in, q_in = root.copy(), q.copy()
-    root_in[gen], q_in[gen] = np.nan, np.nan
+    _, (root_in, q_in), _ = KF.keyed_clip(root, q, keys)
     out = {}
     for label, lock in zip(LABELS[:2], (True, False)):
         out[label] = ib.fill_arrays(root_in, q_in, keys, foot_lock=lock, with_contacts=True)

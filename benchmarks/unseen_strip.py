@@ -37,11 +37,8 @@ def main(argv=None) -> None:
         raise SystemExit(f"--clip: no test clip {a.clip!r} in the content split (e.g. {data.test[0].name})")
     n = min(a.frames, len(clip.root_pos))
     keys = keyframe_indices(n, a.every)
-    n = keys[-1] + 1
-    root, q = np.asarray(clip.root_pos[:n], np.float64), np.asarray(clip.local_q[:n], np.float64)
-    gen = KF.generated_frames(n, keys)
-    root_in, q_in = root.copy(), q.copy()
-    root_in[gen], q_in[gen] = np.nan, np.nan
+    (root, q), (root_in, q_in), gen = KF.keyed_clip(clip.root_pos, clip.local_q, keys)
+    n = len(root)
     *model, contact = Inbetweener.from_checkpoint(a.ckpt).fill_arrays(root_in, q_in, keys, with_contacts=True)
     interp = interpolate_keyframes(root_in, q_in, keys)
     sk = data.skeleton

@@ -67,6 +67,18 @@ def generated_frames(num_frames: int, keys: Sequence[int]) -> np.ndarray:
     return gen
 
 
+def keyed_clip(root: np.ndarray, local_q: np.ndarray, keys: Sequence[int]):
+    """A clip as the protocol hands it to a fill: truncated to its last key (``keys`` sorted), every other frame NaN so
+    nothing can read the ground truth.  Returns ``(truth, given, generated)``: ``(root, local_q)`` of the truncated
+    clip (float64), the same with the generated frames NaN, and those frames' indices (:func:`generated_frames`)."""
+    n = keys[-1] + 1
+    truth = (np.asarray(root[:n], np.float64), np.asarray(local_q[:n], np.float64))
+    gen = generated_frames(n, keys)
+    given = (truth[0].copy(), truth[1].copy())
+    given[0][gen], given[1][gen] = np.nan, np.nan
+    return truth, given, gen
+
+
 def position_error(pred_gp: np.ndarray, gt_gp: np.ndarray, frames: np.ndarray) -> tuple[float, int]:
     """Sum and count of per-joint position errors over the selected frames.
 
@@ -219,11 +231,7 @@ def evaluate_clips(clips: Sequence, skeleton: Skeleton, fill: Fill | None, inter
             keys = schedule_keyframes(k, len(clip.root_pos), np.random.default_rng([int(seed), i]), positions)
             if not keys:
                 continue
-            n = keys[-1] + 1
-            gt = (np.asarray(clip.root_pos[:n], np.float64), np.asarray(clip.local_q[:n], np.float64))
-            gen = generated_frames(n, keys)
-            root_in, q_in = gt[0].copy(), gt[1].copy()
-            root_in[gen], q_in[gen] = np.nan, np.nan  # a fill that reads unknown frames fails loudly
+            gt, (root_in, q_in), gen = keyed_clip(clip.root_pos, clip.local_q, keys)  # unknown frames NaN
             interp = interpolate_keyframes(root_in, q_in, keys)
             pred = interp if fill is None else fill(root_in, q_in, keys)
             if not (np.isfinite(pred[0]).all() and np.isfinite(pred[1]).all()):
