@@ -45,6 +45,19 @@ def test_keyframe_indices_truncate_to_the_last_key():
     np.testing.assert_array_equal(KF.scored_pairs(np.array([0, 1, 0, 0, 1, 0], bool)), [1, 1, 0, 1, 1])
 
 
+def test_keyed_clip_hides_every_frame_but_the_keys_and_ends_at_the_last_key():
+    rng = np.random.default_rng(3)
+    root, q = rng.normal(size=(20, 3)), rng.normal(size=(20, 4, 4))
+    keys = [0, 4, 5, 13]
+    (tr, tq), (gr, gq), gen = KF.keyed_clip(root, q, keys)
+    assert tr.shape == (14, 3) and tq.shape == (14, 4, 4) and gr.shape == (14, 3)
+    assert list(np.flatnonzero(gen)) == [t for t in range(14) if t not in keys]
+    assert np.array_equal(gr[keys], root[keys]) and np.array_equal(gq[keys], q[keys])  # keys bit-exact
+    assert np.isnan(gr[gen]).all() and np.isnan(gq[gen]).all() and np.array_equal(tr, root[:14])
+    gr[1] = 0.0
+    assert root[1, 0] != 0.0 or root[1, 1] != 0.0  # a copy: the caller's clip is untouched
+
+
 def test_position_error_is_the_mean_distance_on_the_selected_frames():
     gt = np.zeros((4, 2, 3))
     pred = gt.copy()

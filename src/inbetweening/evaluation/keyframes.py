@@ -70,7 +70,7 @@ def generated_frames(num_frames: int, keys: Sequence[int]) -> np.ndarray:
 def keyed_clip(root: np.ndarray, local_q: np.ndarray, keys: Sequence[int]):
     """A clip as the protocol hands it to a fill: truncated to its last key (``keys`` sorted), every other frame NaN so
     nothing can read the ground truth.  Returns ``(truth, given, generated)``: ``(root, local_q)`` of the truncated
-    clip (float64), the same with the generated frames NaN, and those frames' indices (:func:`generated_frames`)."""
+    clip (float64), the same with the generated frames NaN, and those frames' mask (:func:`generated_frames`)."""
     n = keys[-1] + 1
     truth = (np.asarray(root[:n], np.float64), np.asarray(local_q[:n], np.float64))
     gen = generated_frames(n, keys)
