@@ -2,7 +2,8 @@
 (the training contents' held-out takes: ``training.datamodule.split_train_val``, never test clips), and the long
 thresholds that follow from it (``fill.long_check``, ``fill.long_x_full``, ``fill.long_x_none``; RESULTS.md 3.5).
 
-For each checkpoint (one per fold: ``--ckpt fold-1=<a.ckpt> fold-2=<b.ckpt> ...``), each schedule (a key every ``K``
+For each checkpoint (one per fold: ``--ckpt fold-1=<a.ckpt> fold-2=<b.ckpt> ...``; ``split=a.ckpt,b.ckpt,...``: their
+ensemble), each schedule (a key every ``K``
 frames; default 15 and 30) and each validation clip: the self-check's pooled error ratio ``x`` (the network's error at
 the hidden keys over interpolation's) and the fill's own ratio with the check off (the calibrated blend, feet not
 locked).  Where ``x`` overstates the fill's error more at one schedule than another, the check judges the network
@@ -29,6 +30,7 @@ from inbetweening.evaluation.keyframes import keyed_clip, position_error  # noqa
 from inbetweening.evaluation.schedules import schedule_keyframes  # noqa: E402
 from inbetweening.geometry.interp import interpolate_keyframes  # noqa: E402
 from inbetweening.runtime import FillRuntime  # noqa: E402
+from inbetweening.runtime.ensemble import EnsembleBackend  # noqa: E402
 from inbetweening.runtime.settings import DEFAULT_SETTINGS  # noqa: E402
 from inbetweening.runtime.torch_backend import TorchBackend  # noqa: E402
 from inbetweening.training.datamodule import split_train_val  # noqa: E402
@@ -41,7 +43,9 @@ def measure(ckpt: str, split: str, keys_every: list[int], n_clips: int, data_pat
     _, val = split_train_val(list(data.train), val_fraction)
     if n_clips and n_clips < len(val):
         val = [val[i] for i in np.linspace(0, len(val) - 1, n_clips).round().astype(int)]
-    backend = TorchBackend.from_checkpoint(ckpt)
+    paths = ckpt.split(",")  # several: their ensemble, as the shipped fill
+    members = [TorchBackend.from_checkpoint(p) for p in paths]
+    backend = members[0] if len(members) == 1 else EnsembleBackend(members, paths)
     checking = FillRuntime(backend, foot_lock=False, self_check=True)
     plain = FillRuntime(backend, foot_lock=False, self_check=False)
     sk, out = data.skeleton, {}
@@ -76,7 +80,8 @@ def measure(ckpt: str, split: str, keys_every: list[int], n_clips: int, data_pat
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--ckpt", nargs="+", required=True, help="split=checkpoint, e.g. fold-1=runs/0/checkpoints/calibrated.ckpt")
+    ap.add_argument("--ckpt", nargs="+", required=True,
+                    help="split=checkpoint[,checkpoint...], e.g. fold-1=runs/0/checkpoints/calibrated.ckpt")
     ap.add_argument("--keys", type=int, nargs="+", default=[15, 30],
                     help="schedules: a key every K frames; the last is the long one")
     ap.add_argument("--clips", type=int, default=30, help="validation clips per checkpoint, evenly spaced")
