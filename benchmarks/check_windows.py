@@ -29,11 +29,9 @@ from inbetweening.datasets import load_dataset  # noqa: E402
 from inbetweening.evaluation.keyframes import keyed_clip, position_error  # noqa: E402
 from inbetweening.evaluation.schedules import schedule_keyframes  # noqa: E402
 from inbetweening.geometry.interp import interpolate_keyframes  # noqa: E402
-from inbetweening.runtime import FillRuntime  # noqa: E402
-from inbetweening.runtime.ensemble import EnsembleBackend  # noqa: E402
 from inbetweening.runtime.settings import DEFAULT_SETTINGS  # noqa: E402
-from inbetweening.runtime.torch_backend import TorchBackend  # noqa: E402
 from inbetweening.training.datamodule import split_train_val  # noqa: E402
+from inbetweening.training.evaluate import animator_runtime  # noqa: E402
 
 
 def measure(ckpt: str, split: str, keys_every: list[int], n_clips: int, data_path: str, val_fraction: float) -> dict:
@@ -44,10 +42,9 @@ def measure(ckpt: str, split: str, keys_every: list[int], n_clips: int, data_pat
     if n_clips and n_clips < len(val):
         val = [val[i] for i in np.linspace(0, len(val) - 1, n_clips).round().astype(int)]
     paths = ckpt.split(",")  # several: their ensemble, as the shipped fill
-    members = [TorchBackend.from_checkpoint(p) for p in paths]
-    backend = members[0] if len(members) == 1 else EnsembleBackend(members, paths)
-    checking = FillRuntime(backend, foot_lock=False, self_check=True)
-    plain = FillRuntime(backend, foot_lock=False, self_check=False)
+    model = paths[0] if len(paths) == 1 else paths
+    checking, _ = animator_runtime(model, foot_lock=False, self_check=True)
+    plain, _ = animator_runtime(model, foot_lock=False, self_check=False)
     sk, out = data.skeleton, {}
     for k in keys_every:
         row = {"x": [], "fill_ratio": [], "check_net": 0.0, "check_interp": 0.0, "fill_cm": 0.0, "interp_cm": 0.0,
@@ -112,8 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     short, long_ = args.keys[0], args.keys[-1]
     scale = bias[long_] / bias[short]
     s = DEFAULT_SETTINGS
-    (gap,) = gaps if len(gaps) == 1 else (min(gaps),)
-    share = ((2 * short - 1) + (2 * long_ - 1)) / 2 / gap  # between the two schedules' check windows
+    share = ((2 * short - 1) + (2 * long_ - 1)) / 2 / min(gaps)  # between the two schedules' check windows
     rule = {"long_check": round(share, 3), "long_x_full": round(s.x_full * scale, 3), "long_x_none": round(s.x_none * scale, 3)}
     print(f"\nbias at keys {long_} over keys {short}: {scale:.3f} -> " + " ".join(f"fill.{k}={v}" for k, v in rule.items()))
     if args.json:

@@ -119,14 +119,10 @@ def with_baselines(name: str, metrics: dict, dm: InbetweenDataModule, lengths) -
 
 
 # ------------------------------------------------------------------------------------------ keyframes protocol
-def animator_fill(model, foot_lock: bool = True, self_check: bool = True, settings=None):
-    """The animator's fill (the fill runtime, :class:`~inbetweening.runtime.FillRuntime`, with the torch backend) of
-    ``model``, a checkpoint path, a predictor, or a list of checkpoint paths (their ensemble,
-    :mod:`inbetweening.runtime.ensemble`; the first one's predictor is returned) (feet locked unless
-    ``foot_lock=False``; the self-check of the do-no-harm blend unless ``self_check=False``): ``(fill, predictor)``,
-    ``fill(root, local_q, keys, partial=None) -> (root, local_q)``: what ``predict``, the Python API and Blender fill
-    with (``partial``: partial keys, ``{frame: joints}``); ``settings``: the fill's tuned numbers
-    (:class:`~inbetweening.runtime.settings.FillSettings`; ``None``: the shipped ones)."""
+def animator_runtime(model, foot_lock: bool = True, self_check: bool = True, settings=None):
+    """The animator's fill runtime (:class:`~inbetweening.runtime.FillRuntime`, the torch backend) of ``model``, a
+    checkpoint path, a predictor, or a list of checkpoint paths (their ensemble, :mod:`inbetweening.runtime.ensemble`;
+    the first one's predictor is returned): ``(runtime, predictor)``; the options as :func:`animator_fill`."""
     from inbetweening.runtime import FillRuntime
     from inbetweening.runtime.ensemble import EnsembleBackend
     from inbetweening.runtime.torch_backend import TorchBackend
@@ -140,12 +136,24 @@ def animator_fill(model, foot_lock: bool = True, self_check: bool = True, settin
         backend, first = EnsembleBackend(members, [str(p) for p in model]), members[0]
     runtime = FillRuntime(backend, foot_lock=foot_lock, self_check=self_check,
                           settings=settings or DEFAULT_SETTINGS)
+    return runtime, first.predictor
+
+
+def animator_fill(model, foot_lock: bool = True, self_check: bool = True, settings=None):
+    """The animator's fill (the fill runtime, :class:`~inbetweening.runtime.FillRuntime`, with the torch backend) of
+    ``model``, a checkpoint path, a predictor, or a list of checkpoint paths (their ensemble,
+    :mod:`inbetweening.runtime.ensemble`; the first one's predictor is returned) (feet locked unless
+    ``foot_lock=False``; the self-check of the do-no-harm blend unless ``self_check=False``): ``(fill, predictor)``,
+    ``fill(root, local_q, keys, partial=None) -> (root, local_q)``: what ``predict``, the Python API and Blender fill
+    with (``partial``: partial keys, ``{frame: joints}``); ``settings``: the fill's tuned numbers
+    (:class:`~inbetweening.runtime.settings.FillSettings`; ``None``: the shipped ones)."""
+    runtime, predictor = animator_runtime(model, foot_lock, self_check, settings)
 
     def fill(root, local_q, keys, partial=None):
         out = runtime.fill(root, local_q, keys, partial=partial)
         return out.root, out.local_q
 
-    return fill, first.predictor
+    return fill, predictor
 
 
 def evaluate_keyframes(cfg: DictConfig) -> dict[str, float]:
