@@ -1,7 +1,9 @@
-"""Shared fixtures: a per-session dataset cache and Hydra config composition."""
+"""Shared fixtures: a per-session dataset cache and Hydra config composition; :func:`benchmark_script`."""
 from __future__ import annotations
 
+import importlib.util
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -10,6 +12,19 @@ from hydra.core.global_hydra import GlobalHydra
 from omegaconf import open_dict
 
 CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")
+BENCHMARKS_DIR = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def benchmark_script(name: str):
+    """``benchmarks/<name>.py`` loaded as a module (its sibling helpers, such as ``_report``, importable meanwhile)."""
+    sys.path.insert(0, str(BENCHMARKS_DIR))
+    try:
+        spec = importlib.util.spec_from_file_location(name, BENCHMARKS_DIR / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+    finally:
+        sys.path.remove(str(BENCHMARKS_DIR))
 # the start of a script run in a subprocess that must work without PyTorch (the fill runtime, as Blender bundles it)
 BLOCK_TORCH = """
 import importlib.abc, sys

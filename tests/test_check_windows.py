@@ -2,22 +2,17 @@
 under the no-more-harm rule (its measurements need BN-2 and run in ``python -m benchmarks run check_windows``)."""
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import pytest
 
+from conftest import benchmark_script
 from inbetweening.runtime.settings import FillSettings
 
 
 @pytest.fixture(scope="module")
 def check_windows():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "check_windows.py"
-    spec = importlib.util.spec_from_file_location("check_windows", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return benchmark_script("check_windows")
 
 
 def test_candidate_pairs_run_geometrically_from_the_regular_pair_to_the_rule(check_windows):

@@ -1,25 +1,14 @@
 """``benchmarks/train_throughput.py`` counts the FLOPs of the fused CPU attention that torch's own table leaves out."""
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 import torch
 from torch.utils.flop_counter import FlopCounterMode
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+from conftest import benchmark_script
 
 
 @pytest.fixture(scope="module")
 def tp():
-    sys.path.insert(0, str(BENCH))  # the script imports its sibling _report
-    try:
-        spec = importlib.util.spec_from_file_location("train_throughput", BENCH / "train_throughput.py")
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
-        return mod
-    finally:
-        sys.path.remove(str(BENCH))
+    return benchmark_script("train_throughput")
 
 
 def test_fused_cpu_attention_flops_are_counted(tp):
