@@ -25,6 +25,8 @@ def benchmark_script(name: str):
         return module
     finally:
         sys.path.remove(str(BENCHMARKS_DIR))
+
+
 # the start of a script run in a subprocess that must work without PyTorch (the fill runtime, as Blender bundles it)
 BLOCK_TORCH = """
 import importlib.abc, sys

@@ -276,25 +276,15 @@ def _bvh(root, q):
     return make_bvh(q, root)
 
 
-def _foot_lock_strip():
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "foot_lock_strip.py"
-    spec = importlib.util.spec_from_file_location("foot_lock_strip", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_foot_lock_strip_draws_locked_unlocked_and_truth(tiny_contact_checkpoint, tiny_checkpoint, tmp_path):
     """benchmarks/foot_lock_strip.py's picture on a synthetic clip: three panels in its order, each titled with its foot
     skating, the ground truth's by the evaluation's own numbers; a model without contact channels locks on the
     contacts detected on its fill."""
+    from conftest import benchmark_script
     from inbetweening.api.inbetweener import Inbetweener
     from inbetweening.evaluation import keyframes as KF
 
-    strip = _foot_lock_strip()
+    strip = benchmark_script("foot_lock_strip")
     ib = Inbetweener.from_checkpoint(tiny_contact_checkpoint)
     root, q = _clip(61, seed=2)
     fig, skate = strip.draw(ib, root, q, 30, "synthetic")
