@@ -112,10 +112,31 @@ def _target_args(cfg, key: str, given_elsewhere: tuple[str, ...] = ()) -> None:
             raise ConfigError(f"{key}.{k}: missing (a required argument of {target})")
 
 
+def _check_adapters(node) -> None:
+    if node is None:
+        return
+    if not hasattr(node, "keys"):
+        raise ConfigError(f"optim.adapters: must be null or settings (rank, alpha, layers), got {node!r}")
+    for k in node:
+        if k not in ("rank", "alpha", "layers"):
+            raise ConfigError(f"optim.adapters.{k}: not a setting of the adapters; set rank, alpha or layers")
+    rank = node.get("rank")
+    if isinstance(rank, bool) or not isinstance(rank, int) or rank < 0:
+        raise ConfigError(f"optim.adapters.rank: must be an integer >= 0 (0: no adapters), got {rank!r}")
+    alpha = node.get("alpha")
+    if alpha is not None and (isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not alpha > 0):
+        raise ConfigError(f"optim.adapters.alpha: must be a number > 0 (the change is scaled by alpha / rank), got {alpha!r}")
+    layers = node.get("layers")
+    if layers is not None and (isinstance(layers, str) or not all(isinstance(x, str) and x for x in layers)):
+        raise ConfigError(f"optim.adapters.layers: must be a list of linear-layer name patterns (e.g. ['layers.*']), "
+                          f"got {layers!r}")
+
+
 def _check_optim(cfg) -> None:
     """``optim.optimizer``: a torch optimiser partial, ``lr > 0``; ``optim.scheduler``: null or a schedule partial
     (``warmup_steps >= 0``, ``decay``, ``min_lr_ratio`` in [0, 1]); ``optim.freeze``: a list of patterns (each is
-    matched against the network when the module is built: :func:`~inbetweening.training.module.freeze`)."""
+    matched against the network when the module is built: :func:`~inbetweening.training.module.freeze`);
+    ``optim.adapters``: null or ``rank`` (an integer >= 0), ``alpha`` (> 0) and ``layers`` (a list of patterns)."""
     import torch
 
     from inbetweening.training.schedules import DECAYS
@@ -124,9 +145,10 @@ def _check_optim(cfg) -> None:
     if optim is None:
         return
     for k in optim:
-        if k not in ("optimizer", "scheduler", "freeze"):
+        if k not in ("optimizer", "scheduler", "freeze", "adapters"):
             raise ConfigError(f"optim.{k}: not a setting of optim; set optim.optimizer.* (e.g. optim.optimizer.lr), "
-                              f"optim.scheduler.* (e.g. optim.scheduler.warmup_steps) or optim.freeze")
+                              f"optim.scheduler.* (e.g. optim.scheduler.warmup_steps), optim.freeze or optim.adapters")
+    _check_adapters(_get(cfg, "optim.adapters"))
     freeze = _get(cfg, "optim.freeze")
     if freeze is not None and (isinstance(freeze, str) or not all(isinstance(x, str) and x for x in freeze)):
         raise ConfigError(f"optim.freeze: must be a list of parameter-name patterns (e.g. ['layers.[0-2].*']), "

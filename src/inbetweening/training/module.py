@@ -27,6 +27,7 @@ from inbetweening.predictor.checkpoint import (
 from inbetweening.predictor.masks import JointGaps
 from inbetweening.predictor.predictor import LEGACY_CENTRE, Predictor
 from inbetweening.predictor.settings import PredictorSettings
+from inbetweening.training.adapters import LowRankAdapters
 from inbetweening.training.config import ConfigError
 from inbetweening.training.distil import Teacher
 from inbetweening.training.losses import total_loss
@@ -105,6 +106,8 @@ class InbetweenModule(L.LightningModule):
         self.optim_cfg = upgrade_optim(optim)  # checkpoints of the old form (optim.name, optim.lr, ...) still load
         self.hparams["optim"] = self.optim_cfg
         self.frozen = freeze(self.net, self.optim_cfg.get("freeze") or ())  # optim.freeze: kept as they are
+        # optim.adapters: low-rank changes of the linear layers trained instead of the network's weights
+        self.adapters = LowRankAdapters.of(self.net, self.optim_cfg.get("adapters"))
         j = self.skeleton.num_joints
         mean, std = (self.mean, self.std) if score_stats is None else (score_stats["mean"], score_stats["std"])
         self.val_bench = BenchmarkMetric(mean, std, val_lengths)
@@ -151,6 +154,14 @@ class InbetweenModule(L.LightningModule):
 
     def on_save_checkpoint(self, checkpoint: dict) -> None:
         checkpoint["val_l2p_mean_best"] = self.val_l2p_mean_best  # the best so far survives a resume
+
+    def on_train_batch_start(self, batch, batch_idx: int) -> None:
+        if self.adapters is not None:
+            self.adapters.start()  # the weights the adapters change: those the first step finds (init_from's)
+
+    def on_train_batch_end(self, outputs, batch, batch_idx: int) -> None:
+        if self.adapters is not None:
+            self.adapters.merge()  # the network holds its merged weights after every step
 
     def on_fit_start(self) -> None:
         self.val_interp_cache = None  # the validation windows may differ from a previous fit's
@@ -205,7 +216,8 @@ class InbetweenModule(L.LightningModule):
 
     @property
     def trainable(self) -> bool:
-        return bool(getattr(self.net, "trainable", True)) and any(p.requires_grad for p in self.net.parameters())
+        learns = any(p.requires_grad for p in self.net.parameters()) or self.adapters is not None
+        return bool(getattr(self.net, "trainable", True)) and learns
 
     # ------------------------------------------------------------------ forward
     def forward(self, x: torch.Tensor, known: torch.Tensor, interp: torch.Tensor | None = None) -> torch.Tensor:

@@ -69,7 +69,7 @@ def upgrade_optim(optim: dict | None) -> dict:
         "_target_": SCHEDULE_TARGET, "_partial_": True, "warmup_steps": warmup,
         "decay": "constant" if constant else "linear" if sched == "linear" else "cosine",  # (any other: cosine)
         "min_lr_ratio": float(optim.get("min_lr_ratio", 0.0))}
-    return {"optimizer": opt, "scheduler": scheduler, "freeze": []}
+    return {"optimizer": opt, "scheduler": scheduler, "freeze": [], "adapters": {"rank": 0, "alpha": None, "layers": ["*"]}}
 
 
 def build_optimizers(optim: dict, params: Iterable[torch.nn.Parameter], total_steps: Callable[[], int]):
