@@ -34,7 +34,6 @@ class LowRankAdapters(torch.nn.Module):
             linear = [n for n, m in net.named_modules() if isinstance(m, torch.nn.Linear)]
             raise ConfigError(f"optim.adapters.layers: {list(layers)} matches no linear layer of the network "
                               f"({type(net).__name__}: {', '.join(linear[:6])}{', ...' if len(linear) > 6 else ''})")
-        self.names = [n for n, _ in found]
         self.rank, self.scale = int(rank), float(alpha) / int(rank)
         self.a = torch.nn.ParameterList()
         self.b = torch.nn.ParameterList()
