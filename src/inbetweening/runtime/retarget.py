@@ -354,8 +354,8 @@ class Retarget:
             mover = carriers[-1]
             target = qrot(np.broadcast_to(qinv(self.world), root.shape[:-1] + (4,)),
                           np.asarray(root, np.float64) - self.lift * UP) / self.scale
-            gp = fk(lq, lp, r.parents)[1]
+            gq, gp = fk(lq, lp, r.parents)
             shift = target - gp[:, hips]  # move the mover by what the hips lack
             pm = r.parents[mover]
-            lp[:, mover] += shift if pm < 0 else qrot(qinv(fk(lq, lp, r.parents)[0][:, pm]), shift)
+            lp[:, mover] += shift if pm < 0 else qrot(qinv(gq[:, pm]), shift)
         return lq, lp

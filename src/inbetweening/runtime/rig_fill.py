@@ -128,12 +128,6 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
     times[np.searchsorted(span, keys)] = model_keys  # the keys at their own model frames
     for t in part:
         times[t - first] = model_at[t]
-    m_root, m_q = _resample(model.root, model.local_q, times)
-    free_p, free_q = interpolate_keyframes(src_p[span].reshape(len(span), -1), lq[span], [k - first for k in keys])
-    if part:  # bones without a slot: through their partial keys too
-        free_q = src_q[span]
-    out_q, out_p = lq.copy(), lp.copy()
-    out_q[span], out_p[span] = retarget.to_rig(m_root, m_q, free_q, free_p.reshape(len(span), -1, 3), movers)
     generated, kept = [], np.zeros(n, dtype=bool)
     for a, b in key_gaps(keys):  # a gap without frames at the model's rate: the keys' alone, changed when they are
         ma, mb = to_model[(a, b)]
@@ -143,6 +137,15 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
         else:
             kept[a + 1 : b] = True
     kept[keys] = True
+    free_p, free_q = interpolate_keyframes(src_p[span].reshape(len(span), -1), lq[span], [k - first for k in keys])
+    if part:  # bones without a slot: through their partial keys too
+        free_q = src_q[span]
+    out_q, out_p = lq.copy(), lp.copy()
+    new = ~kept[span]  # the frames the fill changes: carried back frame by frame (the others are the input's)
+    if new.any():
+        m_root, m_q = _resample(model.root, model.local_q, times[new])
+        out_q[span[new]], out_p[span[new]] = retarget.to_rig(m_root, m_q, free_q[new],
+                                                             free_p[new].reshape(int(new.sum()), -1, 3), movers)
     out_q[kept], out_p[kept] = lq[kept], lp[kept]
     for t, mask in part.items():  # the partial keys' bones exactly as keyed
         out_q[t, mask], out_p[t, mask] = lq[t, mask], lp[t, mask]
