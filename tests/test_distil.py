@@ -121,6 +121,17 @@ def test_teacher_config_errors_name_the_key(tiny_checkpoint, tmp_path):
         Teacher([str(tiny_checkpoint)]).check(Skeleton(["a", "b"], [-1, 0], np.zeros((2, 3))), 30.0)
 
 
+def test_the_teacher_takes_data_at_its_rate_as_a_file_gives_it(tiny_checkpoint):
+    """A folder of the teacher's own takes reads 30 fps where the teacher's data read 30.00003 (a frame time written
+    as 0.033333): the same rate; 24 fps is not."""
+    teacher = Teacher([str(tiny_checkpoint)])
+    fps, sk = teacher.info.fps, teacher.info.skeleton
+    teacher.check(sk, fps + 3e-5)
+    teacher.check(sk, 1.0 / round(1.0 / fps, 6))
+    with pytest.raises(ConfigError, match=r"teacher.checkpoints: .* fps, the data is at 24"):
+        teacher.check(sk, 24.0)
+
+
 @pytest.mark.slow
 def test_a_run_with_a_teacher_trains_and_records_it(tiny_checkpoint, tmp_path, cache_dir):
     """``teacher=shipped teacher.checkpoints=[...]`` on the tiny run: it trains, the teacher moves its weights (the same

@@ -328,7 +328,7 @@ class Inbetweener:
         except DatasetError as e:
             raise InbetweenError(f"{e} (this model fills its own skeleton only; retargeting another character "
                                  "needs a model of the humanoid slots, such as the shipped ones)") from None
-        if bvh.frame_time > 0 and abs(1.0 / bvh.frame_time - self.fps) > 0.5:
+        if bvh.frame_time > 0 and not self.runtime.info.same_rate(1.0 / bvh.frame_time):
             warnings.warn(f"{bvh.source}: {1.0 / bvh.frame_time:.3g} fps, the model was trained at {self.fps:.3g} "
                           f"fps; gaps are counted in the file's frames", stacklevel=2)
         n_out = out_pos[-1] + 1

@@ -78,6 +78,11 @@ class ModelInfo:
             return None
         return self.blend[min(max(int(gap), 1), len(self.blend)) - 1]
 
+    def same_rate(self, fps: float) -> bool:
+        """Whether motion at ``fps`` frames per second runs at the model's rate: within half a frame per second (a
+        file's frame time rounded, 30 against 30.00003, is the same rate; 24 or 60 is not)."""
+        return abs(float(fps) - float(self.fps)) <= 0.5
+
 
 class Backend(Protocol):
     """The network, as the runtime calls it.

@@ -82,7 +82,7 @@ def fill_rig(runtime, retarget, local_q, local_p, keys: Sequence[int], *, movers
     keys, part = check_clip("fill_rig", n, keys, partial, list(retarget.rig.names), [lq, lp])
     only, previous = check_refill(keys, only, previous)
     first, last = keys[0], keys[-1]
-    ratio = 1.0 if not fps or abs(float(fps) - info.fps) <= 0.5 else info.fps / float(fps)
+    ratio = 1.0 if not fps or info.same_rate(fps) else info.fps / float(fps)
     finite = np.isfinite(lq).all((1, 2)) & np.isfinite(lp).all((1, 2))
     context = [t for t in range(first) if finite[t]]
     rows = context + sorted(set(keys) | set(part))

@@ -41,13 +41,14 @@ class Teacher:
         self.info = backend.info
 
     def check(self, skeleton, fps: float) -> None:
-        """The student's data must be the teacher's skeleton (joints in the same order) at its frame rate."""
+        """The student's data must be the teacher's skeleton (joints in the same order) at its frame rate
+        (:meth:`ModelInfo.same_rate <inbetweening.runtime.model.ModelInfo.same_rate>`)."""
         mine = self.info.skeleton
         if list(mine.names) != list(skeleton.names) or list(mine.parents) != list(skeleton.parents):
             raise ConfigError(f"teacher.checkpoints: {self.paths[0]} is a model of another skeleton than the data's "
                               f"({len(mine.names)} joints {list(mine.names)[:3]}..., the data "
                               f"{len(skeleton.names)} joints {list(skeleton.names)[:3]}...)")
-        if abs(float(self.info.fps) - float(fps)) > 1e-6:
+        if not self.info.same_rate(fps):
             raise ConfigError(f"teacher.checkpoints: {self.paths[0]} was trained at {self.info.fps} fps, the data is "
                               f"at {fps} fps")
 

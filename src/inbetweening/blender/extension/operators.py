@@ -144,9 +144,8 @@ class INBETWEEN_OT_fill(bpy.types.Operator):
             return {"CANCELLED"}
         context.view_layer.update()
         fps = context.scene.render.fps / context.scene.render.fps_base
-        model_fps = model.info.fps
-        if abs(fps - model_fps) > 0.5:
-            self.report({"WARNING"}, f"the scene runs at {fps:.3g} fps, the model was trained at {model_fps:.3g} fps; "
+        if not model.info.same_rate(fps):
+            self.report({"WARNING"}, f"the scene runs at {fps:.3g} fps, the model was trained at {model.info.fps:.3g} fps; "
                                      "gaps are counted in frames")
         LAST_FILL["seconds"] = time.perf_counter() - t0
         kept = f", {info['kept']} unchanged gap(s) kept" if info["kept"] else ""
